@@ -61,6 +61,7 @@ TRAINING_COLUMNS: Final = (
     TASK_INFO,
     STEP,
     PHASE_IPSI,
+    TIME_S,
     FOOT_ANGLE,
     SHANK_ANGLE,
     HEEL_FORWARD,

@@ -1,0 +1,180 @@
+"""Phase EKF over ``[phase, phase rate, pseudo stride length, incline]`` (seed 000 section II-C).
+
+State ``x = [p, pdot, lp, r]``: phase in [0, 1), phase rate (1/s), pseudo stride length ``lp`` (any
+real; the stride length in leg lengths is ``l = (4/pi) atan(pi lp / 4) + 2``, eq. 15, always in
+(0, 4)) and incline r (deg). Measurements ``z`` (6,): foot angle (deg), foot angular velocity (deg/s),
+shank angle, shank angular velocity, high-passed heel forward and heel up positions (m); a NaN entry
+is a missing sensor and that channel is left out of the update (measurement subsets, II-C3).
+
+Interface as filterpy's ``ExtendedKalmanFilter``: :meth:`PhaseEKF.predict`, :meth:`PhaseEKF.update`
+(``z=None`` skips), attributes ``x``, ``P``, ``y``, ``S``, ``K``, ``log_likelihood``, ``mahalanobis``.
+
+Choices where the paper and the authors' code differ (``shared/reference/estimators.md``):
+
+- process noise ``Q = diag(0, s_pdot^2, s_lp^2, s_r^2) * dt / q_time_unit``. The code uses
+  ``q_time_unit = 0.01`` s, the text ``1`` s (a factor 100 apart); defaults follow the code, whose
+  tuning the reported simulation numbers come from.
+- covariance update in Joseph form (as filterpy), algebraically equal to the paper's ``(I - KH) P``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from estimators import _kernels
+from estimators.basis import Array
+from estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
+
+#: Process-noise standard deviations (pdot, lp, r) for simulation and treadmill (seed 000 II-C5).
+Q_STD_TREADMILL = (6e-4, 9e-4, 6e-3)
+#: Process-noise standard deviations for the outdoor trials.
+Q_STD_OUTDOOR = (1e-3, 2e-3, 5e-2)
+#: Variance used to freeze a state in the no-task ablation (paper H2).
+FROZEN_VARIANCE = 1e-20
+
+
+def pseudo_from_stride(l_norm: float) -> float:
+    """Inverse of eq. 15: the ``lp`` with ``(4/pi) atan(pi lp / 4) + 2 = l_norm``, for l_norm in (0, 4)."""
+    if not 0.0 < l_norm < 4.0:
+        raise ValueError(f"normalised stride length must be in (0, 4), got {l_norm}")
+    return 4.0 / math.pi * math.tan(math.pi / 4.0 * (l_norm - 2.0))
+
+
+def stride_from_pseudo(lp: float) -> float:
+    """Eq. 15: stride length in leg lengths from the pseudo stride length."""
+    return _kernels.stride_from_pseudo(lp)[0]
+
+
+@dataclass(frozen=True)
+class EKFConfig:
+    """Tuning of :class:`PhaseEKF`; defaults are seed 000's simulation/treadmill values.
+
+    Attributes:
+        q_std: process-noise standard deviations of (pdot, lp, r) per ``q_time_unit``.
+        q_time_unit: the time over which ``q_std`` accrues (s); see the module docstring.
+        p0: initial covariance ``p0 * I``.
+        initial_phase_rate: 1/s.
+        initial_stride_length: in leg lengths (paper: 1.3).
+        initial_incline: deg.
+        measurement_noise_scale: multiplies ``Sigma_R(p)``; 1 is the paper.
+        process_noise_scale: multiplies ``Q``; 1 is the paper.
+        no_task: freeze lp and r at their initial values (the paper's no-task ablation, H2).
+    """
+
+    q_std: tuple[float, float, float] = Q_STD_TREADMILL
+    q_time_unit: float = 0.01
+    p0: float = 1e-3
+    initial_phase_rate: float = 1.0
+    initial_stride_length: float = 1.3
+    initial_incline: float = 0.0
+    measurement_noise_scale: float = 1.0
+    process_noise_scale: float = 1.0
+    no_task: bool = False
+
+    def initial_state(self) -> Array:
+        return np.array(
+            [0.0, self.initial_phase_rate, pseudo_from_stride(self.initial_stride_length), self.initial_incline]
+        )
+
+    def initial_covariance(self) -> Array:
+        P = self.p0 * np.eye(4)
+        if self.no_task:
+            P[2, 2] = P[3, 3] = FROZEN_VARIANCE
+        return P
+
+    def q_diag(self, dt: float) -> Array:
+        q = np.array([0.0, *(s * s for s in self.q_std)]) * (dt / self.q_time_unit) * self.process_noise_scale
+        if self.no_task:
+            q[2] = q[3] = FROZEN_VARIANCE
+        return q
+
+
+class PhaseEKF:
+    """Seed 000's phase EKF.
+
+    Args:
+        coef: gait-model coefficients ``(4, 2, 2, 2N+1)`` (:mod:`estimators.gait_model`).
+        noise: heteroscedastic measurement noise ``Sigma_R(p)``.
+        leg_length: the user's leg length (m); scales stride length and heel positions.
+        config: tuning.
+
+    Attributes:
+        x: state ``(4,)``; P: covariance ``(4, 4)``.
+        y: innovation ``(6,)`` of the last update (NaN on channels not measured); S: ``(6, 6)``;
+        K: gain ``(4, 6)``; z_pred: ``h(x)`` at the last prior ``(6,)``; H: Jacobian ``(6, 4)``.
+        log_likelihood, mahalanobis: of the last update's innovation.
+    """
+
+    def __init__(self, coef: Array, noise: NoiseModel, leg_length: float, config: EKFConfig | None = None):
+        if coef.ndim != 4 or coef.shape[:3] != (N_OUTPUTS, 2, 2):
+            raise ValueError(f"coef must have shape (4, 2, 2, K), got {coef.shape}")
+        if not leg_length > 0:
+            raise ValueError(f"leg_length must be positive, got {leg_length}")
+        self.config = config or EKFConfig()
+        self.coef = np.ascontiguousarray(coef, dtype=np.float64)
+        self.leg_length = float(leg_length)
+        self._bins = np.ascontiguousarray(noise.bins * self.config.measurement_noise_scale)
+        self.x = self.config.initial_state()
+        self.P = self.config.initial_covariance()
+        self.y = np.full(N_CHANNELS, np.nan)
+        self.S = np.full((N_CHANNELS, N_CHANNELS), np.nan)
+        self.K = np.full((4, N_CHANNELS), np.nan)
+        self.z_pred = np.zeros(N_CHANNELS)
+        self.H = np.zeros((N_CHANNELS, 4))
+        self.R = np.zeros((N_CHANNELS, N_CHANNELS))
+        self.log_likelihood = 0.0
+        self.mahalanobis = 0.0
+        self._terms = np.zeros((N_OUTPUTS, 7))
+        self._q_dt = -1.0
+        self._q = np.zeros(4)
+
+    def predict(self, dt: float) -> None:
+        """Advance by ``dt`` seconds (eq. 13-14); phase wrapped into [0, 1)."""
+        if dt != self._q_dt:
+            self._q = self.config.q_diag(dt)
+            self._q_dt = dt
+        _kernels.predict(self.x, self.P, dt, self._q)
+
+    def update(self, z: Array | None) -> None:
+        """Correct with measurement ``z`` (6,), NaN for missing channels; ``None`` skips."""
+        if z is None:
+            return
+        _kernels.measurement(self.coef, self.x, self.leg_length, self._terms, self.z_pred, self.H)
+        _kernels.noise_at(self._bins, self.x[0], self.R)
+        m, maha2, logdet = _kernels.update(
+            self.x, self.P, z, self.z_pred, self.H, self.R, self.y, self.S, self.K, True
+        )
+        self.mahalanobis = math.sqrt(maha2)
+        self.log_likelihood = -0.5 * (maha2 + logdet + m * math.log(2.0 * math.pi)) if m else 0.0
+
+    def reset(self, x: Array, P: Array) -> None:
+        """Overwrite state and covariance (the heel-strike backup's reset, II-D)."""
+        self.x[:] = x
+        self.x[0] %= 1.0
+        self.P[:] = P
+
+    @property
+    def phase(self) -> float:
+        return float(self.x[0])
+
+    @property
+    def phase_rate(self) -> float:
+        return float(self.x[1])
+
+    @property
+    def stride_length_norm(self) -> float:
+        """Stride length in leg lengths."""
+        return stride_from_pseudo(float(self.x[2]))
+
+    @property
+    def stride_length(self) -> float:
+        """Stride length in metres."""
+        return self.leg_length * self.stride_length_norm
+
+    @property
+    def incline(self) -> float:
+        """Incline in degrees."""
+        return float(self.x[3])
