@@ -1,0 +1,125 @@
+"""Fitted-model files: save, load, and the model that ships with gaitscope.
+
+A model file is a NumPy ``.npz`` archive (no pickles) holding the arrays of a
+:class:`~estimators.pipeline.TrainedModel` and a JSON :class:`~sessions.schema.ModelProvenance` that
+records what it was trained on. Loading checks the format version and every array's shape, so a
+truncated or foreign file is refused with a message naming it. Writes are atomic.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+import os
+import tempfile
+import zipfile
+from importlib import metadata, resources
+from pathlib import Path
+
+import numpy as np
+from pydantic import ValidationError
+
+from estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
+from estimators.pipeline import TrainedModel
+from estimators.torque import TorqueProfile
+from sessions.errors import DataFormatError
+from sessions.schema import ModelProvenance
+
+DEFAULT_MODEL_NAME = "default_model.npz"
+
+
+def default_model_path() -> Path:
+    """The model that ships with gaitscope, trained on the default cohort."""
+    return Path(str(resources.files("sessions") / "data" / DEFAULT_MODEL_NAME))
+
+
+def gaitscope_version() -> str:
+    try:
+        return metadata.version("gaitscope")
+    except metadata.PackageNotFoundError:
+        return "0+unknown"
+
+
+def provenance(source: str, source_hash: str, **fields: object) -> ModelProvenance:
+    """A provenance record stamped with the current version and UTC time."""
+    return ModelProvenance(
+        gaitscope_version=gaitscope_version(),
+        created_utc=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        source=source,
+        source_sha256=source_hash,
+        **fields,  # type: ignore[arg-type]
+    )
+
+
+def hash_arrays(*arrays: np.ndarray) -> str:
+    """sha256 over the bytes of arrays (the training data's fingerprint)."""
+    h = hashlib.sha256()
+    for a in arrays:
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+def save_model(path: str | Path, model: TrainedModel, prov: ModelProvenance) -> None:
+    """Write ``model`` and its provenance to ``path`` atomically."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(
+                f,
+                coef=model.coef,
+                residual_cov=model.noise.residual_cov,
+                sensor_var=model.noise.sensor_var,
+                torque_coef=model.torque.coef,
+                torque_scale=np.float64(model.torque.scale),
+                torque_cutoff=np.float64(model.torque.cutoff_phase),
+                provenance=np.array(prov.model_dump_json()),
+            )
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def load_model(path: str | Path) -> tuple[TrainedModel, ModelProvenance]:
+    """Read a model file; :class:`DataFormatError` if it is not a valid gaitscope model."""
+    name = str(path)
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            arrays = {k: f[k] for k in f.files}
+    except FileNotFoundError:
+        raise DataFormatError("no such model file", file=name) from None
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
+        raise DataFormatError(f"not a gaitscope model file ({e})", file=name) from None
+    need = ("coef", "residual_cov", "sensor_var", "torque_coef", "torque_scale", "torque_cutoff", "provenance")
+    missing = [k for k in need if k not in arrays]
+    if missing:
+        raise DataFormatError(f"model file lacks {', '.join(missing)}", file=name)
+    try:
+        prov = ModelProvenance.model_validate(json.loads(str(arrays["provenance"])))
+    except (ValidationError, json.JSONDecodeError) as e:
+        raise DataFormatError(f"model provenance is invalid: {e}", file=name) from None
+    coef, cov, var, tcoef = (arrays[k] for k in ("coef", "residual_cov", "sensor_var", "torque_coef"))
+    K = 2 * prov.fourier_order + 1
+    Kt = 2 * prov.torque_fourier_order + 1
+    checks = [
+        ("coef", coef.shape == (N_OUTPUTS, 2, 2, K)),
+        ("residual_cov", cov.ndim == 3 and cov.shape[1:] == (N_CHANNELS, N_CHANNELS)),
+        ("sensor_var", var.shape == (N_CHANNELS,)),
+        ("torque_coef", tcoef.shape == (2, 2, Kt)),
+    ]
+    for key, ok in checks:
+        if not ok:
+            raise DataFormatError(f"array {key!r} has the wrong shape {arrays[key].shape}", file=name)
+    for key in ("coef", "residual_cov", "sensor_var", "torque_coef"):
+        if not np.all(np.isfinite(arrays[key])):
+            raise DataFormatError(f"array {key!r} holds NaN or inf", file=name)
+    model = TrainedModel(
+        coef=coef.astype(np.float64),
+        noise=NoiseModel(cov.astype(np.float64), var.astype(np.float64)),
+        torque=TorqueProfile(
+            tcoef.astype(np.float64), float(arrays["torque_scale"]), float(arrays["torque_cutoff"])
+        ),
+    )
+    return model, prov

@@ -1,0 +1,209 @@
+"""The replay CSV: the input of ``gaitscope replay INPUT.csv`` and the file it writes.
+
+Input: a header row, then one row per sample. ``time_s`` is required and strictly increasing; any of
+the :data:`~sessions.schema.REPLAY_SIGNALS` may follow, at least one of the angle columns
+(:data:`~sessions.schema.REPLAY_ANGLES`); ``heel_strike`` (0/1) is optional; other columns are ignored.
+
+Every problem raises :class:`~sessions.errors.DataFormatError` naming the file, the line (the header
+is line 1) and, where one is at fault, the column, e.g.
+``file trial.csv, column 'time_s', row 7: time goes backwards (1.23 after 1.24)``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Final
+
+import numpy as np
+import pandas as pd
+
+from sessions import schema
+from sessions.errors import DataFormatError
+from sessions.locohub import atomic_output
+
+__all__ = ["ReplayInput", "read_replay_csv", "write_replay_output"]
+
+_MIN_ROWS: Final = 2
+
+
+@dataclass(frozen=True)
+class ReplayInput:
+    """One replay trial, as read from the CSV.
+
+    Attributes:
+        time_s: (n,) float64 sample times in seconds, strictly increasing.
+        signals: the :data:`~sessions.schema.REPLAY_SIGNALS` columns present in the file, in that
+            order, each (n,) float64.
+        heel_strike: (n,) bool, or None when the file has no ``heel_strike`` column.
+    """
+
+    time_s: np.ndarray
+    signals: dict[str, np.ndarray]
+    heel_strike: np.ndarray | None
+
+
+def read_replay_csv(path: str | Path) -> ReplayInput:
+    """Read and validate a replay CSV.
+
+    Raises:
+        DataFormatError: empty file; missing ``time_s``; no angle column; a repeated column name; a
+            row with the wrong number of fields; an empty, non-numeric, NaN or infinite cell in a
+            used column; ``heel_strike`` other than 0/1; fewer than 2 data rows; time not strictly
+            increasing. When several cells are bad, the earliest line is reported.
+    """
+    name = str(path)
+    header, rows, lines = _read_rows(Path(path), name)
+
+    known = {schema.REPLAY_TIME, *schema.REPLAY_SIGNALS, schema.REPLAY_HEEL_STRIKE}
+    where: dict[str, int] = {}
+    for j, column in enumerate(header):
+        if column not in known:
+            continue
+        if column in where:
+            raise DataFormatError("column name appears twice", file=name, column=column, row=1)
+        where[column] = j
+    if schema.REPLAY_TIME not in where:
+        raise DataFormatError("missing required column", file=name, column=schema.REPLAY_TIME, row=1)
+    if not any(angle in where for angle in schema.REPLAY_ANGLES):
+        expected = " or ".join(repr(a) for a in schema.REPLAY_ANGLES)
+        raise DataFormatError(f"no angle column; expected {expected}", file=name, row=1)
+
+    for row, line in zip(rows, lines, strict=True):
+        if len(row) != len(header):
+            raise DataFormatError(f"expected {len(header)} fields, found {len(row)}", file=name, row=line)
+    if len(rows) < _MIN_ROWS:
+        raise DataFormatError(f"need at least {_MIN_ROWS} data rows, found {len(rows)}", file=name)
+
+    used = [schema.REPLAY_TIME, *(s for s in schema.REPLAY_SIGNALS if s in where)]
+    if schema.REPLAY_HEEL_STRIKE in where:
+        used.append(schema.REPLAY_HEEL_STRIKE)
+    cells = {column: [row[where[column]] for row in rows] for column in used}
+
+    values: dict[str, np.ndarray] = {}
+    problems: list[tuple[int, int, str, str]] = []  # (row index, column position, column, message)
+    for column in used:
+        column_values, problem = _parse_column(cells[column])
+        if column == schema.REPLAY_HEEL_STRIKE and problem is None:
+            problem = _check_zero_one(column_values, cells[column])
+        if problem is not None:
+            problems.append((problem[0], where[column], column, problem[1]))
+        values[column] = column_values
+    if problems:
+        i, _, column, message = min(problems)
+        raise DataFormatError(message, file=name, column=column, row=lines[i])
+
+    time_s = values[schema.REPLAY_TIME]
+    step = np.diff(time_s)
+    bad = step <= 0.0
+    if bad.any():
+        i = int(np.argmax(bad)) + 1
+        text = cells[schema.REPLAY_TIME]
+        how = "goes backwards" if step[i - 1] < 0.0 else "repeats"
+        raise DataFormatError(
+            f"time {how} ({text[i].strip()} after {text[i - 1].strip()})",
+            file=name,
+            column=schema.REPLAY_TIME,
+            row=lines[i],
+        )
+
+    heel_strike = values.get(schema.REPLAY_HEEL_STRIKE)
+    return ReplayInput(
+        time_s=time_s,
+        signals={s: values[s] for s in schema.REPLAY_SIGNALS if s in values},
+        heel_strike=None if heel_strike is None else heel_strike == 1.0,
+    )
+
+
+def write_replay_output(path: str | Path, columns: Mapping[str, np.ndarray]) -> None:
+    """Write the replay output CSV atomically.
+
+    Columns are written in the order of :data:`~sessions.schema.REPLAY_OUTPUT` under a header row:
+    floats at full (shortest round-trip) precision with NaN as ``nan``, ``heel_strike`` as 0/1. The
+    file is written beside ``path`` and moved over it only when complete.
+
+    Args:
+        path: the output CSV.
+        columns: exactly the :data:`~sessions.schema.REPLAY_OUTPUT` names, each (n,) numeric;
+            ``heel_strike`` bool or 0/1.
+
+    Raises:
+        ValueError: missing or extra column names, arrays that are not 1-D or differ in length, or a
+            ``heel_strike`` value other than 0/1.
+    """
+    missing = [c for c in schema.REPLAY_OUTPUT if c not in columns]
+    extra = [c for c in columns if c not in schema.REPLAY_OUTPUT]
+    if missing or extra:
+        raise ValueError(f"replay output columns: missing {missing}, unexpected {extra}")
+    arrays = {c: np.asarray(columns[c]) for c in schema.REPLAY_OUTPUT}
+    shapes = {c: a.shape for c, a in arrays.items()}
+    if any(a.ndim != 1 for a in arrays.values()) or len(set(shapes.values())) != 1:
+        raise ValueError(f"replay output columns must be 1-D and of equal length, got shapes {shapes}")
+
+    frame: dict[str, np.ndarray] = {}
+    for column, array in arrays.items():
+        if column == schema.REPLAY_HEEL_STRIKE:
+            if not np.isin(array, (0, 1)).all():
+                raise ValueError(f"replay output column {column!r} must hold only 0/1")
+            frame[column] = array.astype(np.int64)
+        else:
+            frame[column] = array.astype(np.float64)
+    with atomic_output(Path(path)) as tmp:
+        pd.DataFrame(frame).to_csv(tmp, index=False, na_rep="nan", lineterminator="\n")
+
+
+# --- private helpers -----------------------------------------------------------------------------
+
+
+def _read_rows(path: Path, name: str) -> tuple[list[str], list[list[str]], list[int]]:
+    """Header (names stripped), data rows and the file line of each row; blank lines are skipped."""
+    rows: list[list[str]] = []
+    lines: list[int] = []
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as file:
+            reader = csv.reader(file)
+            header = next(reader, None)
+            if header is None:
+                raise DataFormatError("the file is empty", file=name)
+            for row in reader:
+                if row:
+                    rows.append(row)
+                    lines.append(reader.line_num)
+    except (UnicodeDecodeError, csv.Error) as err:
+        raise DataFormatError(f"not a readable CSV file ({err})", file=name) from None
+    header = [h.strip() for h in header]
+    if not any(header):
+        raise DataFormatError("the header row is empty", file=name, row=1)
+    return header, rows, lines
+
+
+def _parse_column(text: list[str]) -> tuple[np.ndarray, tuple[int, str] | None]:
+    """Convert cells to float64; return the values and the first bad cell (index, message), if any."""
+    try:
+        values = np.array(text, dtype=np.float64)
+    except ValueError:
+        values = np.full(len(text), np.nan)
+        for i, cell in enumerate(text):  # slow path, only for a file that has a bad cell
+            if not cell.strip():
+                return values, (i, "empty cell")
+            try:
+                values[i] = float(cell)
+            except ValueError:
+                return values, (i, f"not a number: {cell.strip()!r}")
+    bad = ~np.isfinite(values)
+    if bad.any():
+        i = int(np.argmax(bad))
+        what = "NaN" if math.isnan(values[i]) else "infinite value"
+        return values, (i, f"{what} ({text[i].strip()}) is not allowed")
+    return values, None
+
+
+def _check_zero_one(values: np.ndarray, text: list[str]) -> tuple[int, str] | None:
+    bad = (values != 0.0) & (values != 1.0)
+    if not bad.any():
+        return None
+    i = int(np.argmax(bad))
+    return i, f"must be 0 or 1, got {text[i].strip()!r}"
