@@ -1,0 +1,229 @@
+"""The ``gaitscope`` command line.
+
+Subcommands: ``demo`` (replay the bundled default trial), ``replay``, ``train``, ``cohort``,
+``crossval`` and ``bench``. Bad input exits with status 2 and a message naming the file, row and column.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from estimators.pipeline import PipelineConfig
+from sessions.errors import DataFormatError
+
+EXIT_BAD_INPUT = 2
+
+
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return v
+
+
+def _pipeline_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--model", type=Path, help="model file (default: the model that ships with gaitscope)")
+    p.add_argument("--leg-length", type=_positive, default=0.88, help="user's leg length in m (default 0.88)")
+    p.add_argument("--mass", type=_positive, default=75.0, help="user's body mass in kg (default 75)")
+    p.add_argument("--torque-gain", type=float, default=1.0, help="multiplies the torque profile (default 1)")
+    p.add_argument("--max-torque", type=float, default=40.0, help="torque bound in N m, 0..200 (default 40)")
+
+
+def _config(a: argparse.Namespace) -> PipelineConfig:
+    if not 0.5 <= a.leg_length <= 1.3:
+        raise DataFormatError(f"leg length {a.leg_length} m is outside 0.5..1.3 m", file="--leg-length")
+    if not 0 <= a.torque_gain <= 3:
+        raise DataFormatError(f"torque gain {a.torque_gain} is outside 0..3", file="--torque-gain")
+    if not 0 <= a.max_torque <= 200:
+        raise DataFormatError(f"max torque {a.max_torque} N m is outside 0..200", file="--max-torque")
+    return PipelineConfig(
+        leg_length=a.leg_length, body_mass_kg=a.mass, torque_gain=a.torque_gain, max_torque=a.max_torque
+    )
+
+
+def _load(path: Path | None):  # type: ignore[no-untyped-def]
+    from sessions.models import default_model_path, load_model
+
+    return load_model(path or default_model_path())
+
+
+def cmd_replay(a: argparse.Namespace) -> int:
+    from sessions.replay import replay_file
+
+    model, prov = _load(a.model)
+    summary = replay_file(a.input, a.out, model, _config(a))
+    print(f"replayed {a.input} -> {a.out} (model trained on {prov.source}, {len(prov.subjects)} subjects)")
+    print("\n".join(summary.lines()))
+    return 0
+
+
+def cmd_demo(a: argparse.Namespace) -> int:
+    from sessions.models import load_model
+    from sessions.replay import replay_file
+    from sessions.trials import TREADMILL_PROTOCOL, replay_columns, sensor_trial
+
+    out_dir: Path = a.out_dir
+    out_dir.mkdir(parents=True, exist_ok=True)
+    trial = out_dir / "default_trial.csv"
+    sensors, leg, mass = sensor_trial()
+    replay_columns(sensors).to_csv(trial, index=False, float_format="%.6f")
+    model, _ = load_model(a.model) if a.model else _load(None)
+    out = out_dir / "default_trial_estimates.csv"
+    steps = " / ".join(f"{v} m/s {r:+g} deg" for v, r, _ in TREADMILL_PROTOCOL[:4])
+    print(f"default trial: virtual subject VC01 (leg {leg:.3f} m, {mass:.1f} kg), seed 000 III-E protocol:")
+    print(f"  {steps}, then inclines up to +10 deg and down to -10 deg")
+    summary = replay_file(trial, out, model, PipelineConfig(leg_length=leg, body_mass_kg=mass))
+    print("\n".join(summary.lines()))
+    import numpy as np
+    import pandas as pd
+
+    from sessions.crossval import stride_rmse, wrapped
+
+    est = pd.read_csv(out)
+    hs = sensors["heel_strike"].to_numpy() > 0
+    err = 100 * np.mean(stride_rmse(wrapped(est["phase"].to_numpy() - sensors["gt_phase"].to_numpy()), hs))
+    tbe = 100 * np.mean(stride_rmse(wrapped(est["tbe_phase"].to_numpy() - sensors["gt_phase"].to_numpy()), hs))
+    inc = np.mean(stride_rmse(est["incline_deg"].to_numpy() - sensors["gt_incline_deg"].to_numpy(), hs))
+    print(f"against ground truth: phase RMSE EKF {err:.2f} %, TBE {tbe:.2f} %; incline RMSE {inc:.2f} deg")
+    print(f"wrote {trial} and {out}")
+    return 0
+
+
+def cmd_train(a: argparse.Namespace) -> int:
+    import numpy as np
+
+    from sessions import schema
+    from sessions.models import hash_arrays, provenance, save_model
+    from sessions.training import fit_models, stride_data
+
+    start = time.perf_counter()
+    if a.data:
+        from sessions.locohub import read_table
+
+        frame = read_table(a.data)
+        source, seed = str(a.data), None
+    else:
+        from sessions.cohort import CohortSpec, generate_cohort
+
+        spec = CohortSpec()
+        frame = generate_cohort(spec)
+        source, seed = "default-cohort", spec.seed
+    try:
+        data = stride_data(frame)
+    except ValueError as e:
+        raise DataFormatError(str(e), file=source) from None
+    model = fit_models(data, order=a.order, torque_order=a.order)
+    prov = provenance(
+        source,
+        hash_arrays(data.z, data.moment, data.pdot, data.l, data.r),
+        subjects=data.subjects,
+        n_samples=int(data.z.shape[0] * data.z.shape[1]),
+        n_strides=int(data.z.shape[0]),
+        speeds_m_s=data.speeds,
+        inclines_deg=data.inclines,
+        fourier_order=a.order,
+        torque_fourier_order=a.order,
+        cohort_seed=seed,
+    )
+    save_model(a.out, model, prov)
+    fit_rms = np.sqrt(np.mean(model.noise.residual_cov[:, [0, 2], [0, 2]], axis=0))
+    print(f"trained on {source}: {len(data.subjects)} subjects, {data.z.shape[0]} strides")
+    print(f"cross-validated fit RMS: foot {fit_rms[0]:.2f} deg, shank {fit_rms[1]:.2f} deg")
+    print(f"wrote {a.out} in {time.perf_counter() - start:.1f} s")
+    del schema
+    return 0
+
+
+def cmd_cohort(a: argparse.Namespace) -> int:
+    from sessions.cohort import CohortSpec, generate_cohort
+    from sessions.locohub import write_table
+
+    spec = CohortSpec(n_subjects=a.subjects, strides_per_condition=a.strides, seed=a.seed)
+    frame = generate_cohort(spec)
+    write_table(frame, a.out)
+    print(f"wrote {len(frame)} rows ({spec.n_subjects} subjects x 27 conditions x {spec.strides_per_condition} strides) to {a.out}")
+    return 0
+
+
+def cmd_crossval(a: argparse.Namespace) -> int:
+    from sessions.crossval import crossvalidate, summary, to_csv, to_markdown
+
+    start = time.perf_counter()
+    results = crossvalidate(workers=a.workers)
+    wall = time.perf_counter() - start
+    a.out_dir.mkdir(parents=True, exist_ok=True)
+    md = to_markdown(results)
+    (a.out_dir / "crossval.md").write_text(md)
+    (a.out_dir / "crossval.csv").write_text(to_csv(results))
+    print(md)
+    s = summary(results)
+    print(f"EKF vs TBE p = {s['p_ekf_vs_tbe']:.2g}; EKF vs no-task p = {s['p_ekf_vs_notask']:.2g}")
+    print(f"wall time {wall:.1f} s; wrote {a.out_dir / 'crossval.md'} and crossval.csv")
+    return 0
+
+
+def cmd_bench(a: argparse.Namespace) -> int:
+    from sessions.bench import run_bench
+
+    run_bench(crossval=not a.skip_crossval, reference_samples=a.reference_samples)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="gaitscope", description=__doc__.splitlines()[0] if __doc__ else None)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("demo", help="replay the bundled default trial and print a summary")
+    p.add_argument("--out-dir", type=Path, default=Path("out"))
+    p.add_argument("--model", type=Path)
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("replay", help="run a recorded trial (CSV) through the estimators")
+    p.add_argument("input", type=Path)
+    p.add_argument("--out", type=Path, required=True)
+    _pipeline_args(p)
+    p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("train", help="fit gait, noise and torque models")
+    p.add_argument("--data", type=Path, help="LocoHub table (.parquet or .csv); default: the virtual cohort")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--order", type=int, default=20, help="Fourier order N (default 20)")
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("cohort", help="write the virtual cohort as a LocoHub table")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--subjects", type=int, default=10)
+    p.add_argument("--strides", type=int, default=20)
+    p.add_argument("--seed", type=int, default=20230101)
+    p.set_defaults(func=cmd_cohort)
+
+    p = sub.add_parser("crossval", help="leave-one-subject-out comparison with seed 000's numbers")
+    p.add_argument("--out-dir", type=Path, default=Path("docs/results"))
+    p.add_argument("--workers", type=int, default=None)
+    p.set_defaults(func=cmd_crossval)
+
+    p = sub.add_parser("bench", help="measure the EKF, replay and cross-validation speed")
+    p.add_argument("--skip-crossval", action="store_true")
+    p.add_argument("--reference-samples", type=int, default=3000)
+    p.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except DataFormatError as e:
+        print(f"gaitscope: error: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+if __name__ == "__main__":
+    sys.exit(main())
