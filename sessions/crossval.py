@@ -108,7 +108,7 @@ def evaluate_subject(
         per["incline_deg"].append(stride_rmse(out["incline_deg"] - gt_r, hs))
         per["torque_Nm"].append(stride_rmse(out["torque_Nm"] - tau_true, hs))
     metrics = {k: float(np.mean(np.concatenate(v))) for k, v in per.items()}
-    return SubjectResult(subject, metrics, int(sum(len(v) for v in per["phase_ekf_pct"])))
+    return SubjectResult(str(subject), metrics, int(sum(len(v) for v in per["phase_ekf_pct"])))
 
 
 def _fold(args: tuple[CohortSpec, int, SensorNoise, int]) -> SubjectResult:

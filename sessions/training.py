@@ -234,7 +234,10 @@ def fit_models(
         ph, e = residuals(data, s, inner)
         phases.append(ph)
         res.append(e)
-    noise = NoiseModel(residual_covariance(np.concatenate(phases), np.concatenate(res)), np.asarray(sensor_variance))
+    # LocoHub's 150 samples per stride sit at phases i / 149, so i = 149 is the next heel strike and
+    # there are 149 distinct phases per cycle: one residual bin each (seed 000 speaks of 150 bins).
+    cov = residual_covariance(np.concatenate(phases), np.concatenate(res), n_bins=SAMPLES_PER_STRIDE - 1)
+    noise = NoiseModel(cov, np.asarray(sensor_variance))
     torque = TorqueProfile(fit_torque(_sum(g_torque, train), torque_order))
     return TrainedModel(coef=coef, noise=noise, torque=torque)
 
