@@ -73,9 +73,7 @@ def model_terms(coef: Array, p: float, l: float, r: float, out: Array) -> None:
 
 
 @njit(cache=True)
-def measurement(
-    coef: Array, x: Array, leg_length: float, terms: Array, h: Array, H: Array
-) -> None:
+def measurement(coef: Array, x: Array, leg_length: float, terms: Array, h: Array, H: Array) -> None:
     """Predicted measurement ``h(x)`` (6,) and Jacobian ``H`` (6, 4) of seed 000 eq. 16-17.
 
     Channels: foot angle, foot velocity, shank angle, shank velocity (deg, deg/s), heel forward and

@@ -69,9 +69,7 @@ def linear(v: Array, derivative: int = 0) -> Array:
     return np.zeros((v.size, 2))
 
 
-def regressor(
-    p: Array, l: Array, r: Array, order: int, *, dp: int = 0, dl: int = 0, dr: int = 0
-) -> Array:
+def regressor(p: Array, l: Array, r: Array, order: int, *, dp: int = 0, dl: int = 0, dr: int = 0) -> Array:
     """Rows ``R(p, l, r)`` of the Kronecker regressor or of its partial derivatives.
 
     Args:

@@ -96,9 +96,7 @@ class HeelStrikeBackup:
             self._x4[:] = (self.phase, self.phase_rate, self.x[0], self.x[1])
             _kernels.measurement(self.ekf.coef, self._x4, self.ekf.leg_length, self._terms, self._h, self._H)
             H2 = np.ascontiguousarray(self._H[:, 2:4])
-            _kernels.update(
-                self.x, self.P, z, self._h, H2, self.ekf.R, self._y, self._S, self._K, False
-            )
+            _kernels.update(self.x, self.P, z, self._h, H2, self.ekf.R, self._y, self._S, self._K, False)
             self.sse_hp += _kernels.weighted_sse(self._y, self._rbar)
             self.sse_ekf += _kernels.weighted_sse(self.ekf.y, self._rbar)
         reset = False
@@ -140,7 +138,9 @@ class HeelStrikeDetector:
         self._heel: list[Array] = []
         self._acc: list[float] = []
 
-    def step(self, t: float, dt: float, foot_angle: float, foot_vel: float, heel: Array | None = None) -> bool:
+    def step(
+        self, t: float, dt: float, foot_angle: float, foot_vel: float, heel: Array | None = None
+    ) -> bool:
         """Feed one sample; True when it is a heel strike."""
         cfg = self.config
         if cfg.accel_threshold is not None and heel is not None and dt > 0:

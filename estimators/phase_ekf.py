@@ -76,7 +76,12 @@ class EKFConfig:
 
     def initial_state(self) -> Array:
         return np.array(
-            [0.0, self.initial_phase_rate, pseudo_from_stride(self.initial_stride_length), self.initial_incline]
+            [
+                0.0,
+                self.initial_phase_rate,
+                pseudo_from_stride(self.initial_stride_length),
+                self.initial_incline,
+            ]
         )
 
     def initial_covariance(self) -> Array:

@@ -88,7 +88,9 @@ class GaitStatePipeline:
         sample_period: nominal sample period (s) for the heel high-pass filter's discretisation.
     """
 
-    def __init__(self, model: TrainedModel, config: PipelineConfig | None = None, sample_period: float = 0.01):
+    def __init__(
+        self, model: TrainedModel, config: PipelineConfig | None = None, sample_period: float = 0.01
+    ):
         self.model = model
         self.config = config or PipelineConfig()
         cfg = self.config
@@ -103,7 +105,9 @@ class GaitStatePipeline:
         self._z = np.full(N_CHANNELS, np.nan)
         self._hs = np.ones(1)
 
-    def step(self, t: float, raw: Array, heel_strike: bool | None = None, heel_filtered: bool = False) -> GaitEstimate:
+    def step(
+        self, t: float, raw: Array, heel_strike: bool | None = None, heel_filtered: bool = False
+    ) -> GaitEstimate:
         """Process one sample.
 
         Args:

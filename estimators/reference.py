@@ -24,8 +24,10 @@ class ReferencePhaseEKF:
         self.coef = coef.reshape(coef.shape[0], -1)
         self.order = (coef.shape[-1] - 1) // 2
         self.leg_length = leg_length
-        self.noise = NoiseModel(noise.residual_cov * self.config.measurement_noise_scale,
-                                noise.sensor_var * self.config.measurement_noise_scale)
+        self.noise = NoiseModel(
+            noise.residual_cov * self.config.measurement_noise_scale,
+            noise.sensor_var * self.config.measurement_noise_scale,
+        )
         self.kf = ExtendedKalmanFilter(dim_x=4, dim_z=6)
         self.kf.x = self.config.initial_state()
         self.kf.P = self.config.initial_covariance()
@@ -77,7 +79,5 @@ class ReferencePhaseEKF:
             return
         R = self.noise.at(float(self.kf.x[0]))[np.ix_(ok, ok)]
         self.kf.dim_z = int(ok.sum())
-        self.kf.update(
-            z[ok], lambda x: self.jacobian(x)[ok], lambda x: self.hx(x)[ok], R=R
-        )
+        self.kf.update(z[ok], lambda x: self.jacobian(x)[ok], lambda x: self.hx(x)[ok], R=R)
         self.kf.x[0] %= 1.0

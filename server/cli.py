@@ -12,8 +12,9 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from estimators.pipeline import PipelineConfig
+from estimators.pipeline import PipelineConfig, TrainedModel
 from sessions.errors import DataFormatError
+from sessions.schema import ModelProvenance
 
 EXIT_BAD_INPUT = 2
 
@@ -48,7 +49,7 @@ def _config(a: argparse.Namespace) -> PipelineConfig:
     )
 
 
-def _load(path: Path | None):  # type: ignore[no-untyped-def]
+def _load(path: Path | None) -> tuple[TrainedModel, ModelProvenance]:
     from sessions.models import default_model_path, load_model
 
     return load_model(path or default_model_path())
@@ -89,7 +90,9 @@ def cmd_demo(a: argparse.Namespace) -> int:
     est = pd.read_csv(out)
     hs = sensors["heel_strike"].to_numpy() > 0
     err = 100 * np.mean(stride_rmse(wrapped(est["phase"].to_numpy() - sensors["gt_phase"].to_numpy()), hs))
-    tbe = 100 * np.mean(stride_rmse(wrapped(est["tbe_phase"].to_numpy() - sensors["gt_phase"].to_numpy()), hs))
+    tbe = 100 * np.mean(
+        stride_rmse(wrapped(est["tbe_phase"].to_numpy() - sensors["gt_phase"].to_numpy()), hs)
+    )
     inc = np.mean(stride_rmse(est["incline_deg"].to_numpy() - sensors["gt_incline_deg"].to_numpy(), hs))
     print(f"against ground truth: phase RMSE EKF {err:.2f} %, TBE {tbe:.2f} %; incline RMSE {inc:.2f} deg")
     print(f"wrote {trial} and {out}")
@@ -99,7 +102,6 @@ def cmd_demo(a: argparse.Namespace) -> int:
 def cmd_train(a: argparse.Namespace) -> int:
     import numpy as np
 
-    from sessions import schema
     from sessions.models import hash_arrays, provenance, save_model
     from sessions.training import fit_models, stride_data
 
@@ -137,7 +139,6 @@ def cmd_train(a: argparse.Namespace) -> int:
     print(f"trained on {source}: {len(data.subjects)} subjects, {data.z.shape[0]} strides")
     print(f"cross-validated fit RMS: foot {fit_rms[0]:.2f} deg, shank {fit_rms[1]:.2f} deg")
     print(f"wrote {a.out} in {time.perf_counter() - start:.1f} s")
-    del schema
     return 0
 
 
@@ -148,7 +149,8 @@ def cmd_cohort(a: argparse.Namespace) -> int:
     spec = CohortSpec(n_subjects=a.subjects, strides_per_condition=a.strides, seed=a.seed)
     frame = generate_cohort(spec)
     write_table(frame, a.out)
-    print(f"wrote {len(frame)} rows ({spec.n_subjects} subjects x 27 conditions x {spec.strides_per_condition} strides) to {a.out}")
+    n = f"{spec.n_subjects} subjects x 27 conditions x {spec.strides_per_condition} strides"
+    print(f"wrote {len(frame)} rows ({n}) to {a.out}")
     return 0
 
 
@@ -164,7 +166,7 @@ def cmd_crossval(a: argparse.Namespace) -> int:
     (a.out_dir / "crossval.csv").write_text(to_csv(results))
     print(md)
     s = summary(results)
-    print(f"EKF vs TBE p = {s['p_ekf_vs_tbe']:.2g}; EKF vs no-task p = {s['p_ekf_vs_notask']:.2g}")
+    print(f"EKF vs TBE p = {s.p_ekf_vs_tbe:.2g}; EKF vs no-task p = {s.p_ekf_vs_notask:.2g}")
     print(f"wall time {wall:.1f} s; wrote {a.out_dir / 'crossval.md'} and crossval.csv")
     return 0
 
@@ -177,7 +179,9 @@ def cmd_bench(a: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="gaitscope", description=__doc__.splitlines()[0] if __doc__ else None)
+    parser = argparse.ArgumentParser(
+        prog="gaitscope", description=__doc__.splitlines()[0] if __doc__ else None
+    )
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("demo", help="replay the bundled default trial and print a summary")

@@ -61,9 +61,9 @@ def ekf_cost(reference_samples: int) -> dict[str, float]:
         ref.update(z[k])
         t2 = clock()
         t_fast[k], t_ref[k] = t1 - t0, t2 - t1
-        d = np.abs(fast.x - ref.x)
-        d[0] = min(d[0], 1 - d[0])
-        dx = max(dx, float(d.max()))
+        diff = np.abs(fast.x - ref.x)
+        diff[0] = min(diff[0], 1 - diff[0])
+        dx = max(dx, float(diff.max()))
         dp = max(dp, float(np.abs(fast.P - ref.P).max()))
     for k in range(n_ref, len(z)):
         t0 = clock()
@@ -109,14 +109,25 @@ def crossval_time() -> float:
 
 def run_bench(crossval: bool = True, reference_samples: int = 3000) -> dict[str, float]:
     """Measure and print everything; returns the numbers."""
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
+    cpu = platform.processor() or platform.machine()
+    print(f"machine: {cpu}, {os.cpu_count()} cores, Python {platform.python_version()}")
     e = ekf_cost(reference_samples)
     print("phase EKF, per sample (predict + update), default model, 6 channels:")
-    print(f"  gaitscope PhaseEKF           median {e['fast_median_us']:7.2f} us   p95 {e['fast_p95_us']:7.2f} us   ({e['samples']:.0f} samples)")
-    print(f"  filterpy reference (baseline) median {e['ref_median_us']:7.2f} us   p95 {e['ref_p95_us']:7.2f} us   ({e['reference_samples']:.0f} samples)")
-    print(f"  speed-up (median) {e['speedup_median']:.1f}x   max |state diff| {e['max_state_diff']:.2e}   max |P diff| {e['max_cov_diff']:.2e}")
+    for name, key, n in (
+        ("gaitscope PhaseEKF", "fast", "samples"),
+        ("filterpy reference", "ref", "reference_samples"),
+    ):
+        med, p95 = e[f"{key}_median_us"], e[f"{key}_p95_us"]
+        print(f"  {name:<20} median {med:7.2f} us   p95 {p95:7.2f} us   ({e[n]:.0f} samples)")
+    print(
+        f"  speed-up (median) {e['speedup_median']:.1f}x   max |state diff| {e['max_state_diff']:.2e}"
+        f"   max |P diff| {e['max_cov_diff']:.2e}"
+    )
     r = replay_throughput()
-    print(f"replay, 10 min at 100 Hz through the CLI path: {r['samples']:.0f} samples in {r['wall_s']:.2f} s = {r['samples_per_s']:,.0f} samples/s")
+    print(
+        f"replay, 10 min at 100 Hz through the CLI path: {r['samples']:.0f} samples in {r['wall_s']:.2f} s"
+        f" = {r['samples_per_s']:,.0f} samples/s"
+    )
     out = {**e, **{f"replay_{k}": v for k, v in r.items()}}
     if crossval:
         wall = crossval_time()

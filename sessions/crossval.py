@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import io
+import itertools
 import os
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -28,6 +29,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
+from numpy.typing import NDArray
 from scipy import stats
 
 from estimators.basis import Array
@@ -57,10 +59,10 @@ def wrapped(d: Array) -> Array:
     return np.minimum(a, 1.0 - a)
 
 
-def stride_rmse(err: Array, heel_strike: Array) -> Array:
+def stride_rmse(err: Array, heel_strike: NDArray[np.bool_]) -> Array:
     """RMSE of ``err`` within each complete stride (heel strike to the next heel strike)."""
     hs = np.flatnonzero(heel_strike)
-    return np.array([np.sqrt(np.mean(err[a:b] ** 2)) for a, b in zip(hs[:-1], hs[1:], strict=True)])
+    return np.array([np.sqrt(np.mean(err[a:b] ** 2)) for a, b in itertools.pairwise(hs)])
 
 
 @dataclass(frozen=True)
@@ -90,7 +92,9 @@ def evaluate_subject(
     notask = replace(base, ekf=EKFConfig(no_task=True))
     per: dict[str, list[Array]] = {k: [] for k in METRICS}
     ss = np.random.SeedSequence([seed, s])
-    for (_, walk), child in zip(rows.groupby(schema.TASK_ID, sort=True), ss.spawn(rows[schema.TASK_ID].nunique()), strict=True):
+    for (_, walk), child in zip(
+        rows.groupby(schema.TASK_ID, sort=True), ss.spawn(rows[schema.TASK_ID].nunique()), strict=True
+    ):
         sensors = simulate_sensors(walk.sort_values(schema.TIME_S), noise, np.random.default_rng(child))
         trial = _trial_input(sensors)
         hs = trial.heel_strike
@@ -122,7 +126,10 @@ def _fold(args: tuple[CohortSpec, int, SensorNoise, int]) -> SubjectResult:
 
 
 def crossvalidate(
-    spec: CohortSpec | None = None, noise: SensorNoise | None = None, seed: int = 0, workers: int | None = None
+    spec: CohortSpec | None = None,
+    noise: SensorNoise | None = None,
+    seed: int = 0,
+    workers: int | None = None,
 ) -> list[SubjectResult]:
     """Leave-one-subject-out over the cohort; one process per fold, ``workers`` at a time."""
     spec = spec or CohortSpec()
@@ -135,13 +142,24 @@ def crossvalidate(
         return list(pool.map(_fold, jobs))
 
 
-def summary(results: Sequence[SubjectResult]) -> dict[str, object]:
+@dataclass(frozen=True)
+class Summary:
+    """Mean and SD over subjects of every metric, and the paired t-tests of the phase RMSEs."""
+
+    mean_sd: dict[str, tuple[float, float]]
+    p_ekf_vs_tbe: float
+    p_ekf_vs_notask: float
+
+
+def summary(results: Sequence[SubjectResult]) -> Summary:
     """Mean, SD and paired t-test p-values (EKF vs TBE, EKF vs no-task) over subjects."""
     table = {k: np.array([r.metrics[k] for r in results]) for k in METRICS}
-    out: dict[str, object] = {k: (float(v.mean()), float(v.std(ddof=1))) for k, v in table.items()}
-    out["p_ekf_vs_tbe"] = float(stats.ttest_rel(table["phase_ekf_pct"], table["phase_tbe_pct"]).pvalue)
-    out["p_ekf_vs_notask"] = float(stats.ttest_rel(table["phase_ekf_pct"], table["phase_notask_pct"]).pvalue)
-    return out
+    ekf = table["phase_ekf_pct"]
+    return Summary(
+        mean_sd={k: (float(v.mean()), float(v.std(ddof=1))) for k, v in table.items()},
+        p_ekf_vs_tbe=float(stats.ttest_rel(ekf, table["phase_tbe_pct"]).pvalue),
+        p_ekf_vs_notask=float(stats.ttest_rel(ekf, table["phase_notask_pct"]).pvalue),
+    )
 
 
 _LABELS = {
@@ -162,8 +180,8 @@ def to_csv(results: Sequence[SubjectResult]) -> str:
     for r in results:
         w.writerow([r.subject, r.strides, *(f"{r.metrics[k]:.4f}" for k in METRICS)])
     s = summary(results)
-    w.writerow(["mean", "", *(f"{s[k][0]:.4f}" for k in METRICS)])  # type: ignore[index]
-    w.writerow(["sd", "", *(f"{s[k][1]:.4f}" for k in METRICS)])  # type: ignore[index]
+    w.writerow(["mean", "", *(f"{s.mean_sd[k][0]:.4f}" for k in METRICS)])
+    w.writerow(["sd", "", *(f"{s.mean_sd[k][1]:.4f}" for k in METRICS)])
     w.writerow(["paper_mean", "", *(f"{PAPER[k][0]}" for k in METRICS)])
     w.writerow(["paper_sd", "", *(f"{PAPER[k][1]}" for k in METRICS)])
     return buf.getvalue()
@@ -177,13 +195,15 @@ def to_markdown(results: Sequence[SubjectResult]) -> str:
         "|---|---|---|---|",
     ]
     for k in METRICS:
-        m, sd = s[k]  # type: ignore[misc]
+        m, sd = s.mean_sd[k]
         pm, psd = PAPER[k]
         lines.append(f"| {_LABELS[k]} | {m:.3g} +/- {sd:.2g} | {pm} +/- {psd} | {m / pm:.2f} |")
-    lines.append(f"| p, EKF vs TBE (paired t) | {s['p_ekf_vs_tbe']:.2g} | < 0.001 | |")
-    lines.append(f"| p, EKF vs no-task (paired t) | {s['p_ekf_vs_notask']:.2g} | < 0.001 | |")
+    lines.append(f"| p, EKF vs TBE (paired t) | {s.p_ekf_vs_tbe:.2g} | < 0.001 | |")
+    lines.append(f"| p, EKF vs no-task (paired t) | {s.p_ekf_vs_notask:.2g} | < 0.001 | |")
     lines += ["", "| subject | strides | " + " | ".join(_LABELS[k] for k in METRICS) + " |"]
     lines.append("|---|---|" + "---|" * len(METRICS))
     for r in results:
-        lines.append(f"| {r.subject} | {r.strides} | " + " | ".join(f"{r.metrics[k]:.3g}" for k in METRICS) + " |")
+        lines.append(
+            f"| {r.subject} | {r.strides} | " + " | ".join(f"{r.metrics[k]:.3g}" for k in METRICS) + " |"
+        )
     return "\n".join(lines) + "\n"

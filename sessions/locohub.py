@@ -14,10 +14,7 @@ complete.
 from __future__ import annotations
 
 import math
-import os
-import uuid
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -27,8 +24,9 @@ import pyarrow.parquet as pq
 
 from sessions import schema
 from sessions.errors import DataFormatError
+from sessions.files import atomic_output
 
-__all__ = ["KNOWN_COLUMNS", "STRING_COLUMNS", "atomic_output", "parse_task_info", "read_table", "write_table"]
+__all__ = ["KNOWN_COLUMNS", "STRING_COLUMNS", "parse_task_info", "read_table", "write_table"]
 
 #: Columns whose cells are text; every other known column is numeric.
 STRING_COLUMNS: Final = (
@@ -172,25 +170,6 @@ def write_table(frame: pd.DataFrame, path: str | Path) -> None:
             frame.to_csv(tmp, index=False, lineterminator="\n")
         else:
             frame.to_parquet(tmp, index=False)
-
-
-@contextmanager
-def atomic_output(path: Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on a clean exit move it over ``path``, else delete it.
-
-    The temporary file is created empty (with the usual permissions), synced to disk before the move,
-    and removed if the body or the move raises, so ``path`` is either untouched or completely new.
-    """
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
-    tmp.open("xb").close()
-    try:
-        yield tmp
-        with tmp.open("rb+") as written:
-            os.fsync(written.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 # --- private helpers -----------------------------------------------------------------------------

@@ -11,8 +11,6 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import json
-import os
-import tempfile
 import zipfile
 from importlib import metadata, resources
 from pathlib import Path
@@ -24,6 +22,7 @@ from estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
 from estimators.pipeline import TrainedModel
 from estimators.torque import TorqueProfile
 from sessions.errors import DataFormatError
+from sessions.files import atomic_output
 from sessions.schema import ModelProvenance
 
 DEFAULT_MODEL_NAME = "default_model.npz"
@@ -62,24 +61,17 @@ def hash_arrays(*arrays: np.ndarray) -> str:
 
 def save_model(path: str | Path, model: TrainedModel, prov: ModelProvenance) -> None:
     """Write ``model`` and its provenance to ``path`` atomically."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(
-                f,
-                coef=model.coef,
-                residual_cov=model.noise.residual_cov,
-                sensor_var=model.noise.sensor_var,
-                torque_coef=model.torque.coef,
-                torque_scale=np.float64(model.torque.scale),
-                torque_cutoff=np.float64(model.torque.cutoff_phase),
-                provenance=np.array(prov.model_dump_json()),
-            )
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(Path(path)) as tmp, tmp.open("wb") as f:
+        np.savez(
+            f,
+            coef=model.coef,
+            residual_cov=model.noise.residual_cov,
+            sensor_var=model.noise.sensor_var,
+            torque_coef=model.torque.coef,
+            torque_scale=np.float64(model.torque.scale),
+            torque_cutoff=np.float64(model.torque.cutoff_phase),
+            provenance=np.array(prov.model_dump_json()),
+        )
 
 
 def load_model(path: str | Path) -> tuple[TrainedModel, ModelProvenance]:
@@ -92,7 +84,15 @@ def load_model(path: str | Path) -> tuple[TrainedModel, ModelProvenance]:
         raise DataFormatError("no such model file", file=name) from None
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
         raise DataFormatError(f"not a gaitscope model file ({e})", file=name) from None
-    need = ("coef", "residual_cov", "sensor_var", "torque_coef", "torque_scale", "torque_cutoff", "provenance")
+    need = (
+        "coef",
+        "residual_cov",
+        "sensor_var",
+        "torque_coef",
+        "torque_scale",
+        "torque_cutoff",
+        "provenance",
+    )
     missing = [k for k in need if k not in arrays]
     if missing:
         raise DataFormatError(f"model file lacks {', '.join(missing)}", file=name)

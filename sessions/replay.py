@@ -45,7 +45,7 @@ class ReplaySummary:
             f"samples          {self.samples} over {self.duration_s:.1f} s",
             f"channels         {', '.join(self.channels)}",
             f"heel strikes     {self.heel_strikes} ({src}); backup resets {self.backup_resets}",
-            f"phase rate       mean {self.mean_phase_rate:.3f} /s (cadence {60 * self.mean_phase_rate:.1f} strides/min)",
+            f"phase rate       mean {self.mean_phase_rate:.3f} /s ({60 * self.mean_phase_rate:.1f} /min)",
             f"stride length    mean {self.mean_stride_length_m:.3f} m",
             f"incline          {self.incline_range_deg[0]:.1f} .. {self.incline_range_deg[1]:.1f} deg",
             f"peak torque      {self.peak_torque_Nm:.1f} N m",
@@ -97,7 +97,9 @@ def run(data: ReplayInput, model: TrainedModel, config: PipelineConfig) -> tuple
     return out, resets
 
 
-def replay_file(input_path: str | Path, output_path: str | Path, model: TrainedModel, config: PipelineConfig) -> ReplaySummary:
+def replay_file(
+    input_path: str | Path, output_path: str | Path, model: TrainedModel, config: PipelineConfig
+) -> ReplaySummary:
     """Replay ``input_path`` into ``output_path``; nothing is written if the input is invalid."""
     start = time.perf_counter()
     data = read_replay_csv(input_path)

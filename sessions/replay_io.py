@@ -23,7 +23,7 @@ import pandas as pd
 
 from sessions import schema
 from sessions.errors import DataFormatError
-from sessions.locohub import atomic_output
+from sessions.files import atomic_output
 
 __all__ = ["ReplayInput", "read_replay_csv", "write_replay_output"]
 

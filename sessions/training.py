@@ -94,7 +94,9 @@ def _metadata(frame: pd.DataFrame) -> dict[str, dict[str, float]]:
                 raise ValueError(f"subject {subject}: subject_metadata has neither leg_length_m nor height_m")
             meta["leg_length_m"] = LEG_LENGTH_PER_HEIGHT * meta["height_m"]
         if "mass_kg" not in meta:
-            raise ValueError(f"subject {subject}: subject_metadata has no mass_kg (needed for the torque model)")
+            raise ValueError(
+                f"subject {subject}: subject_metadata has no mass_kg (needed for the torque model)"
+            )
         out[str(subject)] = meta
     return out
 
@@ -170,7 +172,8 @@ def _highpass_trials(f: pd.DataFrame, heel: Array) -> Array:
     out = np.empty_like(heel)
     t = f[schema.TIME_S].to_numpy(np.float64)
     groups = f.groupby([schema.SUBJECT, schema.TASK_INFO], sort=False).indices
-    for idx in groups.values():
+    for group in groups.values():
+        idx = np.asarray(group)
         order = idx[np.argsort(t[idx], kind="stable")]
         tt = t[order]
         keep = np.concatenate([[True], np.diff(tt) > 0])  # boundary samples repeat between strides
@@ -203,7 +206,14 @@ def residuals(data: StrideData, subject: int, coef: Array) -> tuple[Array, Array
     h = evaluate(coef, P, L, R)
     hp = evaluate(coef, P, L, R, dp=1)
     pred = np.stack(
-        [h[:, FOOT], pdot * hp[:, FOOT], h[:, SHANK], pdot * hp[:, SHANK], leg * h[:, HEEL_FORWARD], leg * h[:, HEEL_UP]],
+        [
+            h[:, FOOT],
+            pdot * hp[:, FOOT],
+            h[:, SHANK],
+            pdot * hp[:, SHANK],
+            leg * h[:, HEEL_FORWARD],
+            leg * h[:, HEEL_UP],
+        ],
         axis=1,
     )
     return P, Z - pred

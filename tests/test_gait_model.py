@@ -78,7 +78,10 @@ def test_dependent_constraints_are_handled() -> None:
 
 def test_residual_covariance_is_uncentred_per_bin() -> None:
     p = np.repeat(np.arange(150) / 150, 4)
-    e = np.tile(np.array([[1.0, 0, 0, 0, 0, 0], [-1, 0, 0, 0, 0, 0], [1, 0, 0, 0, 0, 0], [1, 0, 0, 0, 0, 0]]), (150, 1))
+    e = np.tile(
+        np.array([[1.0, 0, 0, 0, 0, 0], [-1, 0, 0, 0, 0, 0], [1, 0, 0, 0, 0, 0], [1, 0, 0, 0, 0, 0]]),
+        (150, 1),
+    )
     cov = residual_covariance(p, e)
     assert cov.shape == (150, 6, 6)
     np.testing.assert_allclose(cov[:, 0, 0], 4 / 3)  # sum of squares / (N - 1), no mean removed

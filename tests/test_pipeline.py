@@ -19,15 +19,24 @@ def trial():
     sensors, leg, mass = sensor_trial(SCHEDULE, subject=0)
     data = ReplayInput(
         time_s=sensors["time_s"].to_numpy(),
-        signals={k: sensors[k].to_numpy() for k in ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg",
-                                                     "shank_vel_dps", "heel_forward_m", "heel_up_m")},
+        signals={
+            k: sensors[k].to_numpy()
+            for k in (
+                "foot_angle_deg",
+                "foot_vel_dps",
+                "shank_angle_deg",
+                "shank_vel_dps",
+                "heel_forward_m",
+                "heel_up_m",
+            )
+        },
         heel_strike=sensors["heel_strike"].to_numpy() > 0,
     )
     return sensors, data, leg, mass
 
 
 def _run(model: TrainedModel, trial, config: PipelineConfig, lose_at: float | None = None):
-    sensors, data, _, _ = trial
+    _, data, _, _ = trial
     z = measurements(data)
     pipe = GaitStatePipeline(model, config, sample_period=0.01)
     phase = np.empty(len(z))
@@ -37,7 +46,9 @@ def _run(model: TrainedModel, trial, config: PipelineConfig, lose_at: float | No
     for k, t in enumerate(data.time_s):
         if lose_at is not None and not lost and t >= lose_at:
             # knock the filter half a cycle off with a wrong rate and an over-confident covariance
-            pipe.ekf.reset(np.array([pipe.ekf.x[0] + 0.5, 0.5, pipe.ekf.x[2], pipe.ekf.x[3]]), 1e-8 * np.eye(4))
+            pipe.ekf.reset(
+                np.array([pipe.ekf.x[0] + 0.5, 0.5, pipe.ekf.x[2], pipe.ekf.x[3]]), 1e-8 * np.eye(4)
+            )
             lost = True
         e = pipe.step(float(t), z[k], bool(data.heel_strike[k]), heel_filtered=True)
         phase[k], torque[k], incline[k] = e.phase, e.torque_Nm, e.incline_deg
@@ -57,7 +68,9 @@ def test_tracks_phase_and_incline(small_model: TrainedModel, trial) -> None:
 def test_backup_recovers_a_lost_filter_within_a_few_strides(small_model: TrainedModel, trial) -> None:
     sensors, data, leg, mass = trial
     t_lose = 8.0
-    pipe, phase, _, _ = _run(small_model, trial, PipelineConfig(leg_length=leg, body_mass_kg=mass), lose_at=t_lose)
+    pipe, phase, _, _ = _run(
+        small_model, trial, PipelineConfig(leg_length=leg, body_mass_kg=mass), lose_at=t_lose
+    )
     assert pipe.backup is not None and pipe.backup.resets >= 1
     t = data.time_s
     hs_times = t[data.heel_strike]
@@ -67,11 +80,16 @@ def test_backup_recovers_a_lost_filter_within_a_few_strides(small_model: Trained
     assert np.sqrt(np.mean(err**2)) < 0.04
     # without the backup the same knock leaves the filter wrong for longer
     _, phase_nb, _, _ = _run(
-        small_model, trial, PipelineConfig(leg_length=leg, body_mass_kg=mass, use_backup=False), lose_at=t_lose
+        small_model,
+        trial,
+        PipelineConfig(leg_length=leg, body_mass_kg=mass, use_backup=False),
+        lose_at=t_lose,
     )
     early = (t > after[0]) & (t < after[3])
     gt = sensors["gt_phase"].to_numpy()[early]
-    assert np.sqrt(np.mean(wrapped(phase_nb[early] - gt) ** 2)) > np.sqrt(np.mean(wrapped(phase[early] - gt) ** 2))
+    assert np.sqrt(np.mean(wrapped(phase_nb[early] - gt) ** 2)) > np.sqrt(
+        np.mean(wrapped(phase[early] - gt) ** 2)
+    )
 
 
 def test_torque_is_bounded_plantarflexion_before_cutoff(small_model: TrainedModel, trial) -> None:
