@@ -60,6 +60,10 @@ _CURVES = (
 PELVIS, HIP, KNEE, ANKLE, MOMENT = range(len(_CURVES))
 #: Winter (2009) Fig. 4.1 segment lengths as fractions of height; hip height 0.530 H.
 HIP_HEIGHT_FRAC, THIGH_FRAC, SHANK_FRAC, FOOT_FRAC, ANKLE_HEIGHT_FRAC = 0.530, 0.245, 0.246, 0.152, 0.039
+#: Between-subject SDs, calibrated so the cohort's joint curves spread as Schwartz 2008's do
+#: (``docs/cohort.md``): joint-excursion scale, and hip and knee posture offsets (deg).
+AMPLITUDE_SD = 0.12
+POSTURE_SD_DEG = (2.5, 4.0)
 #: Heel (back of the calcaneus, on the sole) behind the ankle, as a fraction of foot length (choice).
 HEEL_BACK_FRAC = 0.25
 #: Phase window of level foot-flat whose mean foot angle is zeroed (centred on seed 000's p = 0.2).
@@ -102,7 +106,11 @@ class SubjectParams:
         step_length_scale: multiplies Schwartz's step length at every speed (sd 5 %).
         timing_shift: cycle fraction by which mid-cycle features are delayed (sd 0.02); heel strike
             stays at phase 0.
-        hip_/knee_/ankle_amplitude_scale: multiply each joint's excursion about its cycle mean (sd 8 %).
+        hip_/knee_/ankle_amplitude_scale: multiply each joint's excursion about its cycle mean (sd 12 %).
+        hip_posture_deg, knee_posture_deg: constant offsets of the hip and knee angles (real posture,
+            so the heel's kinematics follow); the ankle takes ``knee - hip`` so the foot still lies flat
+            in mid-stance. With the amplitude scales these bring the cohort's between-subject SD of
+            the joint curves to Schwartz 2008's (``docs/cohort.md``, calibration).
         moment_scale: multiplies the ankle moment per kg (sd 10 %).
         thigh_/shank_/foot_offset_deg: constant bias of the reported segment angles (marker placement
             and calibration; seed 004's first fingerprint). Not applied to the heel position.
@@ -131,6 +139,8 @@ class SubjectParams:
     thigh_offset_deg: float
     shank_offset_deg: float
     foot_offset_deg: float
+    hip_posture_deg: float = 0.0
+    knee_posture_deg: float = 0.0
     stride_time_cv: float = 0.02
     stride_amplitude_cv: float = 0.03
     stride_offset_deg: float = 0.5
@@ -221,7 +231,7 @@ def make_subjects(spec: CohortSpec) -> list[SubjectParams]:
         rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(i, 0)))
         leg = float(np.clip(rng.normal(0.88, 0.045), 0.78, 0.98))
         bmi = float(np.clip(rng.normal(24.0, 2.5), 18.0, 32.0))
-        z = rng.standard_normal(11)
+        z = rng.standard_normal(13)
         h = leg / HIP_HEIGHT_FRAC
         out.append(
             SubjectParams(
@@ -237,13 +247,15 @@ def make_subjects(spec: CohortSpec) -> list[SubjectParams]:
                 heel_back_m=HEEL_BACK_FRAC * FOOT_FRAC * h,
                 step_length_scale=float(1 + 0.05 * z[0]),
                 timing_shift=float(np.clip(0.02 * z[1], -0.06, 0.06)),
-                hip_amplitude_scale=float(1 + 0.08 * z[2]),
-                knee_amplitude_scale=float(1 + 0.08 * z[3]),
-                ankle_amplitude_scale=float(1 + 0.08 * z[4]),
+                hip_amplitude_scale=float(1 + AMPLITUDE_SD * z[2]),
+                knee_amplitude_scale=float(1 + AMPLITUDE_SD * z[3]),
+                ankle_amplitude_scale=float(1 + AMPLITUDE_SD * z[4]),
                 moment_scale=float(1 + 0.10 * z[5]),
                 thigh_offset_deg=float(3.0 * z[6]),
                 shank_offset_deg=float(2.0 * z[7]),
                 foot_offset_deg=float(1.0 * z[8]),
+                hip_posture_deg=float(POSTURE_SD_DEG[0] * z[11]),
+                knee_posture_deg=float(POSTURE_SD_DEG[1] * z[12]),
             )
         )
     return out
@@ -332,8 +344,9 @@ class _Condition:
         z_amp = COM_VERTICAL[0] + f * (COM_VERTICAL[1] - COM_VERTICAL[0])
         c = np.empty((*q.shape, N_CHAN))
         c[..., C_PELVIS], c[..., C_PELVIS_C] = j[..., PELVIS], jc[..., PELVIS]
-        c[..., C_HIP_M], c[..., C_KNEE_M] = self.mean[HIP], self.mean[KNEE]
-        c[..., C_ANKLE_M] = self.mean[ANKLE]
+        c[..., C_HIP_M] = self.mean[HIP] + sub.hip_posture_deg
+        c[..., C_KNEE_M] = self.mean[KNEE] + sub.knee_posture_deg
+        c[..., C_ANKLE_M] = self.mean[ANKLE] + sub.knee_posture_deg - sub.hip_posture_deg
         for ch, chc, k, scale in (
             (C_HIP_D, C_HIP_D_C, HIP, sub.hip_amplitude_scale),
             (C_KNEE_D, C_KNEE_D_C, KNEE, sub.knee_amplitude_scale),
