@@ -144,11 +144,13 @@ def update(
     ``h``, ``H`` (6, n) and ``R`` are the full 6-channel prediction, Jacobian and covariance at the
     prior, for a state of any size n. ``y_out`` (6,), ``S_out`` (6, 6) and ``K_out`` (n, 6) receive the
     innovation, its covariance and the gain on the used channels (NaN elsewhere). With ``wrap_phase``
-    ``x[0]`` is wrapped into [0, 1) after the update.
+    ``x[0]`` is wrapped into [0, 1) after the update. ``S`` is factored by Cholesky (explicit loops:
+    for at most six channels they beat a LAPACK call several times over).
 
     Returns:
         ``(m, y^T S^-1 y, log det S)`` with m the number of channels used.
     """
+    n = x.shape[0]
     idx = np.empty(6, dtype=np.int64)
     m = 0
     for i in range(6):
@@ -160,41 +162,96 @@ def update(
     K_out[:] = np.nan
     if m == 0:
         return 0, 0.0, 0.0
-    n = x.shape[0]
-    Hs = np.empty((m, n))
     y = np.empty(m)
-    Rs = np.empty((m, m))
+    PHt = np.zeros((n, m))  # P H^T
     for a in range(m):
-        y[a] = z[idx[a]] - h[idx[a]]
-        for j in range(n):
-            Hs[a, j] = H[idx[a], j]
-        for b in range(m):
-            Rs[a, b] = R[idx[a], idx[b]]
-    PHt = P @ Hs.T
-    S = Hs @ PHt + Rs
-    Sinv = np.linalg.inv(S)
-    K = PHt @ Sinv
-    dx = K @ y
-    for j in range(n):
-        x[j] += dx[j]
+        ia = idx[a]
+        y[a] = z[ia] - h[ia]
+        for i in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += P[i, j] * H[ia, j]
+            PHt[i, a] = acc
+    S = np.empty((m, m))
+    for a in range(m):
+        for b in range(a, m):
+            acc = R[idx[a], idx[b]]
+            for j in range(n):
+                acc += H[idx[a], j] * PHt[j, b]
+            S[a, b] = acc
+            S[b, a] = acc
+    L = np.zeros((m, m))  # S = L L^T
+    logdet = 0.0
+    for a in range(m):
+        for b in range(a + 1):
+            acc = S[a, b]
+            for k in range(b):
+                acc -= L[a, k] * L[b, k]
+            if a == b:
+                L[a, a] = np.sqrt(acc)
+                logdet += 2.0 * np.log(L[a, a])
+            else:
+                L[a, b] = acc / L[b, b]
+    # K^T = S^-1 (P H^T)^T: forward then back substitution for each state component
+    K = np.empty((n, m))
+    w = np.empty(m)
+    for i in range(n):
+        for a in range(m):
+            acc = PHt[i, a]
+            for k in range(a):
+                acc -= L[a, k] * w[k]
+            w[a] = acc / L[a, a]
+        for a in range(m - 1, -1, -1):
+            acc = w[a]
+            for k in range(a + 1, m):
+                acc -= L[k, a] * K[i, k]
+            K[i, a] = acc / L[a, a]
+    maha2 = 0.0
+    for a in range(m):
+        acc = y[a]
+        for k in range(a):
+            acc -= L[a, k] * w[k]
+        w[a] = acc / L[a, a]
+        maha2 += w[a] * w[a]
+    for i in range(n):
+        acc = 0.0
+        for a in range(m):
+            acc += K[i, a] * y[a]
+        x[i] += acc
     if wrap_phase:
         x[0] -= np.floor(x[0])
-    IKH = np.eye(n) - K @ Hs
-    Pn = IKH @ P @ IKH.T + K @ Rs @ K.T
+    # Joseph form: (I - K H) P (I - K H)^T + K R K^T
+    IKH = np.eye(n)
     for i in range(n):
         for j in range(n):
-            P[i, j] = Pn[i, j]
+            acc = 0.0
+            for a in range(m):
+                acc += K[i, a] * H[idx[a], j]
+            IKH[i, j] -= acc
+    T = IKH @ P
+    KR = np.zeros((n, m))
+    for i in range(n):
+        for b in range(m):
+            acc = 0.0
+            for a in range(m):
+                acc += K[i, a] * R[idx[a], idx[b]]
+            KR[i, b] = acc
+    for i in range(n):
+        for j in range(i, n):
+            acc = 0.0
+            for k in range(n):
+                acc += T[i, k] * IKH[j, k]
+            for b in range(m):
+                acc += KR[i, b] * K[j, b]
+            P[i, j] = acc
+            P[j, i] = acc
     for a in range(m):
         y_out[idx[a]] = y[a]
         for b in range(m):
             S_out[idx[a], idx[b]] = S[a, b]
-        for j in range(n):
-            K_out[j, idx[a]] = K[j, a]
-    maha2 = 0.0
-    Sy = Sinv @ y
-    for a in range(m):
-        maha2 += y[a] * Sy[a]
-    return m, maha2, np.log(np.linalg.det(S))
+        for i in range(n):
+            K_out[i, idx[a]] = K[i, a]
+    return m, maha2, logdet
 
 
 @njit(cache=True)
@@ -215,3 +272,25 @@ def weighted_sse(y: Array, R: Array) -> float:
         for b in range(m):
             Rs[a, b] = R[idx[a], idx[b]]
     return float(ys @ np.linalg.solve(Rs, ys))
+
+
+@njit(cache=True)
+def ekf_update(
+    coef: Array,
+    x: Array,
+    P: Array,
+    z: Array,
+    leg_length: float,
+    bins: Array,
+    terms: Array,
+    h: Array,
+    H: Array,
+    R: Array,
+    y_out: Array,
+    S_out: Array,
+    K_out: Array,
+) -> tuple[int, float, float]:
+    """Measurement, ``Sigma_R`` at the prior phase and the update in one compiled call."""
+    measurement(coef, x, leg_length, terms, h, H)
+    noise_at(bins, x[0], R)
+    return update(x, P, z, h, H, R, y_out, S_out, K_out, True)

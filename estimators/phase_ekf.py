@@ -147,10 +147,20 @@ class PhaseEKF:
         """Correct with measurement ``z`` (6,), NaN for missing channels; ``None`` skips."""
         if z is None:
             return
-        _kernels.measurement(self.coef, self.x, self.leg_length, self._terms, self.z_pred, self.H)
-        _kernels.noise_at(self._bins, self.x[0], self.R)
-        m, maha2, logdet = _kernels.update(
-            self.x, self.P, z, self.z_pred, self.H, self.R, self.y, self.S, self.K, True
+        m, maha2, logdet = _kernels.ekf_update(
+            self.coef,
+            self.x,
+            self.P,
+            z,
+            self.leg_length,
+            self._bins,
+            self._terms,
+            self.z_pred,
+            self.H,
+            self.R,
+            self.y,
+            self.S,
+            self.K,
         )
         self.mahalanobis = math.sqrt(maha2)
         self.log_likelihood = -0.5 * (maha2 + logdet + m * math.log(2.0 * math.pi)) if m else 0.0
