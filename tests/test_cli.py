@@ -1,7 +1,7 @@
 """The gaitscope command line, run in-process and once as the installed console script."""
 
-import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -106,7 +106,7 @@ def test_train_refuses_a_table_without_a_required_column(
 
 
 def test_console_script_runs_the_demo(tmp_path: Path) -> None:
-    exe = shutil.which("gaitscope") or str(Path(__file__).parents[1] / ".venv" / "bin" / "gaitscope")
+    exe = str(Path(sys.executable).with_name("gaitscope"))
     done = subprocess.run(
         [exe, "demo", "--out-dir", str(tmp_path)], capture_output=True, text=True, timeout=300
     )
