@@ -27,8 +27,7 @@ from estimators.pipeline import PipelineConfig
 from estimators.reference import ReferencePhaseEKF
 from sessions.models import default_model_path, load_model
 from sessions.replay import measurements, replay_file
-from sessions.replay_io import read_replay_csv
-from sessions.trials import minutes_schedule, replay_columns, sensor_trial
+from sessions.trials import minutes_schedule, replay_columns, replay_input, sensor_trial
 
 
 def _percentiles(ns: np.ndarray) -> tuple[float, float]:
@@ -39,10 +38,7 @@ def ekf_cost(reference_samples: int) -> dict[str, float]:
     """Per-sample cost of both filters and their largest disagreement."""
     model, _ = load_model(default_model_path())
     sensors, leg, _ = sensor_trial()
-    with tempfile.TemporaryDirectory() as d:
-        path = Path(d) / "t.csv"
-        replay_columns(sensors).to_csv(path, index=False)
-        data = read_replay_csv(path)
+    data = replay_input(sensors)
     z = measurements(data)
     dts = np.diff(data.time_s, prepend=data.time_s[0] - 0.01)
     fast = PhaseEKF(model.coef, model.noise, leg)

@@ -22,17 +22,15 @@ row per sample, ``samples_per_stride`` samples per stride including both ends. S
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy.interpolate import CubicSpline
 
 from sessions import schema as s
-from sessions.errors import DataFormatError
+from sessions.normative import ANKLE, HIP, KNEE, MOMENT, PELVIS, at_speed, curve_spline, normative
 from sessions.sensors import SensorNoise, resample_walk, simulate_sensors
 
 __all__ = [
@@ -48,16 +46,6 @@ __all__ = [
 ]
 
 G = 9.81
-_DATA = Path(__file__).with_name("data")
-_CLASSES = ("very_slow", "slow", "free", "fast", "very_fast")
-_CURVES = (
-    "pelvis_tilt_deg",
-    "hip_flexion_deg",
-    "knee_flexion_deg",
-    "ankle_dorsiflexion_deg",
-    "ankle_moment_Nm_per_kg",
-)
-PELVIS, HIP, KNEE, ANKLE, MOMENT = range(len(_CURVES))
 #: Winter (2009) Fig. 4.1 segment lengths as fractions of height; hip height 0.530 H.
 HIP_HEIGHT_FRAC, THIGH_FRAC, SHANK_FRAC, FOOT_FRAC, ANKLE_HEIGHT_FRAC = 0.530, 0.245, 0.246, 0.152, 0.039
 #: Between-subject SDs, calibrated so the cohort's joint curves spread as Schwartz 2008's do
@@ -150,71 +138,6 @@ class SubjectParams:
     def metadata(self) -> str:
         """The ``subject_metadata`` string: ``leg_length_m:..,mass_kg:..,height_m:..``."""
         return f"leg_length_m:{self.leg_length_m!r},mass_kg:{self.mass_kg!r},height_m:{self.height_m!r}"
-
-
-# --- Schwartz 2008 normative data ---------------------------------------------------------------
-@dataclass(frozen=True)
-class _Normative:
-    speed: np.ndarray  # (5,) class-mean walking_speed_nondim, increasing
-    step: np.ndarray  # (5,) step_length_nondim
-    foot_off: np.ndarray  # (5,) stance fraction
-    contra_contact: np.ndarray  # (5,) opposite foot contact, cycle fraction
-    curves: np.ndarray  # (5, 51, 5) class-mean curves of _CURVES at 0, 2, ..., 100 %
-
-
-@functools.cache
-def _normative() -> _Normative:
-    path = _DATA / "schwartz2008_spatiotemporal.csv"
-    st = pd.read_csv(path, comment="#").set_index(["speed_class", "parameter"])["mean"]
-    path_c = _DATA / "schwartz2008_normative.csv"
-    cv = pd.read_csv(path_c, comment="#")
-    curves = np.empty((len(_CLASSES), 51, len(_CURVES)))
-    for i, cls in enumerate(_CLASSES):
-        for j, var in enumerate(_CURVES):
-            rows = cv[(cv["speed_class"] == cls) & (cv["variable"] == var)].sort_values("percent_cycle")
-            if not np.array_equal(rows["percent_cycle"].to_numpy(float), np.arange(0.0, 101.0, 2.0)):
-                raise DataFormatError(
-                    f"{cls}/{var}: expected 51 points at 0, 2, ..., 100 %",
-                    file=str(path_c),
-                    column="percent_cycle",
-                )
-            curves[i, :, j] = rows["mean"].to_numpy(float)
-    try:
-        col = {
-            p: np.array([st[(c, p)] for c in _CLASSES], dtype=float)
-            for p in (
-                "walking_speed_nondim",
-                "step_length_nondim",
-                "foot_off_pct",
-                "opposite_foot_contact_pct",
-            )
-        }
-    except KeyError as exc:
-        raise DataFormatError(f"missing row {exc}", file=str(path), column="parameter") from None
-    if np.any(np.diff(col["walking_speed_nondim"]) <= 0):
-        raise DataFormatError("class speeds must increase", file=str(path), column="mean")
-    return _Normative(
-        col["walking_speed_nondim"],
-        col["step_length_nondim"],
-        col["foot_off_pct"] / 100,
-        col["opposite_foot_contact_pct"] / 100,
-        curves,
-    )
-
-
-def _at_speed(values: np.ndarray, v_star: float) -> np.ndarray:
-    """Linear interpolation between class centres in dimensionless speed, clamped at the ends."""
-    x = float(np.interp(v_star, _normative().speed, np.arange(len(_CLASSES))))
-    i = min(int(x), len(_CLASSES) - 2)
-    return values[i] * (1 - (x - i)) + values[i + 1] * (x - i)
-
-
-@functools.lru_cache(maxsize=256)
-def _spline(v_star: float) -> tuple[CubicSpline, np.ndarray]:
-    """Periodic cubic spline through the class-interpolated curves, and their cycle means."""
-    c = np.array(_at_speed(_normative().curves, v_star))
-    c[0] = c[-1] = 0.5 * (c[0] + c[-1])
-    return CubicSpline(np.linspace(0.0, 1.0, 51), c, bc_type="periodic", axis=0), c[:-1].mean(axis=0)
 
 
 def _foot_flat_constant(spline: CubicSpline) -> float:
@@ -324,7 +247,7 @@ class _Condition:
     speed: float
     incline: float
     spline: CubicSpline
-    mean: np.ndarray  # cycle means of _CURVES
+    mean: np.ndarray  # cycle means of CURVES
     flat: float  # standing offset of the foot angle, deg
     stride: float  # mean stride length, m
     foot_off: float  # stance fraction before the subject's timing warp
@@ -369,10 +292,10 @@ class _Condition:
 
 
 def _condition(subject: SubjectParams, speed: float, incline: float) -> _Condition:
-    nv = _normative()
+    nv = normative()
     v_star = speed / np.sqrt(G * subject.leg_length_m)
-    spline, mean = _spline(round(float(v_star), 9))
-    stride = 2 * float(_at_speed(nv.step, v_star)) * subject.leg_length_m * subject.step_length_scale
+    spline, mean = curve_spline(round(float(v_star), 9))
+    stride = 2 * float(at_speed(nv.step, v_star)) * subject.leg_length_m * subject.step_length_scale
     task = "level_walking" if incline == 0 else "incline_walking" if incline > 0 else "decline_walking"
     return _Condition(
         subject,
@@ -382,8 +305,8 @@ def _condition(subject: SubjectParams, speed: float, incline: float) -> _Conditi
         mean,
         _foot_flat_constant(spline),
         stride,
-        float(_at_speed(nv.foot_off, v_star)),
-        float(_at_speed(nv.contra_contact, v_star)),
+        float(at_speed(nv.foot_off, v_star)),
+        float(at_speed(nv.contra_contact, v_star)),
         task,
         f"s{_fmt(speed)}_i{_fmt(incline)}",
         f"speed_m_s:{_fmt(speed)},incline_deg:{_fmt(incline)}",

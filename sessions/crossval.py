@@ -39,8 +39,8 @@ from estimators.pipeline import PipelineConfig, TrainedModel
 from sessions import schema
 from sessions.cohort import CohortSpec, SensorNoise, generate_cohort, simulate_sensors
 from sessions.replay import run
-from sessions.replay_io import ReplayInput
 from sessions.training import StrideData, fit_models, stride_data, subject_grams
+from sessions.trials import replay_input
 
 #: Seed 000 Table/section III-B numbers: (mean, SD).
 PAPER = {
@@ -74,14 +74,6 @@ class SubjectResult:
     strides: int
 
 
-def _trial_input(sensors: pd.DataFrame) -> ReplayInput:
-    return ReplayInput(
-        time_s=sensors[schema.REPLAY_TIME].to_numpy(np.float64),
-        signals={k: sensors[k].to_numpy(np.float64) for k in schema.REPLAY_SIGNALS},
-        heel_strike=sensors[schema.REPLAY_HEEL_STRIKE].to_numpy() > 0.5,
-    )
-
-
 def evaluate_subject(
     cohort: pd.DataFrame, data: StrideData, model: TrainedModel, subject: str, noise: SensorNoise, seed: int
 ) -> SubjectResult:
@@ -98,7 +90,7 @@ def evaluate_subject(
         rows.groupby(schema.TASK_ID, sort=True), ss.spawn(rows[schema.TASK_ID].nunique()), strict=True
     ):
         sensors = simulate_sensors(walk.sort_values(schema.TIME_S), noise, np.random.default_rng(child))
-        trial = _trial_input(sensors)
+        trial = replay_input(sensors)
         hs = trial.heel_strike
         assert hs is not None
         gt_p = sensors["gt_phase"].to_numpy()

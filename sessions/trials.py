@@ -14,8 +14,15 @@ import numpy as np
 import pandas as pd
 
 from sessions import schema
-from sessions.cohort import CohortSpec, SensorNoise, make_subjects, resample_walk, simulate_sensors
-from sessions.cohort import generate_walk as _generate_walk
+from sessions.cohort import (
+    CohortSpec,
+    SensorNoise,
+    generate_walk,
+    make_subjects,
+    resample_walk,
+    simulate_sensors,
+)
+from sessions.replay_io import ReplayInput
 
 TREADMILL_PROTOCOL: tuple[tuple[float, float, int], ...] = (
     (1.2, 0.0, 20),
@@ -53,10 +60,19 @@ def sensor_trial(
     """
     subj = make_subjects(CohortSpec())[subject]
     rng = np.random.default_rng(seed)
-    walk = _generate_walk(subj, schedule, rng)
+    walk = generate_walk(subj, schedule, rng)
     uniform = resample_walk(walk, rate_hz)
     sensors = simulate_sensors(uniform, noise or SensorNoise(), rng)
     return sensors, subj.leg_length_m, subj.mass_kg
+
+
+def replay_input(sensors: pd.DataFrame) -> ReplayInput:
+    """A simulated sensor frame as the replay reader would return it (every channel, true heel strikes)."""
+    return ReplayInput(
+        time_s=sensors[schema.REPLAY_TIME].to_numpy(np.float64),
+        signals={k: sensors[k].to_numpy(np.float64) for k in schema.REPLAY_SIGNALS},
+        heel_strike=sensors[schema.REPLAY_HEEL_STRIKE].to_numpy() > 0.5,
+    )
 
 
 def replay_columns(sensors: pd.DataFrame) -> pd.DataFrame:

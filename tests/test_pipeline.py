@@ -8,8 +8,7 @@ import pytest
 from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
 from sessions.crossval import stride_rmse, wrapped
 from sessions.replay import measurements
-from sessions.replay_io import ReplayInput
-from sessions.trials import sensor_trial
+from sessions.trials import replay_input, sensor_trial
 
 SCHEDULE = [(1.2, 0.0, 12), (1.0, 5.0, 12), (0.8, -5.0, 12)]
 
@@ -17,21 +16,7 @@ SCHEDULE = [(1.2, 0.0, 12), (1.0, 5.0, 12), (0.8, -5.0, 12)]
 @pytest.fixture(scope="module")
 def trial():
     sensors, leg, mass = sensor_trial(SCHEDULE, subject=0)
-    data = ReplayInput(
-        time_s=sensors["time_s"].to_numpy(),
-        signals={
-            k: sensors[k].to_numpy()
-            for k in (
-                "foot_angle_deg",
-                "foot_vel_dps",
-                "shank_angle_deg",
-                "shank_vel_dps",
-                "heel_forward_m",
-                "heel_up_m",
-            )
-        },
-        heel_strike=sensors["heel_strike"].to_numpy() > 0,
-    )
+    data = replay_input(sensors)
     return sensors, data, leg, mass
 
 
