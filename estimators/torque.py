@@ -14,6 +14,7 @@ with ``scale = 1/5`` and ``cutoff_phase = 0.65`` (the code's runtime rule). Posi
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,10 +58,11 @@ class TorqueProfile:
         """Scalar :meth:`torque` for the streaming path."""
         if p % 1.0 > self.cutoff_phase:
             return 0.0
-        terms = np.empty((1, 7))
-        _kernels.model_terms(self._coef4, p, l, r, terms)
+        coef4, terms = self._workspace
+        _kernels.model_terms(coef4, p, l, r, terms)
         return float(min(max(self.scale * mass_kg * terms[0, 0], 0.0), max_torque))
 
-    @property
-    def _coef4(self) -> Array:
-        return np.ascontiguousarray(self.coef[None])
+    @functools.cached_property
+    def _workspace(self) -> tuple[Array, Array]:
+        """Contiguous ``(1, 2, 2, K)`` coefficients and a ``(1, 7)`` scratch row for the kernel."""
+        return np.ascontiguousarray(self.coef[None]), np.empty((1, 7))
