@@ -124,6 +124,8 @@ def stride_data(frame: pd.DataFrame) -> StrideData:
     shape = (S, SAMPLES_PER_STRIDE)
     t = f[schema.TIME_S].to_numpy(np.float64).reshape(shape)
     p = f[schema.PHASE_IPSI].to_numpy(np.float64).reshape(shape) / 100.0
+    if not np.allclose(p, p[0]):
+        raise ValueError("strides must share one phase grid (phase_ipsi = i / 149 x 100)")
     T = (t[:, -1] - t[:, 0]) / (p[:, -1] - p[:, 0])
     if np.any(~(T > 0)):
         raise ValueError("a stride has non-increasing time stamps")
@@ -150,7 +152,7 @@ def stride_data(frame: pd.DataFrame) -> StrideData:
     return StrideData(
         subjects=subjects,
         subject=np.array([subjects.index(s) for s in subj]),
-        p=p[0] % 1.0 if np.allclose(p, p[0]) else _fail_phase(),
+        p=p[0] % 1.0,
         pdot=1.0 / T,
         l=speed * T / leg,
         r=incline,
@@ -161,10 +163,6 @@ def stride_data(frame: pd.DataFrame) -> StrideData:
         speeds=tuple(sorted(set(speed.tolist()))),
         inclines=tuple(sorted(set(incline.tolist()))),
     )
-
-
-def _fail_phase() -> Array:
-    raise ValueError("strides must share the same phase grid (phase_ipsi = i / 149 x 100)")
 
 
 def _highpass_trials(f: pd.DataFrame, heel: Array) -> Array:
