@@ -1,4 +1,4 @@
-"""The one place that names what crosses a file or a socket.
+"""The one place that names what crosses a file or a socket: columns, wire messages, MCAP payloads.
 
 Every column of a LocoHub table gaitscope reads or writes, every column of the replay CSV, and the
 metadata of a fitted-model file are defined here; readers, writers and (later) the server's wire
@@ -15,7 +15,7 @@ toes up). With these signs ``foot = shank + ankle_dorsiflexion`` (seed 000: shan
 
 from __future__ import annotations
 
-from typing import Final, Literal
+from typing import Annotated, Final, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -111,3 +111,321 @@ class ModelProvenance(BaseModel):
     fourier_order: int = Field(ge=1)
     torque_fourier_order: int = Field(ge=1)
     cohort_seed: int | None = None
+
+
+# =================================================================================================
+# Wire and record messages: REST bodies, websocket messages and MCAP channel payloads.
+# Browser and device code follow these; `GET /api/schema` serves their JSON schemas, and the MCAP
+# channels' JSON schemas are generated from the same classes.
+# =================================================================================================
+
+_CODE = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$"
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class SubjectCreate(_Strict):
+    """A person who walks with a device."""
+
+    code: str = Field(pattern=_CODE, description="pseudonymous code, 1-32 of A-Z a-z 0-9 _ . -")
+    leg_length_m: float = Field(ge=0.5, le=1.3)
+    mass_kg: float = Field(ge=20.0, le=250.0)
+    side: Literal["left", "right"] = "right"
+    notes: str = Field(default="", max_length=2000)
+
+
+class Subject(SubjectCreate):
+    id: int
+    created_utc: str
+
+
+#: Bounds of every clinician-adjustable setting: (minimum, maximum, largest change per second).
+SETTING_LIMITS: Final[dict[str, tuple[float, float, float]]] = {
+    "torque_gain": (0.0, 3.0, 0.5),
+    "max_torque_Nm": (0.0, 80.0, 10.0),
+    "measurement_noise_scale": (0.1, 10.0, 5.0),
+    "process_noise_scale": (0.1, 10.0, 5.0),
+}
+
+
+class SessionSettings(_Strict):
+    """Assistance and estimator tuning of one session (seed 000's defaults at 1.0)."""
+
+    torque_gain: float = Field(default=1.0, ge=0.0, le=3.0, description="x the 1/5-scaled biological moment")
+    max_torque_Nm: float = Field(default=30.0, ge=0.0, le=80.0, description="hard bound on the command")
+    measurement_noise_scale: float = Field(default=1.0, ge=0.1, le=10.0)
+    process_noise_scale: float = Field(default=1.0, ge=0.1, le=10.0)
+    model: str = Field(default="default", pattern=_CODE, description="name of a model in the model store")
+
+
+class SettingsChange(_Strict):
+    """A requested change of some settings; fields left out keep their value."""
+
+    torque_gain: float | None = Field(default=None, ge=0.0, le=3.0)
+    max_torque_Nm: float | None = Field(default=None, ge=0.0, le=80.0)
+    measurement_noise_scale: float | None = Field(default=None, ge=0.1, le=10.0)
+    process_noise_scale: float | None = Field(default=None, ge=0.1, le=10.0)
+    actor: str = Field(default="clinician", max_length=64)
+    reason: str = Field(default="", max_length=500)
+
+
+class ProtocolStep(_Strict):
+    speed_m_s: float = Field(ge=0.3, le=2.0)
+    incline_deg: float = Field(ge=-15.0, le=15.0)
+    strides: int = Field(ge=1, le=2000)
+
+
+#: Seed 000 III-E treadmill protocol: speeds, then an incline staircase up to +10 deg and down to -10.
+TREADMILL_PROTOCOL: Final = (
+    (1.2, 0.0, 20), (0.8, 0.0, 20), (1.2, 0.0, 20), (0.8, 0.0, 20),
+    (1.0, 2.5, 8), (1.0, 5.0, 8), (1.0, 7.5, 8), (1.0, 10.0, 8), (1.0, 5.0, 8), (1.0, 0.0, 8),
+    (1.0, -2.5, 8), (1.0, -5.0, 8), (1.0, -7.5, 8), (1.0, -10.0, 8),
+)  # fmt: skip
+
+
+class SimulatedSource(_Strict):
+    """A virtual-cohort subject walking a protocol through simulated sensors, in real time."""
+
+    kind: Literal["simulated"] = "simulated"
+    protocol: list[ProtocolStep] = Field(
+        default_factory=lambda: [
+            ProtocolStep(speed_m_s=v, incline_deg=r, strides=n) for v, r, n in TREADMILL_PROTOCOL
+        ],
+        min_length=1,
+        max_length=200,
+    )
+    rate_hz: float = Field(default=200.0, ge=20.0, le=1000.0)
+    cohort_subject: int = Field(default=0, ge=0, le=9)
+    loop: bool = True
+    seed: int = Field(default=7, ge=0)
+
+
+class ReplaySource(_Strict):
+    """A stored trial (recorded, or uploaded MCAP / replay CSV / LocoHub file) played back."""
+
+    kind: Literal["replay"] = "replay"
+    trial_id: int = Field(ge=1)
+    speed: float = Field(default=1.0, ge=1.0, le=50.0, description="1x real time or faster")
+    loop: bool = False
+
+
+class DeviceSource(_Strict):
+    """A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames."""
+
+    kind: Literal["device"] = "device"
+
+
+SourceSpec = Annotated[SimulatedSource | ReplaySource | DeviceSource, Field(discriminator="kind")]
+
+
+class SessionCreate(_Strict):
+    subject_id: int = Field(ge=1)
+    source: SourceSpec = Field(default_factory=SimulatedSource)
+    settings: SessionSettings = Field(default_factory=SessionSettings)
+    start: bool = True
+
+
+SessionState = Literal["created", "running", "stopped"]
+
+
+class Session(BaseModel):
+    id: int
+    subject_id: int
+    source: SourceSpec
+    settings: SessionSettings
+    state: SessionState
+    created_utc: str
+    started_utc: str | None = None
+    stopped_utc: str | None = None
+
+
+TrialStatus = Literal["recording", "finished", "recovered", "uploaded"]
+
+
+class Trial(BaseModel):
+    id: int
+    session_id: int
+    name: str
+    status: TrialStatus
+    path: str = Field(description="MCAP file, relative to the data folder")
+    started_utc: str
+    stopped_utc: str | None = None
+    samples: int = 0
+    duration_s: float = 0.0
+
+
+EventKind = Literal["setting", "annotation", "system", "recording"]
+
+
+class AnnotationCreate(_Strict):
+    text: str = Field(min_length=1, max_length=500)
+    actor: str = Field(default="clinician", max_length=64)
+
+
+class Event(BaseModel):
+    """A setting change, an annotation or a system event: when, what, before, after, who."""
+
+    id: int
+    session_id: int
+    t: float = Field(description="session time (s) of the sample at which it took effect")
+    wall_utc: str
+    kind: EventKind
+    text: str
+    field: str | None = None
+    before: float | str | None = None
+    after: float | str | None = None
+    actor: str = "system"
+
+
+class RecordingControl(_Strict):
+    action: Literal["start", "stop"]
+    name: str = Field(default="", max_length=100)
+
+
+class UploadCreate(_Strict):
+    filename: str = Field(min_length=1, max_length=200, pattern=r"^[^/\\]+\.(mcap|csv|parquet)$")
+    size: int = Field(ge=1, description="bytes; refused above the server's limit")
+    subject_id: int = Field(ge=1)
+
+
+class Upload(BaseModel):
+    id: str
+    filename: str
+    size: int
+    received: int
+    chunk_size: int
+
+
+class RerunRequest(_Strict):
+    settings: SessionSettings
+
+
+# --- per-sample messages (websocket and MCAP) ----------------------------------------------------
+
+
+class SensorFrame(_Strict):
+    """One sample from a device (``/ws/devices/{id}``) or a source; NaN-free, absent = None.
+
+    ``t`` is the device's own clock (s); ``sent_ns`` its wall clock at send time (ns since the epoch,
+    optional) for end-to-end latency.
+    """
+
+    type: Literal["frame"] = "frame"
+    seq: int = Field(ge=0)
+    t: float
+    foot_angle_deg: float | None = None
+    foot_vel_dps: float | None = None
+    shank_angle_deg: float | None = None
+    shank_vel_dps: float | None = None
+    heel_forward_m: float | None = None
+    heel_up_m: float | None = None
+    thigh_angle_deg: float | None = Field(default=None, description="for the leg view only")
+    heel_strike: bool | None = None
+    sent_ns: int | None = None
+
+
+class GaitState(BaseModel):
+    """The estimate at one sample, as streamed to browsers and recorded (``/gait_state``)."""
+
+    seq: int
+    t: float
+    phase: float
+    phase_rate: float
+    stride_length_m: float
+    incline_deg: float
+    torque_Nm: float
+    tbe_phase: float
+    heel_strike: bool
+    backup_reset: bool
+    foot_angle_deg: float | None
+    shank_angle_deg: float | None
+    thigh_angle_deg: float | None
+    foot_pred_deg: float
+    shank_pred_deg: float
+    sent_ns: int | None = None
+    recv_ns: int = Field(description="server wall clock when the sensor frame arrived (ns)")
+
+
+class TorqueCommand(BaseModel):
+    """Sent back to a live device after each frame, and recorded (``/torque``)."""
+
+    type: Literal["torque"] = "torque"
+    seq: int
+    t: float
+    torque_Nm: float
+
+
+class StreamBatch(BaseModel):
+    """Server -> browser: the gait states since the last batch (decimated as the client asked)."""
+
+    type: Literal["states"] = "states"
+    session_id: int
+    states: list[GaitState]
+    decimation: int = Field(description="every n-th sample is sent")
+
+
+class Health(BaseModel):
+    """Server -> browser, about once a second: data health of the session and of this client."""
+
+    type: Literal["health"] = "health"
+    session_id: int
+    rate_hz: float
+    latency_ms_p50: float | None
+    latency_ms_p95: float | None
+    samples: int
+    dropped_input: int = Field(description="device frames lost or out of order")
+    dropped_client: int = Field(description="batches this client missed because it was slow")
+    clients: int
+
+
+class EventMessage(BaseModel):
+    type: Literal["event"] = "event"
+    event: Event
+
+
+class SettingsMessage(BaseModel):
+    type: Literal["settings"] = "settings"
+    session_id: int
+    settings: SessionSettings
+
+
+class Hello(BaseModel):
+    type: Literal["hello"] = "hello"
+    session: Session
+    subject: Subject
+    source_rate_hz: float | None
+
+
+ServerMessage = Annotated[
+    Hello | StreamBatch | Health | EventMessage | SettingsMessage | TorqueCommand, Field(discriminator="type")
+]
+
+
+class TimeStamp(BaseModel):
+    sec: int
+    nsec: int
+
+
+class KeyValuePair(BaseModel):
+    key: str
+    value: str
+
+
+class FoxgloveEvent(BaseModel):
+    """Foxglove's ``foxglove.Event`` (start_time, end_time, metadata), so Foxglove lists our events."""
+
+    start_time: TimeStamp
+    end_time: TimeStamp
+    metadata: list[KeyValuePair] = Field(default_factory=list)
+
+
+#: MCAP topics and the class whose JSON schema each carries; ``/events`` uses Foxglove's schema name.
+MCAP_CHANNELS: Final = {
+    "/sensor": ("gaitscope.SensorFrame", SensorFrame),
+    "/gait_state": ("gaitscope.GaitState", GaitState),
+    "/torque": ("gaitscope.TorqueCommand", TorqueCommand),
+    "/settings": ("gaitscope.SessionSettings", SessionSettings),
+    "/events": ("foxglove.Event", FoxgloveEvent),
+}

@@ -23,26 +23,14 @@ from sessions.cohort import (
     simulate_sensors,
 )
 from sessions.replay_io import ReplayInput
+from sessions.schema import TREADMILL_PROTOCOL
 
-TREADMILL_PROTOCOL: tuple[tuple[float, float, int], ...] = (
-    (1.2, 0.0, 20),
-    (0.8, 0.0, 20),
-    (1.2, 0.0, 20),
-    (0.8, 0.0, 20),
-    (1.0, 2.5, 8),
-    (1.0, 5.0, 8),
-    (1.0, 7.5, 8),
-    (1.0, 10.0, 8),
-    (1.0, 5.0, 8),
-    (1.0, 0.0, 8),
-    (1.0, -2.5, 8),
-    (1.0, -5.0, 8),
-    (1.0, -7.5, 8),
-    (1.0, -10.0, 8),
-)
 DEFAULT_SUBJECT = 0
 DEFAULT_RATE_HZ = 100.0
 DEFAULT_SEED = 7
+
+
+__all__ = ["TREADMILL_PROTOCOL", "minutes_schedule", "replay_columns", "replay_input", "sensor_trial"]
 
 
 def sensor_trial(
