@@ -68,6 +68,7 @@ class HeelStrikeBackup:
         self.sse_ekf = 0.0
         self.sse_hp = 0.0
         self.resets = 0
+        self._noise = noise
         self._rbar = np.ascontiguousarray(noise.mean() * ekf.config.measurement_noise_scale)
         self._last_hs: float | None = None
         self._terms = np.zeros((N_OUTPUTS, 7))
@@ -77,6 +78,10 @@ class HeelStrikeBackup:
         self._y = np.zeros(N_CHANNELS)
         self._S = np.zeros((N_CHANNELS, N_CHANNELS))
         self._K = np.zeros((2, N_CHANNELS))
+
+    def retune(self) -> None:
+        """Follow the main EKF's measurement-noise scale (after :meth:`PhaseEKF.retune`)."""
+        self._rbar = np.ascontiguousarray(self._noise.mean() * self.ekf.config.measurement_noise_scale)
 
     def step(self, t: float, dt: float, z: Array | None, heel_strike: bool) -> bool:
         """Run after the main EKF's update for the sample at time ``t``; True if it reset the EKF."""

@@ -20,7 +20,7 @@ Choices where the paper and the authors' code differ (``shared/reference/estimat
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -121,6 +121,7 @@ class PhaseEKF:
         self.config = config or EKFConfig()
         self.coef = np.ascontiguousarray(coef, dtype=np.float64)
         self.leg_length = float(leg_length)
+        self._noise = noise
         self._bins = np.ascontiguousarray(noise.bins * self.config.measurement_noise_scale)
         self.x = self.config.initial_state()
         self.P = self.config.initial_covariance()
@@ -164,6 +165,18 @@ class PhaseEKF:
         )
         self.mahalanobis = math.sqrt(maha2)
         self.log_likelihood = -0.5 * (maha2 + logdet + m * math.log(2.0 * math.pi)) if m else 0.0
+
+    def retune(self, measurement_noise_scale: float, process_noise_scale: float) -> None:
+        """Change the noise scales from the next step on (a clinician's tuning); the state is kept."""
+        if not (measurement_noise_scale > 0 and process_noise_scale > 0):
+            raise ValueError("noise scales must be positive")
+        self.config = replace(
+            self.config,
+            measurement_noise_scale=measurement_noise_scale,
+            process_noise_scale=process_noise_scale,
+        )
+        self._bins = np.ascontiguousarray(self._noise.bins * measurement_noise_scale)
+        self._q_dt = -1.0
 
     def reset(self, x: Array, P: Array) -> None:
         """Overwrite state and covariance (the heel-strike backup's reset, II-D)."""

@@ -7,7 +7,7 @@ no I/O, no clocks; the caller passes time stamps.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -104,6 +104,37 @@ class GaitStatePipeline:
         self._t: float | None = None
         self._z = np.full(N_CHANNELS, np.nan)
         self._hs = np.ones(1)
+
+    def retune(
+        self,
+        *,
+        torque_gain: float | None = None,
+        max_torque: float | None = None,
+        measurement_noise_scale: float | None = None,
+        process_noise_scale: float | None = None,
+    ) -> None:
+        """Change assistance or estimator tuning from the next :meth:`step` on; ``None`` keeps a value."""
+        cfg = self.config
+        gain = cfg.torque_gain if torque_gain is None else torque_gain
+        bound = cfg.max_torque if max_torque is None else max_torque
+        if not 0 <= bound <= 200 or not gain >= 0:
+            raise ValueError(f"torque gain {gain} and bound {bound} N m must be >= 0 and <= 200 N m")
+        self.config = replace(cfg, torque_gain=gain, max_torque=bound)
+        if measurement_noise_scale is not None or process_noise_scale is not None:
+            ekf_cfg = self.ekf.config
+            self.ekf.retune(
+                ekf_cfg.measurement_noise_scale
+                if measurement_noise_scale is None
+                else measurement_noise_scale,
+                ekf_cfg.process_noise_scale if process_noise_scale is None else process_noise_scale,
+            )
+            if self.backup is not None:
+                self.backup.retune()
+
+    @property
+    def predicted(self) -> Array:
+        """``h(x)`` at the last prior: model foot angle, foot velocity, shank angle, ... (6,)."""
+        return self.ekf.z_pred
 
     def step(
         self, t: float, raw: Array, heel_strike: bool | None = None, heel_filtered: bool = False

@@ -98,3 +98,14 @@ def test_time_must_increase(small_model: TrainedModel) -> None:
     pipe.step(1.0, np.zeros(6))
     with pytest.raises(ValueError, match="time must increase"):
         pipe.step(1.0, np.zeros(6))
+
+
+def test_retune_changes_assistance_and_noise_from_the_next_step(small_model: TrainedModel) -> None:
+    pipe = GaitStatePipeline(small_model, PipelineConfig(torque_gain=1.0, max_torque=30.0))
+    pipe.retune(torque_gain=2.0, max_torque=12.0, measurement_noise_scale=3.0)
+    assert pipe.config.torque_gain == 2.0 and pipe.config.max_torque == 12.0
+    assert pipe.ekf.config.measurement_noise_scale == 3.0 and pipe.ekf.config.process_noise_scale == 1.0
+    np.testing.assert_allclose(pipe.ekf._bins, small_model.noise.bins * 3.0)
+    with pytest.raises(ValueError, match="must be >= 0"):
+        pipe.retune(max_torque=300.0)
+    assert pipe.config.max_torque == 12.0  # a refused change leaves the settings as they were
