@@ -23,6 +23,7 @@ EVENT_COLUMNS = (s.HEEL_STRIKE, s.TOE_OFF, s.HEEL_STRIKE_CONTRA)
 #: Columns constant within a stride: taken from the stride a resampled sample falls in.
 STRIDE_COLUMNS = (s.STEP, s.PHASE_RATE, s.STRIDE_LENGTH, s.STEP_LENGTH, s.INCLINE, s.SPEED)
 #: Ground-truth columns of the simulated replay CSV.
+THIGH_FOR_VIEW = "thigh_angle_deg"
 GROUND_TRUTH = ("gt_phase", "gt_phase_rate", "gt_stride_length_m", "gt_incline_deg", "gt_speed_m_s")
 DUPLICATE_TOL_S = 1e-9
 
@@ -117,6 +118,7 @@ def simulate_sensors(walk: pd.DataFrame, noise: SensorNoise, rng: np.random.Gene
     )
     for name, x in zip(GROUND_TRUTH, truth, strict=True):
         cols[name] = np.asarray(x, dtype=np.float64)
+    cols[THIGH_FOR_VIEW] = np.degrees(w[s.THIGH_ANGLE].to_numpy(np.float64))  # clean: drives the leg view only
     return pd.DataFrame(cols)
 
 

@@ -229,6 +229,7 @@ def test_simulate_sensors_drops_duplicates_and_keeps_truth(cohort: pd.DataFrame)
         "gt_stride_length_m",
         "gt_incline_deg",
         "gt_speed_m_s",
+        "thigh_angle_deg",
     ]
     assert len(out) == len(walk) - 4 and np.all(np.diff(out[s.REPLAY_TIME]) > 0)
     assert out[s.REPLAY_HEEL_STRIKE].dtype == np.int64 and out[s.REPLAY_HEEL_STRIKE].sum() == 6
