@@ -107,9 +107,7 @@ class HeelStrikeBackup:
         reset = False
         if heel_strike:
             if self.sse_ekf - self.sse_hp > cfg.sse_margin:
-                self.ekf.reset(
-                    np.array([self.phase, self.phase_rate, self.x[0], self.x[1]]), cfg.reset_p * np.eye(4)
-                )
+                self.ekf.reset(np.array([self.phase, self.phase_rate, self.x[0], self.x[1]]), cfg.reset_p * np.eye(4))
                 self.resets += 1
                 reset = True
             self.sse_ekf = self.sse_hp = 0.0
@@ -143,9 +141,7 @@ class HeelStrikeDetector:
         self._heel: list[Array] = []
         self._acc: list[float] = []
 
-    def step(
-        self, t: float, dt: float, foot_angle: float, foot_vel: float, heel: Array | None = None
-    ) -> bool:
+    def step(self, t: float, dt: float, foot_angle: float, foot_vel: float, heel: Array | None = None) -> bool:
         """Feed one sample; True when it is a heel strike."""
         cfg = self.config
         if cfg.accel_threshold is not None and heel is not None and dt > 0:

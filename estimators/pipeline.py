@@ -88,9 +88,7 @@ class GaitStatePipeline:
         sample_period: nominal sample period (s) for the heel high-pass filter's discretisation.
     """
 
-    def __init__(
-        self, model: TrainedModel, config: PipelineConfig | None = None, sample_period: float = 0.01
-    ):
+    def __init__(self, model: TrainedModel, config: PipelineConfig | None = None, sample_period: float = 0.01):
         self.model = model
         self.config = config or PipelineConfig()
         cfg = self.config
@@ -123,9 +121,7 @@ class GaitStatePipeline:
         if measurement_noise_scale is not None or process_noise_scale is not None:
             ekf_cfg = self.ekf.config
             self.ekf.retune(
-                ekf_cfg.measurement_noise_scale
-                if measurement_noise_scale is None
-                else measurement_noise_scale,
+                ekf_cfg.measurement_noise_scale if measurement_noise_scale is None else measurement_noise_scale,
                 ekf_cfg.process_noise_scale if process_noise_scale is None else process_noise_scale,
             )
             if self.backup is not None:
@@ -136,9 +132,7 @@ class GaitStatePipeline:
         """``h(x)`` at the last prior: model foot angle, foot velocity, shank angle, ... (6,)."""
         return self.ekf.z_pred
 
-    def step(
-        self, t: float, raw: Array, heel_strike: bool | None = None, heel_filtered: bool = False
-    ) -> GaitEstimate:
+    def step(self, t: float, raw: Array, heel_strike: bool | None = None, heel_filtered: bool = False) -> GaitEstimate:
         """Process one sample.
 
         Args:

@@ -90,9 +90,7 @@ def cmd_demo(a: argparse.Namespace) -> int:
     est = pd.read_csv(out)
     hs = sensors["heel_strike"].to_numpy() > 0
     err = 100 * np.mean(stride_rmse(wrapped(est["phase"].to_numpy() - sensors["gt_phase"].to_numpy()), hs))
-    tbe = 100 * np.mean(
-        stride_rmse(wrapped(est["tbe_phase"].to_numpy() - sensors["gt_phase"].to_numpy()), hs)
-    )
+    tbe = 100 * np.mean(stride_rmse(wrapped(est["tbe_phase"].to_numpy() - sensors["gt_phase"].to_numpy()), hs))
     inc = np.mean(stride_rmse(est["incline_deg"].to_numpy() - sensors["gt_incline_deg"].to_numpy(), hs))
     print(f"against ground truth: phase RMSE EKF {err:.2f} %, TBE {tbe:.2f} %; incline RMSE {inc:.2f} deg")
     print(f"wrote {trial} and {out}")
@@ -171,6 +169,34 @@ def cmd_crossval(a: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_serve(a: argparse.Namespace) -> int:
+    import uvicorn
+
+    from server.app import create_app
+    from server.settings import Settings
+
+    overrides = {k: v for k, v in (("host", a.host), ("port", a.port), ("viser_port", a.viser_port),
+                                   ("data_dir", a.data_dir)) if v is not None}  # fmt: skip
+    if a.no_demo:
+        overrides["demo"] = False
+    if a.no_leg_view:
+        overrides["leg_view"] = False
+    try:
+        settings = Settings(**overrides)
+    except ValueError as e:
+        raise DataFormatError(str(e), file="settings") from None
+    if not settings.is_loopback:
+        print(
+            f"gaitscope: WARNING: listening on {settings.host}, reachable from other machines. gaitscope has no "
+            "login yet: anyone who can reach this port can change assistance settings.",
+            file=sys.stderr,
+        )
+    print(f"gaitscope: data in {settings.data_dir.resolve()}, database {settings.database_url}")
+    print(f"gaitscope: serving on http://{settings.host}:{settings.port}/  (API docs at /docs)", flush=True)
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level=a.log_level, ws="websockets")
+    return 0
+
+
 def cmd_bench(a: argparse.Namespace) -> int:
     from sessions.bench import run_bench
 
@@ -179,10 +205,18 @@ def cmd_bench(a: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="gaitscope", description=__doc__.splitlines()[0] if __doc__ else None
-    )
+    parser = argparse.ArgumentParser(prog="gaitscope", description=__doc__.splitlines()[0] if __doc__ else None)
     sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("serve", help="run the dashboard (embedded SQLite, demo session, leg view)")
+    p.add_argument("--host", help="address to bind (default 127.0.0.1; GAITSCOPE_HOST)")
+    p.add_argument("--port", type=int, help="HTTP port (default 8000; GAITSCOPE_PORT)")
+    p.add_argument("--viser-port", type=int, help="3D leg view port (default 8081; GAITSCOPE_VISER_PORT)")
+    p.add_argument("--data-dir", type=Path, help="data folder (default ./gaitscope-data; GAITSCOPE_DATA_DIR)")
+    p.add_argument("--no-demo", action="store_true", help="do not create the demo subject and session")
+    p.add_argument("--no-leg-view", action="store_true", help="do not start the viser leg view")
+    p.add_argument("--log-level", default="warning", choices=["debug", "info", "warning", "error"])
+    p.set_defaults(func=cmd_serve)
 
     p = sub.add_parser("demo", help="replay the bundled default trial and print a summary")
     p.add_argument("--out-dir", type=Path, default=Path("out"))

@@ -384,9 +384,7 @@ def _walk_columns(
         shank = hip - pelvis - knee + off[..., 1] + sh_inc
         return thigh, shank, hip - pelvis - knee + ankle - ch(C_FLAT) + off[..., 2] + ch(C_FT_INC)
 
-    thigh_t, shank_t, foot_t = leg(
-        ch(C_HIP_D), ch(C_KNEE_D), ch(C_ANKLE_D), ch(C_PELVIS), ch(C_TH_INC), ch(C_SH_INC)
-    )
+    thigh_t, shank_t, foot_t = leg(ch(C_HIP_D), ch(C_KNEE_D), ch(C_ANKLE_D), ch(C_PELVIS), ch(C_TH_INC), ch(C_SH_INC))
     thigh_c, shank_c, foot_c = leg(
         ch(C_HIP_D_C), ch(C_KNEE_D_C), ch(C_ANKLE_D_C), ch(C_PELVIS_C), ch(C_TH_INC_C), ch(C_SH_INC_C)
     )

@@ -201,7 +201,5 @@ def to_markdown(results: Sequence[SubjectResult]) -> str:
     lines += ["", "| subject | strides | " + " | ".join(_LABELS[k] for k in METRICS) + " |"]
     lines.append("|---|---|" + "---|" * len(METRICS))
     for r in results:
-        lines.append(
-            f"| {r.subject} | {r.strides} | " + " | ".join(f"{r.metrics[k]:.3g}" for k in METRICS) + " |"
-        )
+        lines.append(f"| {r.subject} | {r.strides} | " + " | ".join(f"{r.metrics[k]:.3g}" for k in METRICS) + " |")
     return "\n".join(lines) + "\n"

@@ -118,8 +118,6 @@ def load_model(path: str | Path) -> tuple[TrainedModel, ModelProvenance]:
     model = TrainedModel(
         coef=coef.astype(np.float64),
         noise=NoiseModel(cov.astype(np.float64), var.astype(np.float64)),
-        torque=TorqueProfile(
-            tcoef.astype(np.float64), float(arrays["torque_scale"]), float(arrays["torque_cutoff"])
-        ),
+        torque=TorqueProfile(tcoef.astype(np.float64), float(arrays["torque_scale"]), float(arrays["torque_cutoff"])),
     )
     return model, prov

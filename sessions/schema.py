@@ -190,9 +190,7 @@ class SimulatedSource(_Strict):
 
     kind: Literal["simulated"] = "simulated"
     protocol: list[ProtocolStep] = Field(
-        default_factory=lambda: [
-            ProtocolStep(speed_m_s=v, incline_deg=r, strides=n) for v, r, n in TREADMILL_PROTOCOL
-        ],
+        default_factory=lambda: [ProtocolStep(speed_m_s=v, incline_deg=r, strides=n) for v, r, n in TREADMILL_PROTOCOL],
         min_length=1,
         max_length=200,
     )
@@ -217,7 +215,14 @@ class DeviceSource(_Strict):
     kind: Literal["device"] = "device"
 
 
-SourceSpec = Annotated[SimulatedSource | ReplaySource | DeviceSource, Field(discriminator="kind")]
+class UploadSource(_Strict):
+    """A log uploaded for review (MCAP, replay CSV or LocoHub); its session holds the imported trial."""
+
+    kind: Literal["upload"] = "upload"
+    filename: str = Field(max_length=200)
+
+
+SourceSpec = Annotated[SimulatedSource | ReplaySource | DeviceSource | UploadSource, Field(discriminator="kind")]
 
 
 class SessionCreate(_Strict):
@@ -422,7 +427,7 @@ class FoxgloveEvent(BaseModel):
 
 
 #: MCAP topics and the class whose JSON schema each carries; ``/events`` uses Foxglove's schema name.
-MCAP_CHANNELS: Final = {
+MCAP_CHANNELS: Final[dict[str, tuple[str, type[BaseModel]]]] = {
     "/sensor": ("gaitscope.SensorFrame", SensorFrame),
     "/gait_state": ("gaitscope.GaitState", GaitState),
     "/torque": ("gaitscope.TorqueCommand", TorqueCommand),

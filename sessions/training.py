@@ -94,9 +94,7 @@ def _metadata(frame: pd.DataFrame) -> dict[str, dict[str, float]]:
                 raise ValueError(f"subject {subject}: subject_metadata has neither leg_length_m nor height_m")
             meta["leg_length_m"] = LEG_LENGTH_PER_HEIGHT * meta["height_m"]
         if "mass_kg" not in meta:
-            raise ValueError(
-                f"subject {subject}: subject_metadata has no mass_kg (needed for the torque model)"
-            )
+            raise ValueError(f"subject {subject}: subject_metadata has no mass_kg (needed for the torque model)")
         out[str(subject)] = meta
     return out
 
@@ -144,9 +142,7 @@ def stride_data(frame: pd.DataFrame) -> StrideData:
     z[..., 0], z[..., 2] = foot, shank
     z[..., 1] = np.gradient(foot, axis=1) / np.gradient(t, axis=1)
     z[..., 3] = np.gradient(shank, axis=1) / np.gradient(t, axis=1)
-    heel = np.stack(
-        [f[schema.HEEL_FORWARD].to_numpy(np.float64), f[schema.HEEL_UP].to_numpy(np.float64)], axis=1
-    )
+    heel = np.stack([f[schema.HEEL_FORWARD].to_numpy(np.float64), f[schema.HEEL_UP].to_numpy(np.float64)], axis=1)
     z[..., 4:6] = _highpass_trials(f, heel).reshape(S, SAMPLES_PER_STRIDE, 2)
     moment = -f[schema.ANKLE_MOMENT].to_numpy(np.float64).reshape(shape) / mass[:, None]
     return StrideData(

@@ -71,8 +71,6 @@ def replay_columns(sensors: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def minutes_schedule(
-    minutes: float, speed: float = 1.2, incline: float = 0.0
-) -> list[tuple[float, float, int]]:
+def minutes_schedule(minutes: float, speed: float = 1.2, incline: float = 0.0) -> list[tuple[float, float, int]]:
     """A schedule of about ``minutes`` of walking at one condition (about 1.1 s per stride)."""
     return [(speed, incline, int(np.ceil(minutes * 60 / 1.0)))]

@@ -28,9 +28,7 @@ def test_fourier_is_periodic() -> None:
     np.testing.assert_allclose(fourier(p, ORDER), fourier(p + 1.0, ORDER), atol=1e-12)
 
 
-@pytest.mark.parametrize(
-    ("dp", "dl", "dr"), [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (2, 0, 0)]
-)
+@pytest.mark.parametrize(("dp", "dl", "dr"), [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (2, 0, 0)])
 def test_derivatives_match_finite_differences(states, dp: int, dl: int, dr: int) -> None:
     p, l, r = states
     h = 1e-5

@@ -54,9 +54,7 @@ def test_replay_detects_heel_strikes_and_uses_a_subset_of_sensors(tmp_path: Path
     ("edit", "message"),
     [
         (
-            lambda f: f.assign(
-                shank_angle_deg=f["shank_angle_deg"].astype(object).where(f.index != 9, "abc")
-            ),
+            lambda f: f.assign(shank_angle_deg=f["shank_angle_deg"].astype(object).where(f.index != 9, "abc")),
             "column 'shank_angle_deg', row 11",
         ),
         (lambda f: f.assign(time_s=np.where(f.index == 20, 0.0, f["time_s"])), "column 'time_s', row 22"),
@@ -95,9 +93,7 @@ def test_train_from_a_locohub_file(tmp_path: Path, small_cohort: pd.DataFrame) -
     assert model.coef.shape == (4, 2, 2, 17)
 
 
-def test_train_refuses_a_table_without_a_required_column(
-    tmp_path: Path, small_cohort: pd.DataFrame, capsys
-) -> None:
+def test_train_refuses_a_table_without_a_required_column(tmp_path: Path, small_cohort: pd.DataFrame, capsys) -> None:
     table = tmp_path / "lab.csv"
     write_table(small_cohort.drop(columns=[schema.FOOT_ANGLE]).head(450), table)
     assert main(["train", "--data", str(table), "--out", str(tmp_path / "m.npz")]) == 2
@@ -107,9 +103,7 @@ def test_train_refuses_a_table_without_a_required_column(
 
 def test_console_script_runs_the_demo(tmp_path: Path) -> None:
     exe = str(Path(sys.executable).with_name("gaitscope"))
-    done = subprocess.run(
-        [exe, "demo", "--out-dir", str(tmp_path)], capture_output=True, text=True, timeout=300
-    )
+    done = subprocess.run([exe, "demo", "--out-dir", str(tmp_path)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert "phase RMSE EKF" in done.stdout
     est = pd.read_csv(tmp_path / "default_trial_estimates.csv")

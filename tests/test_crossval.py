@@ -17,9 +17,7 @@ from sessions.crossval import (
 
 
 def test_wrapped_phase_distance() -> None:
-    np.testing.assert_allclose(
-        wrapped(np.array([0.0, 0.1, -0.1, 0.9, -0.95, 0.5])), [0, 0.1, 0.1, 0.1, 0.05, 0.5]
-    )
+    np.testing.assert_allclose(wrapped(np.array([0.0, 0.1, -0.1, 0.9, -0.95, 0.5])), [0, 0.1, 0.1, 0.1, 0.05, 0.5])
 
 
 def test_stride_rmse_uses_complete_strides_only() -> None:
@@ -29,9 +27,7 @@ def test_stride_rmse_uses_complete_strides_only() -> None:
 
 
 def test_small_leave_one_out_run() -> None:
-    spec = CohortSpec(
-        n_subjects=3, speeds_m_s=(0.8, 1.2), inclines_deg=(-5.0, 0.0, 5.0), strides_per_condition=4
-    )
+    spec = CohortSpec(n_subjects=3, speeds_m_s=(0.8, 1.2), inclines_deg=(-5.0, 0.0, 5.0), strides_per_condition=4)
     results = crossvalidate(spec, workers=1)
     assert [r.subject for r in results] == ["VC01", "VC02", "VC03"]
     assert all(r.strides == 6 * 4 for r in results)  # 6 conditions x 4 strides, heel strike to heel strike

@@ -128,9 +128,7 @@ def test_reads_a_million_rows_quickly(tmp_path: Path) -> None:
     frame = pd.DataFrame(
         {
             schema.SUBJECT: np.repeat(["s1", "s2"], n // 2),
-            schema.TASK_INFO: np.tile(
-                ["speed_m_s:1.0,incline_deg:0", "speed_m_s:1.4,incline_deg:10"], n // 2
-            ),
+            schema.TASK_INFO: np.tile(["speed_m_s:1.0,incline_deg:0", "speed_m_s:1.4,incline_deg:10"], n // 2),
             schema.STEP: np.arange(n) // 150,
             schema.PHASE_IPSI: np.tile(np.linspace(0.0, 100.0, 150), n // 150 + 1)[:n],
         }
@@ -197,9 +195,7 @@ def test_bad_numeric_cell_in_csv_names_column_and_line(tmp_path: Path, cell: str
     assert _error(path) == f"file {path}, column '{schema.ANKLE_MOMENT}', row 5: {message}"
 
 
-@pytest.mark.parametrize(
-    ("value", "message"), [(np.nan, "NaN is not allowed"), (np.inf, "infinite value: inf")]
-)
+@pytest.mark.parametrize(("value", "message"), [(np.nan, "NaN is not allowed"), (np.inf, "infinite value: inf")])
 def test_non_finite_cell_in_parquet_names_1_based_row(tmp_path: Path, value: float, message: str) -> None:
     frame = _table()
     frame.loc[2, schema.HEEL_UP] = value
@@ -219,9 +215,7 @@ def test_phase_out_of_range(tmp_path: Path) -> None:
     frame = _table()
     frame.loc[4, schema.PHASE_IPSI] = 100.5
     path = _write_csv(tmp_path / "t.csv", frame)
-    assert (
-        _error(path) == f"file {path}, column 'phase_ipsi', row 6: phase must be within [0, 100], got 100.5"
-    )
+    assert _error(path) == f"file {path}, column 'phase_ipsi', row 6: phase must be within [0, 100], got 100.5"
 
 
 def test_step_not_integral(tmp_path: Path) -> None:
@@ -260,10 +254,7 @@ def test_bad_task_info_names_its_first_row(tmp_path: Path, task_info: str, messa
 def test_write_rejects_unknown_suffix(tmp_path: Path) -> None:
     with pytest.raises(ValueError) as info:
         write_table(_table(), tmp_path / "t.txt")
-    assert (
-        str(info.value)
-        == f"file {tmp_path / 't.txt'}: unsupported file type '.txt'; expected .parquet or .csv"
-    )
+    assert str(info.value) == f"file {tmp_path / 't.txt'}: unsupported file type '.txt'; expected .parquet or .csv"
     assert list(tmp_path.iterdir()) == []
 
 

@@ -31,9 +31,7 @@ def _run(model: TrainedModel, trial, config: PipelineConfig, lose_at: float | No
     for k, t in enumerate(data.time_s):
         if lose_at is not None and not lost and t >= lose_at:
             # knock the filter half a cycle off with a wrong rate and an over-confident covariance
-            pipe.ekf.reset(
-                np.array([pipe.ekf.x[0] + 0.5, 0.5, pipe.ekf.x[2], pipe.ekf.x[3]]), 1e-8 * np.eye(4)
-            )
+            pipe.ekf.reset(np.array([pipe.ekf.x[0] + 0.5, 0.5, pipe.ekf.x[2], pipe.ekf.x[3]]), 1e-8 * np.eye(4))
             lost = True
         e = pipe.step(float(t), z[k], bool(data.heel_strike[k]), heel_filtered=True)
         phase[k], torque[k], incline[k] = e.phase, e.torque_Nm, e.incline_deg
@@ -53,9 +51,7 @@ def test_tracks_phase_and_incline(small_model: TrainedModel, trial) -> None:
 def test_backup_recovers_a_lost_filter_within_a_few_strides(small_model: TrainedModel, trial) -> None:
     sensors, data, leg, mass = trial
     t_lose = 8.0
-    pipe, phase, _, _ = _run(
-        small_model, trial, PipelineConfig(leg_length=leg, body_mass_kg=mass), lose_at=t_lose
-    )
+    pipe, phase, _, _ = _run(small_model, trial, PipelineConfig(leg_length=leg, body_mass_kg=mass), lose_at=t_lose)
     assert pipe.backup is not None and pipe.backup.resets >= 1
     t = data.time_s
     hs_times = t[data.heel_strike]
@@ -72,9 +68,7 @@ def test_backup_recovers_a_lost_filter_within_a_few_strides(small_model: Trained
     )
     early = (t > after[0]) & (t < after[3])
     gt = sensors["gt_phase"].to_numpy()[early]
-    assert np.sqrt(np.mean(wrapped(phase_nb[early] - gt) ** 2)) > np.sqrt(
-        np.mean(wrapped(phase[early] - gt) ** 2)
-    )
+    assert np.sqrt(np.mean(wrapped(phase_nb[early] - gt) ** 2)) > np.sqrt(np.mean(wrapped(phase[early] - gt) ** 2))
 
 
 def test_torque_is_bounded_plantarflexion_before_cutoff(small_model: TrainedModel, trial) -> None:

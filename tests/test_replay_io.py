@@ -88,9 +88,7 @@ def test_missing_time_column(tmp_path: Path) -> None:
 
 def test_no_angle_column(tmp_path: Path) -> None:
     path = _write(tmp_path, "time_s,foot_vel_dps\n0,1\n1,2\n")
-    assert (
-        _error(path) == f"file {path}, row 1: no angle column; expected 'foot_angle_deg' or 'shank_angle_deg'"
-    )
+    assert _error(path) == f"file {path}, row 1: no angle column; expected 'foot_angle_deg' or 'shank_angle_deg'"
 
 
 def test_repeated_column(tmp_path: Path) -> None:
@@ -212,15 +210,11 @@ def test_output_rejects_bad_columns(
 def test_output_rejects_unequal_lengths(tmp_path: Path) -> None:
     columns = _output()
     columns["phase"] = np.zeros(4)
-    with pytest.raises(
-        ValueError, match=r"^replay output columns must be 1-D and of equal length, got shapes "
-    ):
+    with pytest.raises(ValueError, match=r"^replay output columns must be 1-D and of equal length, got shapes "):
         write_replay_output(tmp_path / "out.csv", columns)
 
 
-def test_failed_write_leaves_no_file_and_keeps_the_old_one(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_failed_write_leaves_no_file_and_keeps_the_old_one(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     def write_half_then_fail(self: pd.DataFrame, path: Path, **kwargs: object) -> None:
         Path(path).write_text("time_s,pha")
         raise OSError("disk full")

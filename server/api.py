@@ -1,0 +1,388 @@
+"""REST routes (``/api``); thin: validation by the schema, logic in ``sessions``. See ``docs/api.md``."""
+
+from __future__ import annotations
+
+import asyncio
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response, status
+from fastapi.responses import FileResponse
+from pydantic import BaseModel, Field
+
+from sessions import schema
+from sessions.errors import DataFormatError
+from sessions.manager import SessionStateError
+from sessions.models import gaitscope_version
+from sessions.runtime import SettingRejected, estimate
+from sessions.store import Conflict, NotFound
+
+if TYPE_CHECKING:
+    from server.app import AppContext
+
+router = APIRouter(prefix="/api")
+
+
+def ctx(request: Request) -> AppContext:
+    return request.app.state.ctx
+
+
+Ctx = Annotated["AppContext", Depends(ctx)]
+
+
+def _errors(exc: Exception) -> HTTPException:
+    if isinstance(exc, NotFound):
+        return HTTPException(status.HTTP_404_NOT_FOUND, str(exc))
+    if isinstance(exc, Conflict | SessionStateError | SettingRejected):
+        return HTTPException(status.HTTP_409_CONFLICT, str(exc))
+    if isinstance(exc, DataFormatError):
+        return HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc))
+    raise exc
+
+
+@router.get("/health")
+def health() -> dict[str, str]:
+    return {"status": "ok", "version": gaitscope_version()}
+
+
+_WIRE = (
+    schema.SubjectCreate, schema.Subject, schema.SessionCreate, schema.Session, schema.SessionSettings,
+    schema.SettingsChange, schema.Trial, schema.Event, schema.AnnotationCreate, schema.RecordingControl,
+    schema.UploadCreate, schema.Upload, schema.RerunRequest, schema.SensorFrame, schema.GaitState,
+    schema.TorqueCommand, schema.StreamBatch, schema.Health, schema.EventMessage, schema.SettingsMessage,
+    schema.Hello, schema.FoxgloveEvent, schema.ModelProvenance,
+)  # fmt: skip
+
+
+@router.get("/schema")
+def wire_schema() -> dict[str, Any]:
+    """JSON schema of every message that crosses a socket or a file."""
+    return {cls.__name__: cls.model_json_schema() for cls in _WIRE}
+
+
+# --- subjects ----------------------------------------------------------------------------------
+@router.get("/subjects")
+def list_subjects(c: Ctx) -> list[schema.Subject]:
+    return c.store.list_subjects()
+
+
+@router.post("/subjects", status_code=201)
+def create_subject(body: schema.SubjectCreate, c: Ctx) -> schema.Subject:
+    try:
+        return c.store.create_subject(body)
+    except Conflict as e:
+        raise _errors(e) from None
+
+
+@router.get("/subjects/{subject_id}")
+def get_subject(subject_id: int, c: Ctx) -> schema.Subject:
+    try:
+        return c.store.get_subject(subject_id)
+    except NotFound as e:
+        raise _errors(e) from None
+
+
+# --- sessions ----------------------------------------------------------------------------------
+@router.get("/sessions")
+def list_sessions(c: Ctx, subject_id: int | None = None) -> list[schema.Session]:
+    return c.store.list_sessions(subject_id)
+
+
+@router.post("/sessions", status_code=201)
+async def create_session(body: schema.SessionCreate, c: Ctx) -> schema.Session:
+    try:
+        c.models.get(body.settings.model)
+    except DataFormatError:
+        raise HTTPException(422, f"model {body.settings.model!r} does not exist") from None
+    try:
+        if isinstance(body.source, schema.ReplaySource):
+            c.store.get_trial(body.source.trial_id)
+        session = c.store.create_session(body)
+        return c.manager.start(session.id) if body.start else session
+    except (NotFound, SessionStateError) as e:
+        raise _errors(e) from None
+
+
+@router.get("/sessions/{session_id}")
+def get_session(session_id: int, c: Ctx) -> schema.Session:
+    try:
+        return c.store.get_session(session_id)
+    except NotFound as e:
+        raise _errors(e) from None
+
+
+@router.post("/sessions/{session_id}/start")
+async def start_session(session_id: int, c: Ctx) -> schema.Session:
+    try:
+        return c.manager.start(session_id)
+    except (NotFound, SessionStateError) as e:
+        raise _errors(e) from None
+
+
+@router.post("/sessions/{session_id}/stop")
+async def stop_session(session_id: int, c: Ctx) -> schema.Session:
+    try:
+        return await c.manager.stop(session_id)
+    except (NotFound, SessionStateError) as e:
+        raise _errors(e) from None
+
+
+@router.patch("/sessions/{session_id}/settings")
+async def change_settings(session_id: int, body: schema.SettingsChange, c: Ctx) -> schema.Session:
+    runtime = c.manager.get(session_id)
+    try:
+        if runtime is None:
+            c.store.get_session(session_id)
+            raise SessionStateError(f"session {session_id} is not running; settings change only while it runs")
+        return runtime.change_settings(body)
+    except (NotFound, SessionStateError, SettingRejected) as e:
+        raise _errors(e) from None
+
+
+@router.get("/sessions/{session_id}/events")
+def session_events(session_id: int, c: Ctx) -> list[schema.Event]:
+    try:
+        c.store.get_session(session_id)
+    except NotFound as e:
+        raise _errors(e) from None
+    return c.store.list_events(session_id)
+
+
+@router.post("/sessions/{session_id}/annotations", status_code=201)
+async def annotate(session_id: int, body: schema.AnnotationCreate, c: Ctx) -> schema.Event:
+    runtime = c.manager.get(session_id)
+    try:
+        if runtime is not None:
+            return runtime.annotate(body.text, body.actor)
+        c.store.get_session(session_id)
+        return c.store.add_event(session_id, t=0.0, kind="annotation", text=body.text, actor=body.actor)
+    except NotFound as e:
+        raise _errors(e) from None
+
+
+@router.post("/sessions/{session_id}/recording")
+async def recording(session_id: int, body: schema.RecordingControl, c: Ctx) -> schema.Trial:
+    runtime = c.manager.get(session_id)
+    if runtime is None:
+        raise HTTPException(409, f"session {session_id} is not running")
+    if body.action == "start":
+        return runtime.start_recording(body.name)
+    trial = runtime.stop_recording()
+    if trial is None:
+        raise HTTPException(409, f"session {session_id} is not recording")
+    return trial
+
+
+# --- trials ------------------------------------------------------------------------------------
+def _trial(c: AppContext, trial_id: int) -> tuple[schema.Trial, Path]:
+    try:
+        trial = c.store.get_trial(trial_id)
+    except NotFound as e:
+        raise _errors(e) from None
+    if trial.status == "recording":
+        raise HTTPException(409, f"trial {trial_id} is still recording; stop the recording to review it")
+    return trial, c.settings.data_dir / trial.path
+
+
+@router.get("/trials")
+def list_trials(c: Ctx, session_id: int | None = None) -> list[schema.Trial]:
+    return c.store.list_trials(session_id)
+
+
+@router.get("/trials/{trial_id}")
+def get_trial(trial_id: int, c: Ctx) -> schema.Trial:
+    try:
+        return c.store.get_trial(trial_id)
+    except NotFound as e:
+        raise _errors(e) from None
+
+
+@router.get("/trials/{trial_id}/events")
+def trial_events(trial_id: int, c: Ctx) -> list[schema.Event]:
+    try:
+        c.store.get_trial(trial_id)
+    except NotFound as e:
+        raise _errors(e) from None
+    return c.store.trial_events(trial_id)
+
+
+@router.get("/trials/{trial_id}/series")
+async def trial_series(
+    trial_id: int,
+    c: Ctx,
+    t0: float | None = None,
+    t1: float | None = None,
+    max_points: Annotated[int, Query(ge=10, le=20000)] = 2000,
+) -> dict[str, list[Any]]:
+    from sessions.recording import read_series
+
+    _, path = _trial(c, trial_id)
+    return await asyncio.to_thread(read_series, path, t0, t1, max_points)
+
+
+@router.get("/trials/{trial_id}/download")
+def download(trial_id: int, c: Ctx) -> FileResponse:
+    trial, path = _trial(c, trial_id)
+    return FileResponse(path, media_type="application/octet-stream", filename=f"gaitscope_trial{trial.id}.mcap")
+
+
+@router.post("/trials/{trial_id}/rerun")
+async def rerun(trial_id: int, body: schema.RerunRequest, c: Ctx, max_points: int = 2000) -> dict[str, list[Any]]:
+    """The trial's raw frames through the estimators with other settings (series like ``/series``)."""
+    from sessions.recording import decimate, read_sensor_frames
+
+    trial, path = _trial(c, trial_id)
+    session = c.store.get_session(trial.session_id)
+    subject = c.store.get_subject(session.subject_id)
+    try:
+        model, _ = c.models.get(body.settings.model)
+    except DataFormatError:
+        raise HTTPException(422, f"model {body.settings.model!r} does not exist") from None
+
+    def run() -> dict[str, list[Any]]:
+        frames = read_sensor_frames(path)
+        states = estimate(frames, model, subject.leg_length_m, subject.mass_kg, body.settings)
+        return decimate([s.model_dump() for s in states], max_points)
+
+    return await asyncio.to_thread(run)
+
+
+# --- uploads -----------------------------------------------------------------------------------
+@dataclass
+class UploadState:
+    info: schema.Upload
+    subject_id: int
+    path: Path
+
+
+@router.post("/uploads", status_code=201)
+def create_upload(body: schema.UploadCreate, c: Ctx) -> schema.Upload:
+    limit = c.settings.max_upload_mb * 1024 * 1024
+    if body.size > limit:
+        raise HTTPException(
+            413,
+            f"{body.filename} is {body.size / 2**20:.1f} MiB; the limit is {c.settings.max_upload_mb} MiB",
+        )
+    try:
+        c.store.get_subject(body.subject_id)
+    except NotFound as e:
+        raise _errors(e) from None
+    upload_id = uuid.uuid4().hex
+    folder = c.settings.data_dir / "uploads"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{upload_id}.part"
+    path.touch()
+    info = schema.Upload(
+        id=upload_id,
+        filename=body.filename,
+        size=body.size,
+        received=0,
+        chunk_size=c.settings.upload_chunk_kb * 1024,
+    )
+    c.uploads[upload_id] = UploadState(info, body.subject_id, path)
+    return info
+
+
+def _upload(c: AppContext, upload_id: str) -> UploadState:
+    state = c.uploads.get(upload_id)
+    if state is None:
+        raise HTTPException(404, f"upload {upload_id} does not exist (finished, cancelled or never started)")
+    return state
+
+
+@router.put("/uploads/{upload_id}")
+async def upload_chunk(upload_id: str, request: Request, c: Ctx, offset: Annotated[int, Query(ge=0)]) -> schema.Upload:
+    state = _upload(c, upload_id)
+    info = state.info
+    if offset != info.received:
+        raise HTTPException(409, f"expected the chunk at offset {info.received}, got {offset}")
+    data = bytearray()
+    async for part in request.stream():
+        data += part
+        if len(data) > info.chunk_size:
+            raise HTTPException(413, f"a chunk may hold at most {info.chunk_size} bytes")
+    if info.received + len(data) > info.size:
+        raise HTTPException(413, f"{info.filename}: more bytes than the {info.size} announced")
+    with state.path.open("ab") as f:
+        f.write(data)
+    state.info = info.model_copy(update={"received": info.received + len(data)})
+    return state.info
+
+
+@router.post("/uploads/{upload_id}/finish", status_code=201)
+async def finish_upload(upload_id: str, c: Ctx) -> schema.Trial:
+    from sessions.imports import import_log
+
+    state = _upload(c, upload_id)
+    if state.info.received != state.info.size:
+        raise HTTPException(409, f"received {state.info.received} of {state.info.size} bytes; send the rest first")
+    del c.uploads[upload_id]
+    try:
+        subject = c.store.get_subject(state.subject_id)
+        model, _ = c.models.get("default")
+        data_dir = c.settings.data_dir
+        return await asyncio.to_thread(import_log, state.path, state.info.filename, subject, c.store, data_dir, model)
+    except (DataFormatError, NotFound) as e:
+        raise _errors(e) from None
+    finally:
+        state.path.unlink(missing_ok=True)
+
+
+@router.delete("/uploads/{upload_id}", status_code=204)
+def cancel_upload(upload_id: str, c: Ctx) -> Response:
+    state = _upload(c, upload_id)
+    del c.uploads[upload_id]
+    state.path.unlink(missing_ok=True)
+    return Response(status_code=204)
+
+
+# --- models and the leg view -------------------------------------------------------------------
+class ModelInfo(BaseModel):
+    name: str
+    provenance: schema.ModelProvenance
+
+
+@router.get("/models")
+def list_models(c: Ctx) -> list[ModelInfo]:
+    return [ModelInfo(name=n, provenance=c.models.get(n)[1]) for n in c.models.names()]
+
+
+class ViewerFocus(BaseModel):
+    session_id: int = Field(ge=1)
+
+
+class ViewerShow(BaseModel):
+    trial_id: int = Field(ge=1)
+    t: float
+
+
+@router.get("/viewer")
+def viewer(c: Ctx) -> dict[str, str | None]:
+    view = c.leg_view
+    return {"url": None if view is None else view.url}  # type: ignore[attr-defined]
+
+
+@router.post("/viewer/focus")
+def viewer_focus(body: ViewerFocus, c: Ctx) -> dict[str, int | None]:
+    c.focus = body.session_id
+    return {"session_id": c.focus}
+
+
+@router.post("/viewer/show")
+async def viewer_show(body: ViewerShow, c: Ctx) -> dict[str, float]:
+    """Pose the leg view at time ``t`` of a trial (the review page's cursor)."""
+    from sessions.recording import read_series
+
+    trial, path = _trial(c, body.trial_id)
+    series = await asyncio.to_thread(read_series, path, body.t - 0.02, body.t + 0.02, 10)
+    if not series.get("t"):
+        raise HTTPException(404, f"trial {body.trial_id} has no sample near t = {body.t:g} s")
+    i = min(range(len(series["t"])), key=lambda k: abs(series["t"][k] - body.t))
+    state = schema.GaitState.model_validate({k: v[i] for k, v in series.items()})
+    if c.leg_view is not None:
+        subject = c.store.get_subject(c.store.get_session(trial.session_id).subject_id)
+        c.focus = None
+        c.leg_view.show(state, subject.leg_length_m, None)  # type: ignore[attr-defined]
+    return {"t": state.t}

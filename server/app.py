@@ -1,0 +1,110 @@
+"""The FastAPI application: REST API, websockets, the browser UI and the leg view, wired together.
+
+``create_app(settings)`` builds everything; the lifespan opens the database, re-indexes recordings a
+crash left unfinished, starts the viser leg view in its own thread and port, and (on an empty database)
+creates a demo subject with a simulated session, so ``gaitscope serve`` shows a live session at once.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fastapi import FastAPI
+from fastapi.staticfiles import StaticFiles
+
+from server.api import UploadState
+from server.api import router as api_router
+from server.settings import Settings
+from server.streams import router as stream_router
+from sessions import schema
+from sessions.manager import ModelStore, SessionManager
+from sessions.models import gaitscope_version
+from sessions.store import Store
+
+log = logging.getLogger("gaitscope")
+WEB_DIR = Path(__file__).resolve().parent.parent / "web"
+#: Leg-view updates per second, at most (a browser iframe needs no more).
+LEG_VIEW_HZ = 30.0
+
+
+@dataclass
+class AppContext:
+    """What the routes need; one per app, on ``app.state.ctx``."""
+
+    settings: Settings
+    store: Store
+    models: ModelStore
+    manager: SessionManager
+    leg_view: object | None = None
+    focus: int | None = None
+    uploads: dict[str, UploadState] = field(default_factory=dict)
+    _last_view: float = 0.0
+
+    def on_state(self, session_id: int, state: schema.GaitState, leg_length: float) -> None:
+        """Feed the leg view with the focused session, rate-limited."""
+        if self.leg_view is None or session_id != self.focus:
+            return
+        now = time.monotonic()
+        if now - self._last_view >= 1.0 / LEG_VIEW_HZ:
+            self._last_view = now
+            self.leg_view.show(state, leg_length, session_id)  # type: ignore[attr-defined]
+
+
+def _demo(ctx: AppContext) -> None:
+    """An empty database gets a demo subject walking seed 000's treadmill protocol."""
+    if ctx.store.list_subjects():
+        return
+    from sessions.sources import SimulatedDevice
+
+    leg, mass = SimulatedDevice(schema.SimulatedSource()).subject_body()
+    subject = ctx.store.create_subject(
+        schema.SubjectCreate(code="DEMO01", leg_length_m=leg, mass_kg=mass, notes="virtual subject VC01")
+    )
+    session = ctx.store.create_session(schema.SessionCreate(subject_id=subject.id))
+    ctx.manager.start(session.id)
+    ctx.focus = session.id
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    settings = settings or Settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        store = Store(settings.database_url)
+        models = ModelStore(settings.data_dir / "models")
+        manager = SessionManager(store, settings.data_dir, models, on_state=lambda *a: ctx.on_state(*a))
+        ctx = AppContext(settings=settings, store=store, models=models, manager=manager)
+        for trial in ctx.manager.recover_after_crash():
+            log.warning("recording of trial %d was unfinished and has been recovered", trial.id)
+        if settings.leg_view:
+            from server.leg_view import LegView
+
+            ctx.leg_view = LegView(settings.host, settings.viser_port, models.get("default")[0])
+        app.state.ctx = ctx
+        if settings.demo:
+            _demo(ctx)
+        try:
+            yield
+        finally:
+            await ctx.manager.stop_all()
+            if ctx.leg_view is not None:
+                ctx.leg_view.close()  # type: ignore[attr-defined]
+            store.close()
+
+    app = FastAPI(
+        title="gaitscope",
+        version=gaitscope_version(),
+        description="Gait-state estimation dashboard for powered exoskeletons and prostheses.",
+        lifespan=lifespan,
+    )
+    app.include_router(api_router)
+    app.include_router(stream_router)
+    if WEB_DIR.is_dir():
+        app.mount("/", StaticFiles(directory=WEB_DIR, html=True), name="web")
+    return app

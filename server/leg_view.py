@@ -1,0 +1,310 @@
+"""The 3D leg view: the measured leg and the gait model's "ghost" leg in viser, for an iframe.
+
+viser is not an ASGI app: :class:`LegView` runs a ``viser.ViserServer`` on its own thread and port
+and the dashboard embeds :attr:`LegView.url` in an iframe. ``show()`` may be called from any thread
+(the server calls it from its asyncio loop at up to ~30 Hz); it never waits for another update.
+
+Scene, in the sagittal plane x (forward) / z (up), y = 0, seen by default from the subject's right::
+
+    /world/ground                      thin wide box tilted by the estimated incline
+    /world/leg                         the hip, ``leg_length`` above the ground's origin
+    /world/leg/thigh                   frame at the hip; ``segment`` box hangs along its -z
+    /world/leg/thigh/shank             frame at the knee (the thigh's distal end)
+    /world/leg/thigh/shank/foot        frame at the ankle; its +x points to the toes
+    /world/ghost/...                   the same tree, translucent, posed by the gait model
+
+Angles follow :mod:`sessions.schema` (LocoHub): thigh and shank from vertical, positive when the
+distal end is ahead; foot from horizontal, positive toes up; all counter-clockwise seen from the
+subject's right. That is a rotation about -y, so a segment at angle ``a`` has
+``wxyz = [cos(a/2), 0, -sin(a/2), 0]`` (a rotation about +y by ``-a``), and each child frame holds
+its angle relative to its parent (all rotations share the y axis, so they add).
+
+Segment lengths are Winter's fractions of height ``H = leg_length / 0.53`` (as the virtual cohort
+uses them, :mod:`sessions.cohort`): thigh 0.245 H, shank 0.246 H, foot 0.152 H, ankle height
+0.039 H, so the straight leg's sole touches the ground.
+
+The thigh is neither always sensed nor predicted by the gait model. When a state has no thigh angle,
+the thigh is placed consistently with the shank: ``thigh = shank + knee flexion``, with the knee
+flexion of Schwartz et al. (2008) at free walking speed at the estimated phase
+(:mod:`sessions.normative`). The ghost shares the measured leg's thigh, so both knees coincide and
+the ghost's shank and foot differ from the measured ones exactly where the model does.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import threading
+from typing import Final
+
+import numpy as np
+import viser
+from scipy.interpolate import CubicSpline
+
+from estimators.gait_model import FOOT, SHANK, evaluate
+from estimators.pipeline import TrainedModel
+from sessions import schema
+from sessions.cohort import (
+    ANKLE_HEIGHT_FRAC,
+    FOOT_FRAC,
+    HEEL_BACK_FRAC,
+    HIP_HEIGHT_FRAC,
+    SHANK_FRAC,
+    THIGH_FRAC,
+)
+from sessions.normative import CLASSES, KNEE, curve_spline, normative
+
+__all__ = ["LegView", "knee_flexion_deg", "quat_y", "segment_angles_for", "status_markdown"]
+
+#: Scene node names.
+GROUND: Final = "/world/ground"
+LEG: Final = "/world/leg"
+GHOST: Final = "/world/ghost"
+THIGH, SHANK_NODE, FOOT_NODE = "/thigh", "/thigh/shank", "/thigh/shank/foot"
+
+_GROUND_SIZE = (4.0, 0.8, 0.01)  # m: along x, y and its thickness
+_WIDTH_FRAC = 0.045  # segment box width (y and x) as a fraction of height (choice)
+_LEG_COLOR = (40, 110, 200)
+_GHOST_COLOR = (255, 140, 0)
+_GHOST_OPACITY = 0.35
+_GHOST_FATTER = 1.3  # the ghost's boxes are wider so their faces never coincide with the leg's
+_DEFAULT_LEG_LENGTH = 0.88  # m, until the first show()
+
+
+def quat_y(angle_rad: float) -> np.ndarray:
+    """``wxyz`` of a rotation by ``angle_rad`` about +y (right-handed: +x turns towards -z)."""
+    return np.array([math.cos(angle_rad / 2), 0.0, math.sin(angle_rad / 2), 0.0])
+
+
+def _sagittal(angle_deg: float) -> np.ndarray:
+    """``wxyz`` of a sagittal angle (counter-clockwise seen from the right, i.e. about -y)."""
+    return quat_y(-math.radians(angle_deg))
+
+
+def _finite(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+@functools.cache
+def _knee_spline() -> CubicSpline:
+    spline, _ = curve_spline(float(normative().speed[CLASSES.index("free")]))
+    return spline
+
+
+def knee_flexion_deg(phase: float) -> float:
+    """Schwartz 2008 knee flexion (deg, flexion positive) at free speed at ``phase`` (cycles)."""
+    return float(_knee_spline()(phase % 1.0)[KNEE])
+
+
+def _measured_angles(state: schema.GaitState) -> dict[str, float | None]:
+    """The measured leg's angles (deg); thigh derived from the shank when not sensed."""
+    shank = _finite(state.shank_angle_deg)
+    thigh = _finite(state.thigh_angle_deg)
+    phase = _finite(state.phase)
+    if thigh is None and shank is not None and phase is not None:
+        thigh = shank + knee_flexion_deg(phase)
+    return {"thigh_deg": thigh, "shank_deg": shank, "foot_deg": _finite(state.foot_angle_deg)}
+
+
+def segment_angles_for(
+    state: schema.GaitState, model: TrainedModel | None, leg_length: float
+) -> dict[str, float] | None:
+    """The ghost leg's segment angles (deg) at the estimated state; pure.
+
+    Foot and shank are the gait model's outputs at ``(phase, stride_length_m / leg_length,
+    incline_deg)``; without a model, the state's own ``foot_pred_deg`` and ``shank_pred_deg``. The
+    thigh is the measured leg's (sensed, or ``measured shank + knee flexion(phase)``), or the ghost's
+    ``shank + knee flexion(phase)`` when the state has no shank angle either.
+
+    Returns:
+        ``{"thigh_deg", "shank_deg", "foot_deg"}``, or None when the estimate is not finite.
+    """
+    if not leg_length > 0:
+        raise ValueError(f"leg length must be positive, got {leg_length}")
+    p, s, r = _finite(state.phase), _finite(state.stride_length_m), _finite(state.incline_deg)
+    if p is None or s is None or r is None:
+        return None
+    if model is None:
+        foot, shank = _finite(state.foot_pred_deg), _finite(state.shank_pred_deg)
+        if foot is None or shank is None:
+            return None
+    else:
+        y = evaluate(model.coef, np.array([p]), np.array([s / leg_length]), np.array([r]))[0]
+        foot, shank = float(y[FOOT]), float(y[SHANK])
+    thigh = _measured_angles(state)["thigh_deg"]
+    if thigh is None:
+        thigh = shank + knee_flexion_deg(p)
+    return {"thigh_deg": thigh, "shank_deg": shank, "foot_deg": foot}
+
+
+def status_markdown(state: schema.GaitState | None, session_id: int | None) -> str:
+    """The panel's read-only text: session id, phase, incline and torque."""
+    rows = [("session", "-" if session_id is None else str(session_id))]
+    if state is None:
+        rows += [("phase", "-"), ("incline", "-"), ("torque", "-")]
+    else:
+        rows += [
+            ("phase", f"{state.phase:.2f}"),
+            ("incline", f"{state.incline_deg:+.1f} deg"),
+            ("torque", f"{state.torque_Nm:.1f} N m"),
+        ]
+    return "  \n".join(f"**{k}** {v}" for k, v in rows)  # two spaces: a markdown line break
+
+
+class _Leg:
+    """Handles of one leg tree (``/world/leg`` or ``/world/ghost``)."""
+
+    def __init__(self, scene: viser.SceneApi, root: str, ghost: bool) -> None:
+        color, opacity = (_GHOST_COLOR, _GHOST_OPACITY) if ghost else (_LEG_COLOR, None)
+        self.fat = _GHOST_FATTER if ghost else 1.0
+        # Hidden until the first show(): a default pose would look like data.
+        self.root = scene.add_frame(root, show_axes=False, visible=False)
+        self.thigh = scene.add_frame(root + THIGH, show_axes=False)
+        self.shank = scene.add_frame(root + SHANK_NODE, show_axes=False)
+        self.foot = scene.add_frame(root + FOOT_NODE, show_axes=False)
+        self.boxes = [
+            scene.add_box(f"{root}{node}/segment", color=color, opacity=opacity, cast_shadow=False)
+            for node in (THIGH, SHANK_NODE, FOOT_NODE)
+        ]
+
+    def resize(self, leg_length: float) -> None:
+        """Segment lengths and positions for a leg of ``leg_length`` (hip to floor, m)."""
+        h = leg_length / HIP_HEIGHT_FRAC
+        thigh, shank, foot, ankle = THIGH_FRAC * h, SHANK_FRAC * h, FOOT_FRAC * h, ANKLE_HEIGHT_FRAC * h
+        w = _WIDTH_FRAC * h * self.fat
+        self.root.position = (0.0, 0.0, leg_length)
+        self.shank.position = (0.0, 0.0, -thigh)
+        self.foot.position = (0.0, 0.0, -shank)
+        b_thigh, b_shank, b_foot = self.boxes
+        b_thigh.dimensions, b_thigh.position = (w, w, thigh), (0.0, 0.0, -thigh / 2)
+        b_shank.dimensions, b_shank.position = (w, w, shank), (0.0, 0.0, -shank / 2)
+        b_foot.dimensions = (foot, w, ankle * self.fat)
+        b_foot.position = (foot * (0.5 - HEEL_BACK_FRAC), 0.0, -ankle / 2)
+
+    def pose(self, thigh: float, shank: float, foot: float | None) -> None:
+        """Global sagittal angles (deg); ``foot=None`` hides the foot and leaves its pose."""
+        self.thigh.wxyz = _sagittal(thigh)
+        self.shank.wxyz = _sagittal(shank - thigh)
+        if foot is not None:
+            self.foot.wxyz = _sagittal(foot - shank)
+        self.boxes[2].visible = foot is not None
+
+
+class LegView:
+    """A viser server showing the measured leg against the gait model's prediction.
+
+    Args:
+        host: interface to bind.
+        port: port to ask for; viser takes the next free one if it is busy (0: any free port).
+            :attr:`port` is the one it got.
+        model: the gait model that poses the ghost; None uses the states' ``*_pred_deg``.
+    """
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 8081, model: TrainedModel | None = None) -> None:
+        self._host = host
+        self._model = model
+        self._lock = threading.Lock()  # held by one update (or close) at a time
+        self._closed = False
+        self._leg_length = _DEFAULT_LEG_LENGTH
+        self.server = viser.ViserServer(host=host, port=port, label="gaitscope leg", verbose=False)
+        try:
+            self._build()
+        except BaseException:
+            self.server.stop()
+            raise
+
+    def _build(self) -> None:
+        server = self.server
+        server.initial_camera.position = (0.2, -2.6, 0.6)
+        server.initial_camera.look_at = (0.2, 0.0, 0.45)
+        scene = server.scene
+        self._ground = scene.add_box(GROUND, color=(170, 170, 170), dimensions=_GROUND_SIZE, cast_shadow=False)
+        self._leg = _Leg(scene, LEG, ghost=False)
+        self._ghost = _Leg(scene, GHOST, ghost=True)
+        self._resize(_DEFAULT_LEG_LENGTH)
+        self._set_incline(0.0)
+        gui = server.gui
+        gui.add_markdown("Leg: measured (blue) and gait model (translucent orange)")
+        # Markdown rather than disabled text inputs: read-only by nature, one message per update,
+        # and viser 1.1's GuiInputHandle.value setter is invisible to mypy (a method sits between
+        # the getter and the setter).
+        self._status = gui.add_markdown(status_markdown(None, None))
+
+    @property
+    def port(self) -> int:
+        """The port viser actually listens on."""
+        return self.server.get_port()
+
+    @property
+    def url(self) -> str:
+        """``http://host:port/`` for the iframe (a wildcard host is reported as 127.0.0.1)."""
+        host = {"": "127.0.0.1", "0.0.0.0": "127.0.0.1", "::": "::1"}.get(self._host, self._host)
+        if ":" in host:
+            host = f"[{host}]"
+        return f"http://{host}:{self.port}/"
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def set_model(self, model: TrainedModel) -> None:
+        """Pose the ghost with ``model`` from the next :meth:`show` on."""
+        self._model = model
+
+    def show(self, state: schema.GaitState, leg_length_m: float, session_id: int | None = None) -> None:
+        """Pose both legs, the ground and the panel at ``state``.
+
+        Returns at once, doing nothing, if another thread is updating the view or it is closed.
+        A leg whose shank angle is unknown (or not finite) is hidden; so is a foot without an angle.
+
+        Args:
+            state: the estimate and the measured segment angles.
+            leg_length_m: the walker's leg length (hip to floor), m.
+            session_id: shown in the panel.
+        """
+        if not (math.isfinite(leg_length_m) and leg_length_m > 0):
+            raise ValueError(f"leg length must be a positive number of metres, got {leg_length_m}")
+        if not self._lock.acquire(blocking=False):
+            return
+        try:
+            if self._closed:
+                return
+            measured = _measured_angles(state)
+            ghost = segment_angles_for(state, self._model, leg_length_m)
+            with self.server.atomic():
+                if leg_length_m != self._leg_length:
+                    self._resize(leg_length_m)
+                thigh, shank = measured["thigh_deg"], measured["shank_deg"]
+                self._leg.root.visible = thigh is not None and shank is not None
+                if thigh is not None and shank is not None:
+                    self._leg.pose(thigh, shank, measured["foot_deg"])
+                self._ghost.root.visible = ghost is not None
+                if ghost is not None:
+                    self._ghost.pose(ghost["thigh_deg"], ghost["shank_deg"], ghost["foot_deg"])
+                incline = _finite(state.incline_deg)
+                if incline is not None:
+                    self._set_incline(incline)
+                self._status.content = status_markdown(state, session_id)
+        finally:
+            self._lock.release()
+
+    def _resize(self, leg_length: float) -> None:
+        self._leg.resize(leg_length)
+        self._ghost.resize(leg_length)
+        self._leg_length = leg_length
+
+    def _set_incline(self, incline_deg: float) -> None:
+        """Tilt the ground by ``incline_deg`` (uphill positive) about the y axis through the origin."""
+        q = _sagittal(incline_deg)
+        a = math.radians(incline_deg)
+        half = _GROUND_SIZE[2] / 2  # top face through the origin: centre half a thickness below
+        self._ground.wxyz = q
+        self._ground.position = (half * math.sin(a), 0.0, -half * math.cos(a))
+
+    def close(self) -> None:
+        """Stop the viser server and its thread; waits for an update in flight. Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        self.server.stop()

@@ -1,0 +1,150 @@
+"""Websockets: live streams to browsers and the live-device ingest. Protocol in ``docs/api.md``."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+from typing import TYPE_CHECKING
+
+from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
+from pydantic import ValidationError
+
+from sessions import schema
+from sessions.runtime import SessionRuntime, Subscriber
+from sessions.sources import LiveDevice
+from sessions.store import NotFound
+
+if TYPE_CHECKING:
+    from server.app import AppContext
+
+router = APIRouter()
+
+#: A client that keeps losing samples for this long is disconnected (close code 1013, try again later).
+SLOW_CLIENT_S = 10.0
+#: Close codes.
+NOT_FOUND, POLICY, TRY_AGAIN = 4404, 1008, 1013
+#: A device that sends this many malformed frames in a row is disconnected.
+MAX_BAD_FRAMES = 50
+
+
+async def _runtime(ws: WebSocket, session_id: int) -> SessionRuntime | None:
+    c: AppContext = ws.app.state.ctx
+    runtime = c.manager.get(session_id)
+    if runtime is None:
+        try:
+            c.store.get_session(session_id)
+            reason = f"session {session_id} is not running"
+        except NotFound:
+            reason = f"session {session_id} does not exist"
+        await ws.close(code=NOT_FOUND, reason=reason)
+        return None
+    return runtime
+
+
+@router.websocket("/ws/sessions/{session_id}")
+async def session_stream(
+    ws: WebSocket,
+    session_id: int,
+    max_rate_hz: float = Query(default=60.0, ge=0.0, le=2000.0),
+    batch_ms: float = Query(default=33.0, ge=0.0, le=1000.0),
+) -> None:
+    """Stream a session's gait states (decimated and batched as the client asks), health and events."""
+    await ws.accept()
+    runtime = await _runtime(ws, session_id)
+    if runtime is None:
+        return
+    sub = runtime.subscribe(max_rate_hz)
+    try:
+        await ws.send_text(
+            schema.Hello(
+                session=runtime.session, subject=runtime.subject, source_rate_hz=runtime.source.rate_hz
+            ).model_dump_json()
+        )
+        await asyncio.gather(_pump(ws, runtime, sub, batch_ms / 1000.0), _drain(ws))
+    except (WebSocketDisconnect, RuntimeError):
+        pass
+    finally:
+        runtime.unsubscribe(sub)
+
+
+async def _drain(ws: WebSocket) -> None:
+    """Read (and ignore) what the browser sends, so a disconnect is noticed at once."""
+    while True:
+        await ws.receive_text()
+
+
+async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s: float) -> None:
+    behind_since: float | None = None
+    last_dropped = 0
+    while True:
+        await sub.wake.wait()
+        sub.wake.clear()
+        if batch_s > 0:
+            await asyncio.sleep(batch_s)
+        while sub.messages:
+            await ws.send_text(sub.messages.popleft().model_dump_json())
+        if sub.pending:
+            states = list(sub.pending)
+            sub.pending.clear()
+            batch = schema.StreamBatch(session_id=runtime.session.id, states=states, decimation=sub.decimation)
+            await ws.send_text(batch.model_dump_json())
+        if sub.dropped > last_dropped:
+            behind_since = behind_since or time.monotonic()
+            if time.monotonic() - behind_since > SLOW_CLIENT_S:
+                await ws.close(code=TRY_AGAIN, reason=f"client too slow: {sub.dropped} samples dropped")
+                return
+        else:
+            behind_since = None
+        last_dropped = sub.dropped
+
+
+@router.websocket("/ws/devices/{session_id}")
+async def device_ingest(ws: WebSocket, session_id: int) -> None:
+    """A live device: ``SensorFrame`` in, ``TorqueCommand`` out, one for one."""
+    await ws.accept()
+    runtime = await _runtime(ws, session_id)
+    if runtime is None:
+        return
+    source = runtime.source
+    if not isinstance(source, LiveDevice):
+        await ws.close(
+            code=POLICY, reason=f"session {session_id} takes no device (source {runtime.session.source.kind})"
+        )
+        return
+    if source.connected:
+        await ws.close(code=POLICY, reason=f"session {session_id} already has a device connected")
+        return
+    source.connected = True
+    bad = 0
+    try:
+        while True:
+            text = await ws.receive_text()
+            recv = time.time_ns()
+            try:
+                frame = schema.SensorFrame.model_validate_json(text)
+            except ValidationError as e:
+                bad += 1
+                runtime.dropped_input += 1
+                await ws.send_json({"type": "error", "detail": e.errors(include_url=False, include_input=False)})
+                if bad >= MAX_BAD_FRAMES:
+                    await ws.close(code=POLICY, reason=f"{bad} malformed frames in a row")
+                    return
+                continue
+            bad = 0
+            if not frame.t > runtime.last_t + (runtime.estimator._t_offset or 0.0) and runtime.samples:
+                runtime.dropped_input += 1
+                await ws.send_json(
+                    {"type": "error", "detail": f"frame seq {frame.seq}: time {frame.t} does not increase"}
+                )
+                continue
+            state = runtime.process(frame, recv)
+            await ws.send_text(
+                schema.TorqueCommand(seq=frame.seq, t=state.t, torque_Nm=state.torque_Nm).model_dump_json()
+            )
+    except WebSocketDisconnect:
+        pass
+    finally:
+        source.connected = False
+        with contextlib.suppress(Exception):
+            await ws.close()

@@ -1,0 +1,467 @@
+"""The database: subjects, their sessions, the sessions' trials and events (SQLite by default).
+
+:class:`Store` takes any SQLAlchemy URL. Every public method is one short transaction on its own ORM
+session, so one :class:`Store` may be shared by the threads of a FastAPI thread pool, and every method
+returns the wire classes of :mod:`sessions.schema`, never ORM rows. A write builds (and so validates)
+its result before it commits: a value the schema refuses, like a failed insert, rolls the whole write
+back and leaves the database as it was.
+
+Times are ISO-8601 UTC strings, to the second (``created_utc``, ``started_utc``, ``stopped_utc``) or,
+for events' ``wall_utc``, to the millisecond. Uploads in progress are not stored here (the server keeps
+them on disk).
+
+With SQLite the journal is WAL (readers never block the writer), foreign keys are enforced, and
+SQLAlchemy rather than the ``sqlite3`` driver emits ``BEGIN``: a read gets a plain ``BEGIN`` (one
+consistent snapshot), a write ``BEGIN IMMEDIATE``, so that it takes the write lock before it reads and
+waits up to :data:`BUSY_TIMEOUT_S` for another writer instead of failing halfway through
+(https://docs.sqlalchemy.org/en/20/dialects/sqlite.html#sqlite-transactions).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import json
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, Final, TypeVar
+
+from pydantic import TypeAdapter
+from sqlalchemy import (
+    Connection,
+    Engine,
+    ForeignKey,
+    Index,
+    String,
+    Text,
+    create_engine,
+    event,
+    make_url,
+    orm,
+    select,
+)
+from sqlalchemy.engine import URL
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+from sqlalchemy.pool import StaticPool
+from sqlalchemy.sql import ColumnElement
+
+from sessions import schema
+
+#: Seconds a SQLite writer waits for another one to commit before it fails with "database is locked".
+BUSY_TIMEOUT_S: Final = 30.0
+
+_WRITE: Final = "gaitscope_write"  # execution option of a write transaction (BEGIN IMMEDIATE on SQLite)
+_SOURCE: Final = TypeAdapter(schema.SourceSpec)
+
+
+class NotFound(LookupError):
+    """No row has the id; the message names the kind and the id ("session 7 does not exist")."""
+
+
+class Conflict(ValueError):
+    """A write contradicts stored data ("subject code 'AB01' exists"); nothing was written."""
+
+
+# --- tables --------------------------------------------------------------------------------------
+
+
+class _Base(DeclarativeBase):
+    pass
+
+
+class _SubjectRow(_Base):
+    __tablename__ = "subjects"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    code: Mapped[str] = mapped_column(String(32), unique=True)
+    leg_length_m: Mapped[float]
+    mass_kg: Mapped[float]
+    side: Mapped[str] = mapped_column(String(8))
+    notes: Mapped[str] = mapped_column(Text)
+    created_utc: Mapped[str] = mapped_column(String(40))
+
+
+class _SessionRow(_Base):
+    __tablename__ = "sessions"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    subject_id: Mapped[int] = mapped_column(ForeignKey("subjects.id"), index=True)
+    source: Mapped[str] = mapped_column(Text)  # SourceSpec as JSON
+    settings: Mapped[str] = mapped_column(Text)  # SessionSettings as JSON
+    state: Mapped[str] = mapped_column(String(16), index=True)
+    created_utc: Mapped[str] = mapped_column(String(40))
+    started_utc: Mapped[str | None] = mapped_column(String(40))
+    stopped_utc: Mapped[str | None] = mapped_column(String(40))
+
+
+class _TrialRow(_Base):
+    __tablename__ = "trials"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id"), index=True)
+    name: Mapped[str] = mapped_column(Text)
+    status: Mapped[str] = mapped_column(String(16), index=True)
+    path: Mapped[str] = mapped_column(Text)
+    started_utc: Mapped[str] = mapped_column(String(40))
+    stopped_utc: Mapped[str | None] = mapped_column(String(40))
+    samples: Mapped[int] = mapped_column(default=0)
+    duration_s: Mapped[float] = mapped_column(default=0.0)
+
+
+class _EventRow(_Base):
+    __tablename__ = "events"
+    __table_args__ = (Index("ix_events_session_t", "session_id", "t"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id"))
+    trial_id: Mapped[int | None] = mapped_column(ForeignKey("trials.id"), index=True)
+    t: Mapped[float]
+    wall_utc: Mapped[str] = mapped_column(String(40))
+    kind: Mapped[str] = mapped_column(String(16))
+    text: Mapped[str] = mapped_column(Text)
+    field: Mapped[str | None] = mapped_column(String(64))
+    before: Mapped[str | None] = mapped_column(Text)  # JSON: a number or a string (_encode_value)
+    after: Mapped[str | None] = mapped_column(Text)
+    actor: Mapped[str] = mapped_column(String(64))
+
+
+_Row = TypeVar("_Row", _SubjectRow, _SessionRow, _TrialRow, _EventRow)
+_KIND: Final[dict[type[_Base], str]] = {
+    _SubjectRow: "subject",
+    _SessionRow: "session",
+    _TrialRow: "trial",
+    _EventRow: "event",
+}
+
+
+# --- rows to wire classes ------------------------------------------------------------------------
+
+
+def _subject(row: _SubjectRow) -> schema.Subject:
+    return schema.Subject.model_validate(row, from_attributes=True)
+
+
+def _session(row: _SessionRow) -> schema.Session:
+    return schema.Session.model_validate(
+        {
+            "id": row.id,
+            "subject_id": row.subject_id,
+            "source": _SOURCE.validate_json(row.source),
+            "settings": schema.SessionSettings.model_validate_json(row.settings),
+            "state": row.state,
+            "created_utc": row.created_utc,
+            "started_utc": row.started_utc,
+            "stopped_utc": row.stopped_utc,
+        }
+    )
+
+
+def _trial(row: _TrialRow) -> schema.Trial:
+    return schema.Trial.model_validate(row, from_attributes=True)
+
+
+def _event(row: _EventRow) -> schema.Event:
+    return schema.Event.model_validate(
+        {
+            "id": row.id,
+            "session_id": row.session_id,
+            "t": row.t,
+            "wall_utc": row.wall_utc,
+            "kind": row.kind,
+            "text": row.text,
+            "field": row.field,
+            "before": _decode_value(row.before),
+            "after": _decode_value(row.after),
+            "actor": row.actor,
+        }
+    )
+
+
+def _encode_value(value: float | str | None) -> str | None:
+    """An event's before/after as JSON, numbers always as floats: 1 -> "1.0", "default" -> '"default"'."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return json.dumps(value)
+    return json.dumps(float(value))
+
+
+def _decode_value(text: str | None) -> float | str | None:
+    if text is None:
+        return None
+    value = json.loads(text)
+    return value if isinstance(value, str) else float(value)
+
+
+def _now() -> dt.datetime:
+    return dt.datetime.now(dt.UTC)
+
+
+def _stamp() -> str:
+    return _now().isoformat(timespec="seconds")
+
+
+# --- SQLite --------------------------------------------------------------------------------------
+
+
+def _sqlite_engine(url: URL) -> Engine:
+    memory = url.database in (None, "", ":memory:")
+    if not memory and not url.query.get("uri"):
+        Path(str(url.database)).parent.mkdir(parents=True, exist_ok=True)
+    kwargs: dict[str, Any] = {"connect_args": {"check_same_thread": False, "timeout": BUSY_TIMEOUT_S}}
+    if memory:
+        kwargs["poolclass"] = StaticPool  # one connection, or every thread would see its own database
+    engine = create_engine(url, **kwargs)
+    event.listen(engine, "connect", _on_sqlite_connect)
+    event.listen(engine, "begin", _on_sqlite_begin)
+    return engine
+
+
+def _on_sqlite_connect(dbapi_connection: Any, _record: Any) -> None:
+    dbapi_connection.isolation_level = None  # the driver emits no BEGIN of its own; _on_sqlite_begin does
+    cursor = dbapi_connection.cursor()
+    cursor.execute("PRAGMA journal_mode=WAL")
+    cursor.execute("PRAGMA foreign_keys=ON")
+    cursor.close()
+
+
+def _on_sqlite_begin(connection: Connection) -> None:
+    write = connection.get_execution_options().get(_WRITE, False)
+    connection.exec_driver_sql("BEGIN IMMEDIATE" if write else "BEGIN")
+
+
+# --- the store -----------------------------------------------------------------------------------
+
+
+class Store:
+    """Subjects, sessions, trials and events in the database at ``url``.
+
+    Creates the tables if they are missing (and, for a SQLite file, its folder). An in-memory SQLite
+    database (``sqlite://``) is one connection shared by all threads, one call at a time.
+    """
+
+    def __init__(self, url: str) -> None:
+        parsed = make_url(url)
+        self._lock: contextlib.AbstractContextManager[Any] = contextlib.nullcontext()
+        if parsed.get_backend_name() == "sqlite":
+            self._engine = _sqlite_engine(parsed)
+            if parsed.database in (None, "", ":memory:"):
+                self._lock = threading.Lock()
+        else:
+            self._engine = create_engine(parsed)
+        self._factory = orm.sessionmaker(self._engine, expire_on_commit=False)
+        with self._lock, self._engine.connect() as connection:
+            connection.execution_options(**{_WRITE: True})
+            with connection.begin():  # BEGIN IMMEDIATE: two processes opening a new file do not race
+                _Base.metadata.create_all(connection)
+
+    def close(self) -> None:
+        """Close every pooled connection (a SQLite WAL file is checkpointed and removed)."""
+        self._engine.dispose()
+
+    # --- transactions -----------------------------------------------------------------------------
+
+    @contextlib.contextmanager
+    def _read(self) -> Iterator[orm.Session]:
+        with self._lock, self._factory() as session:
+            yield session  # closed with a rollback: reads never write
+
+    @contextlib.contextmanager
+    def _write(self) -> Iterator[orm.Session]:
+        with self._lock, self._factory.begin() as session:  # commits on success, else rolls back
+            session.connection(execution_options={_WRITE: True})
+            yield session
+
+    @staticmethod
+    def _get(session: orm.Session, cls: type[_Row], row_id: int, *, for_update: bool = False) -> _Row:
+        row = session.get(cls, row_id, with_for_update=for_update)
+        if row is None:
+            raise NotFound(f"{_KIND[cls]} {row_id} does not exist")
+        return row
+
+    # --- subjects ---------------------------------------------------------------------------------
+
+    def create_subject(self, body: schema.SubjectCreate) -> schema.Subject:
+        """A new subject; :class:`Conflict` if its code exists."""
+        try:
+            with self._write() as session:
+                row = _SubjectRow(**body.model_dump(), created_utc=_stamp())
+                session.add(row)
+                session.flush()
+                return _subject(row)
+        except IntegrityError as exc:  # the only constraint an insert can break is the unique code
+            raise Conflict(f"subject code {body.code!r} exists") from exc
+
+    def list_subjects(self) -> list[schema.Subject]:
+        """Every subject, in the order they were created."""
+        with self._read() as session:
+            return [_subject(r) for r in session.scalars(select(_SubjectRow).order_by(_SubjectRow.id))]
+
+    def get_subject(self, subject_id: int) -> schema.Subject:
+        with self._read() as session:
+            return _subject(self._get(session, _SubjectRow, subject_id))
+
+    # --- sessions ---------------------------------------------------------------------------------
+
+    def create_session(self, body: schema.SessionCreate) -> schema.Session:
+        """A new session in state ``created`` (``body.start`` is the caller's to act on)."""
+        with self._write() as session:
+            self._get(session, _SubjectRow, body.subject_id)
+            row = _SessionRow(
+                subject_id=body.subject_id,
+                source=body.source.model_dump_json(),
+                settings=body.settings.model_dump_json(),
+                state="created",
+                created_utc=_stamp(),
+            )
+            session.add(row)
+            session.flush()
+            return _session(row)
+
+    def list_sessions(self, subject_id: int | None = None) -> list[schema.Session]:
+        """Sessions, newest first; those of one subject when ``subject_id`` is given."""
+        query = select(_SessionRow).order_by(_SessionRow.id.desc())
+        if subject_id is not None:
+            query = query.where(_SessionRow.subject_id == subject_id)
+        with self._read() as session:
+            return [_session(r) for r in session.scalars(query)]
+
+    def get_session(self, session_id: int) -> schema.Session:
+        with self._read() as session:
+            return _session(self._get(session, _SessionRow, session_id))
+
+    def set_session_state(self, session_id: int, state: schema.SessionState) -> schema.Session:
+        """Move a session to ``state``; the first move to running / stopped stamps started / stopped_utc.
+
+        Any move is accepted: which ones are allowed is the server's rule.
+        """
+        with self._write() as session:
+            row = self._get(session, _SessionRow, session_id, for_update=True)
+            row.state = state
+            if state == "running" and row.started_utc is None:
+                row.started_utc = _stamp()
+            elif state == "stopped" and row.stopped_utc is None:
+                row.stopped_utc = _stamp()
+            return _session(row)
+
+    def set_session_settings(self, session_id: int, settings: schema.SessionSettings) -> schema.Session:
+        with self._write() as session:
+            row = self._get(session, _SessionRow, session_id, for_update=True)
+            row.settings = settings.model_dump_json()
+            return _session(row)
+
+    def running_sessions(self) -> list[schema.Session]:
+        """Sessions in state ``running``, oldest first (at start-up: those a crash left running)."""
+        query = select(_SessionRow).where(_SessionRow.state == "running").order_by(_SessionRow.id)
+        with self._read() as session:
+            return [_session(r) for r in session.scalars(query)]
+
+    # --- trials -----------------------------------------------------------------------------------
+
+    def create_trial(
+        self, session_id: int, name: str, path: str, status: schema.TrialStatus = "recording"
+    ) -> schema.Trial:
+        """A new trial of a session; ``path`` is its MCAP file relative to the data folder."""
+        with self._write() as session:
+            self._get(session, _SessionRow, session_id)
+            row = _TrialRow(
+                session_id=session_id,
+                name=name,
+                status=status,
+                path=path,
+                started_utc=_stamp(),
+                samples=0,
+                duration_s=0.0,
+            )
+            session.add(row)
+            session.flush()
+            return _trial(row)
+
+    def finish_trial(self, trial_id: int, status: schema.TrialStatus, samples: int, duration_s: float) -> schema.Trial:
+        """Record how a trial ended; stamps ``stopped_utc``."""
+        with self._write() as session:
+            row = self._get(session, _TrialRow, trial_id, for_update=True)
+            row.status = status
+            row.samples = samples
+            row.duration_s = float(duration_s)
+            row.stopped_utc = _stamp()
+            return _trial(row)
+
+    def list_trials(self, session_id: int | None = None) -> list[schema.Trial]:
+        """Trials in the order they were created; those of one session when ``session_id`` is given."""
+        query = select(_TrialRow).order_by(_TrialRow.id)
+        if session_id is not None:
+            query = query.where(_TrialRow.session_id == session_id)
+        with self._read() as session:
+            return [_trial(r) for r in session.scalars(query)]
+
+    def get_trial(self, trial_id: int) -> schema.Trial:
+        with self._read() as session:
+            return _trial(self._get(session, _TrialRow, trial_id))
+
+    def trials_with_status(self, status: schema.TrialStatus) -> list[schema.Trial]:
+        """Trials with ``status``, oldest first (at start-up: ``recording`` ones a crash left open)."""
+        query = select(_TrialRow).where(_TrialRow.status == status).order_by(_TrialRow.id)
+        with self._read() as session:
+            return [_trial(r) for r in session.scalars(query)]
+
+    # --- events -----------------------------------------------------------------------------------
+
+    def add_event(
+        self,
+        session_id: int,
+        *,
+        t: float,
+        kind: schema.EventKind,
+        text: str,
+        field: str | None = None,
+        before: float | str | None = None,
+        after: float | str | None = None,
+        actor: str = "system",
+        trial_id: int | None = None,
+    ) -> schema.Event:
+        """Log an event at session time ``t`` (s); stamps ``wall_utc`` to the millisecond.
+
+        ``before`` / ``after`` read back exactly as given, numbers as floats. ``trial_id``, when
+        given, must be a trial of this session (:class:`Conflict` otherwise).
+        """
+        with self._write() as session:
+            self._get(session, _SessionRow, session_id)
+            if trial_id is not None:
+                trial = self._get(session, _TrialRow, trial_id)
+                if trial.session_id != session_id:
+                    raise Conflict(f"trial {trial_id} belongs to session {trial.session_id}, not {session_id}")
+            row = _EventRow(
+                session_id=session_id,
+                trial_id=trial_id,
+                t=float(t),
+                wall_utc=_now().isoformat(timespec="milliseconds"),
+                kind=kind,
+                text=text,
+                field=field,
+                before=_encode_value(before),
+                after=_encode_value(after),
+                actor=actor,
+            )
+            session.add(row)
+            session.flush()
+            return _event(row)
+
+    def list_events(self, session_id: int) -> list[schema.Event]:
+        """A session's events, oldest first (by ``t``, then by insertion)."""
+        with self._read() as session:
+            self._get(session, _SessionRow, session_id)
+            return self._events(session, _EventRow.session_id == session_id)
+
+    def trial_events(self, trial_id: int) -> list[schema.Event]:
+        """The events logged with ``trial_id``, oldest first."""
+        with self._read() as session:
+            self._get(session, _TrialRow, trial_id)
+            return self._events(session, _EventRow.trial_id == trial_id)
+
+    @staticmethod
+    def _events(session: orm.Session, where: ColumnElement[bool]) -> list[schema.Event]:
+        query = select(_EventRow).where(where).order_by(_EventRow.t, _EventRow.id)
+        return [_event(r) for r in session.scalars(query)]

@@ -1,0 +1,214 @@
+"""The REST API against the real app, a real SQLite file and real MCAP recordings."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from fastapi.testclient import TestClient
+
+from server.app import create_app
+from server.settings import Settings
+from sessions.trials import replay_columns, sensor_trial
+
+SHORT = {
+    "kind": "simulated",
+    "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 200}],
+    "rate_hz": 200,
+}
+
+
+@pytest.fixture
+def client(tmp_path: Path) -> Iterator[TestClient]:
+    settings = Settings(data_dir=tmp_path / "data", demo=False, leg_view=False, max_upload_mb=5, upload_chunk_kb=64)
+    with TestClient(create_app(settings)) as c:
+        yield c
+
+
+def _subject(client: TestClient, code: str = "P01") -> int:
+    r = client.post("/api/subjects", json={"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
+    assert r.status_code == 201, r.text
+    return int(r.json()["id"])
+
+
+def _session(client: TestClient, source: dict | None = None) -> dict:
+    r = client.post("/api/sessions", json={"subject_id": _subject(client), "source": source or SHORT})
+    assert r.status_code == 201, r.text
+    return r.json()
+
+
+def _wait_samples(client: TestClient, session_id: int, seconds: float = 1.0) -> None:
+    """Let a live session run (its source paces in real time)."""
+    app = client.app
+    runtime = app.state.ctx.manager.get(session_id)  # type: ignore[attr-defined]
+    deadline = time.monotonic() + 15
+    while runtime.samples < 200 * seconds and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert runtime.samples >= 200 * seconds
+
+
+def test_health_schema_and_openapi(client: TestClient) -> None:
+    assert client.get("/api/health").json()["status"] == "ok"
+    schemas = client.get("/api/schema").json()
+    assert {"GaitState", "SensorFrame", "StreamBatch", "FoxgloveEvent", "SessionSettings"} <= set(schemas)
+    assert "/api/sessions/{session_id}/settings" in client.get("/openapi.json").json()["paths"]
+
+
+def test_subjects(client: TestClient) -> None:
+    sid = _subject(client)
+    assert client.get(f"/api/subjects/{sid}").json()["code"] == "P01"
+    r = client.post("/api/subjects", json={"code": "P01", "leg_length_m": 0.9, "mass_kg": 70.0})
+    assert r.status_code == 409 and "P01" in r.json()["detail"]
+    r = client.post("/api/subjects", json={"code": "P02", "leg_length_m": 5.0, "mass_kg": 70.0})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "leg_length_m"]
+    assert client.get("/api/subjects/999").status_code == 404
+    assert [s["code"] for s in client.get("/api/subjects").json()] == ["P01"]
+
+
+def test_session_runs_records_and_reviews(client: TestClient, tmp_path: Path) -> None:
+    s = _session(client)
+    assert s["state"] == "running"
+    _wait_samples(client, s["id"], 1.5)
+    stopped = client.post(f"/api/sessions/{s['id']}/stop").json()
+    assert stopped["state"] == "stopped" and stopped["stopped_utc"]
+    trials = client.get(f"/api/trials?session_id={s['id']}").json()
+    assert len(trials) == 1 and trials[0]["status"] == "finished" and trials[0]["samples"] >= 300
+    tid = trials[0]["id"]
+    series = client.get(f"/api/trials/{tid}/series?max_points=100").json()
+    assert 10 <= len(series["t"]) <= 200 and all(0 <= p < 1 for p in series["phase"])
+    window = client.get(f"/api/trials/{tid}/series?t0=0.5&t1=1.0&max_points=1000").json()
+    assert 0.5 - 1e-9 <= min(window["t"]) and max(window["t"]) <= 1.0 + 1e-9 and len(window["t"]) > 50
+    mcap = client.get(f"/api/trials/{tid}/download")
+    assert mcap.status_code == 200 and mcap.content[:5] == b"\x89MCAP"
+    kinds = [e["kind"] for e in client.get(f"/api/sessions/{s['id']}/events").json()]
+    assert kinds == ["recording", "recording"]
+    assert client.post(f"/api/sessions/{s['id']}/stop").status_code == 409
+
+
+def test_settings_change_is_validated_rate_limited_and_recorded(client: TestClient) -> None:
+    s = _session(client)
+    url = f"/api/sessions/{s['id']}/settings"
+    r = client.patch(url, json={"torque_gain": 1.4, "actor": "dr-k", "reason": "more push-off"})
+    assert r.status_code == 200 and r.json()["settings"]["torque_gain"] == 1.4
+    r = client.patch(url, json={"torque_gain": 1.8})  # a second step right away breaks the rate limit
+    assert r.status_code == 409 and "torque_gain" in r.json()["detail"]
+    r = client.patch(url, json={"torque_gain": 2.5})  # a step of 1.1 is never allowed at once
+    assert r.status_code == 409 and "at most 0.5" in r.json()["detail"]
+    r = client.patch(url, json={"max_torque_Nm": 500})
+    assert r.status_code == 422
+    assert client.get(f"/api/sessions/{s['id']}").json()["settings"]["torque_gain"] == 1.4
+    events = [e for e in client.get(f"/api/sessions/{s['id']}/events").json() if e["kind"] == "setting"]
+    assert len(events) == 1
+    e = events[0]
+    assert (e["field"], e["before"], e["after"], e["actor"]) == ("torque_gain", 1.0, 1.4, "dr-k")
+    assert "more push-off" in e["text"]
+    runtime = client.app.state.ctx.manager.get(s["id"])  # type: ignore[attr-defined]
+    assert runtime.estimator.pipeline.config.torque_gain == 1.4  # applied to the estimator, not just stored
+
+
+def test_annotations_and_recording_controls(client: TestClient) -> None:
+    s = _session(client)
+    r = client.post(f"/api/sessions/{s['id']}/annotations", json={"text": "subject reports knee discomfort"})
+    assert r.status_code == 201 and r.json()["kind"] == "annotation"
+    assert client.post(f"/api/sessions/{s['id']}/annotations", json={"text": ""}).status_code == 422
+    first = client.post(f"/api/sessions/{s['id']}/recording", json={"action": "stop"}).json()
+    assert first["status"] == "finished"
+    assert client.post(f"/api/sessions/{s['id']}/recording", json={"action": "stop"}).status_code == 409
+    second = client.post(f"/api/sessions/{s['id']}/recording", json={"action": "start", "name": "fast walk"}).json()
+    assert second["name"] == "fast walk" and second["status"] == "recording"
+    assert client.get(f"/api/trials/{second['id']}/series").status_code == 409  # still recording
+
+
+def test_rerun_with_other_settings(client: TestClient) -> None:
+    s = _session(client)
+    _wait_samples(client, s["id"], 2.0)
+    client.post(f"/api/sessions/{s['id']}/stop")
+    tid = client.get(f"/api/trials?session_id={s['id']}").json()[0]["id"]
+    base = client.get(f"/api/trials/{tid}/series?max_points=5000").json()
+    settings = {"torque_gain": 2.0, "max_torque_Nm": 80.0}
+    again = client.post(f"/api/trials/{tid}/rerun?max_points=5000", json={"settings": settings}).json()
+    assert len(again["t"]) == len(base["t"])
+    assert max(again["torque_Nm"]) > 1.5 * max(base["torque_Nm"]) > 0
+
+
+def _upload(client: TestClient, path: Path, name: str, subject_id: int) -> tuple[int, dict]:
+    data = path.read_bytes()
+    r = client.post("/api/uploads", json={"filename": name, "size": len(data), "subject_id": subject_id})
+    if r.status_code != 201:
+        return r.status_code, r.json()
+    up = r.json()
+    for off in range(0, len(data), up["chunk_size"]):
+        chunk = data[off : off + up["chunk_size"]]
+        r = client.put(f"/api/uploads/{up['id']}?offset={off}", content=chunk)
+        assert r.status_code == 200, r.text
+    r = client.post(f"/api/uploads/{up['id']}/finish")
+    return r.status_code, r.json()
+
+
+def _files(root: Path) -> set[str]:
+    return {str(p.relative_to(root)) for p in root.rglob("*") if p.is_file() and not p.name.startswith("gaitscope.db")}
+
+
+def test_upload_csv_then_review(client: TestClient, tmp_path: Path) -> None:
+    sensors, _, _ = sensor_trial([(1.0, 5.0, 30)])
+    path = tmp_path / "walk.csv"
+    replay_columns(sensors).to_csv(path, index=False, float_format="%.5f")
+    assert path.stat().st_size > 3 * 64 * 1024  # several chunks
+    code, trial = _upload(client, path, "walk.csv", _subject(client))
+    assert code == 201, trial
+    assert trial["status"] == "uploaded" and trial["samples"] == len(sensors)
+    series = client.get(f"/api/trials/{trial['id']}/series?max_points=20000").json()
+    assert len(series["t"]) == len(sensors)
+    late = [r for t, r in zip(series["t"], series["incline_deg"], strict=True) if t > series["t"][-1] - 3]
+    assert abs(sum(late) / len(late) - 5.0) < 3.0
+
+
+def test_bad_uploads_store_nothing(client: TestClient, tmp_path: Path) -> None:
+    sid = _subject(client)
+    data_dir = tmp_path / "data"
+    before = _files(data_dir)
+    sensors, _, _ = sensor_trial([(1.0, 0.0, 3)])
+    frame = replay_columns(sensors).astype({"shank_angle_deg": object})
+    frame.loc[40, "shank_angle_deg"] = "n/a"
+    bad = tmp_path / "bad.csv"
+    frame.to_csv(bad, index=False)
+    code, body = _upload(client, bad, "bad.csv", sid)
+    assert code == 422 and "column 'shank_angle_deg', row 42" in body["detail"]
+    unfinished = tmp_path / "cut.mcap"
+    unfinished.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 64)
+    code, body = _upload(client, unfinished, "cut.mcap", sid)
+    assert code == 422 and "cut.mcap" in body["detail"]
+    big = tmp_path / "big.csv"
+    with big.open("wb") as f:
+        f.truncate(6 * 1024 * 1024)
+    code, body = _upload(client, big, "big.csv", sid)
+    assert code == 413 and "limit is 5 MiB" in body["detail"]
+    assert _files(data_dir) == before
+    assert client.get("/api/trials").json() == []
+
+
+def test_upload_protocol_errors(client: TestClient) -> None:
+    sid = _subject(client)
+    up = client.post("/api/uploads", json={"filename": "a.csv", "size": 10, "subject_id": sid}).json()
+    assert client.put(f"/api/uploads/{up['id']}?offset=5", content=b"12345").status_code == 409
+    assert client.put(f"/api/uploads/{up['id']}?offset=0", content=b"12345678901").status_code == 413
+    assert client.post(f"/api/uploads/{up['id']}/finish").status_code == 409
+    assert client.delete(f"/api/uploads/{up['id']}").status_code == 204
+    assert client.post(f"/api/uploads/{up['id']}/finish").status_code == 404
+    r = client.post("/api/uploads", json={"filename": "../evil.csv", "size": 10, "subject_id": sid})
+    assert r.status_code == 422
+
+
+def test_unknown_things_are_404(client: TestClient) -> None:
+    assert client.get("/api/sessions/42").status_code == 404
+    assert client.get("/api/trials/42").status_code == 404
+    assert client.patch("/api/sessions/42/settings", json={"torque_gain": 1.1}).status_code == 404
+    r = client.post("/api/sessions", json={"subject_id": 42})
+    assert r.status_code == 404 and "42" in r.json()["detail"]
+
+
+def test_models_are_listed_with_provenance(client: TestClient) -> None:
+    models = client.get("/api/models").json()
+    assert models[0]["name"] == "default" and models[0]["provenance"]["source"] == "default-cohort"
