@@ -193,7 +193,16 @@ def cmd_serve(a: argparse.Namespace) -> int:
         )
     print(f"gaitscope: data in {settings.data_dir.resolve()}, database {settings.database_url}")
     print(f"gaitscope: serving on http://{settings.host}:{settings.port}/  (API docs at /docs)", flush=True)
-    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level=a.log_level, ws="websockets")
+    uvicorn.run(
+        create_app(settings), host=settings.host, port=settings.port, log_level=a.log_level, ws="websockets-sansio"
+    )
+    return 0
+
+
+def cmd_loadbench(a: argparse.Namespace) -> int:
+    from server.loadbench import run_loadbench
+
+    run_loadbench(a.sessions, a.clients, a.rate, a.seconds, a.batch_ms)
     return 0
 
 
@@ -251,6 +260,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--skip-crossval", action="store_true")
     p.add_argument("--reference-samples", type=int, default=3000)
     p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("loadbench", help="N live devices x M browser clients against a real server")
+    p.add_argument("--sessions", type=int, default=10)
+    p.add_argument("--clients", type=int, default=2)
+    p.add_argument("--rate", type=float, default=200.0)
+    p.add_argument("--seconds", type=float, default=20.0)
+    p.add_argument("--batch-ms", type=float, default=33.0)
+    p.set_defaults(func=cmd_loadbench)
     return parser
 
 

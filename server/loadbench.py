@@ -1,0 +1,245 @@
+"""``gaitscope loadbench``: N live devices at 200 Hz, M browser clients each, over loopback.
+
+Starts a real server (``gaitscope serve`` in a subprocess, no demo, no leg view), creates N sessions
+with a live-device source, and from worker processes (one for the devices, two for the browsers, each
+on uvloop) runs N device clients that push simulated sensor
+frames at the given rate (each stamped with ``sent_ns``) and read their torque commands, plus M
+browser clients per session that take the full-rate stream (``max_rate_hz=0``, ``batch_ms`` as the UI).
+Device-to-browser latency = browser receive time - ``sent_ns`` (one machine, one clock). Server CPU
+and memory are read from ``/proc``. The same run first measures one device with one client as the
+baseline the loaded numbers are compared with.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import multiprocessing
+import os
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sessions.trials import replay_input, sensor_trial
+
+TARGET_P95_MS = 50.0
+
+
+@dataclass
+class Stream:
+    """What one browser client saw of one session."""
+
+    latencies_ms: list[float] = field(default_factory=list)
+    received: int = 0
+    dropped_client: int = 0
+    dropped_input: int = 0
+    first: float | None = None
+    last: float | None = None
+
+    @property
+    def rate_hz(self) -> float:
+        if self.first is None or self.last is None or self.last <= self.first:
+            return 0.0
+        return self.received / (self.last - self.first)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _post(base: str, path: str, body: dict[str, object]) -> dict[str, object]:
+    req = urllib.request.Request(
+        base + path, data=json.dumps(body).encode(), headers={"Content-Type": "application/json"}, method="POST"
+    )
+    with urllib.request.urlopen(req, timeout=10) as r:
+        return json.loads(r.read())  # type: ignore[no-any-return]
+
+
+def _proc_cpu_s(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _proc_mem_mb(pid: int) -> tuple[float, float]:
+    status = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines() if ":" in line)
+    return int(status["VmRSS"].split()[0]) / 1024, int(status["VmHWM"].split()[0]) / 1024
+
+
+async def _device(ws_base: str, session_id: int, frames: list[dict[str, object]], rate: float, stop_wall: float) -> int:
+    import websockets
+
+    sent = 0
+    async with websockets.connect(f"{ws_base}/ws/devices/{session_id}", max_queue=None) as ws:
+
+        async def replies() -> None:
+            async for _ in ws:
+                pass
+
+        reader = asyncio.create_task(replies())
+        loop = asyncio.get_running_loop()
+        start = loop.time()
+        stop = start + (stop_wall - time.time())
+        k = 0
+        while loop.time() < stop:
+            due = start + k / rate
+            if due > loop.time():
+                await asyncio.sleep(due - loop.time())
+            f = dict(frames[k % len(frames)])
+            f.update(seq=k, t=k / rate, sent_ns=time.time_ns())
+            await ws.send(json.dumps(f))
+            sent += 1
+            k += 1
+        await asyncio.sleep(0.3)
+        reader.cancel()
+    return sent
+
+
+async def _browser(ws_base: str, session_id: int, batch_ms: float, stop_wall: float, warmup_wall: float) -> Stream:
+    import websockets
+
+    out = Stream()
+    loop = asyncio.get_running_loop()
+    stop = loop.time() + (stop_wall - time.time())
+    warmup = loop.time() + (warmup_wall - time.time())
+    url = f"{ws_base}/ws/sessions/{session_id}?max_rate_hz=0&batch_ms={batch_ms}"
+    async with websockets.connect(url, max_size=None) as ws:
+        while loop.time() < stop + 0.2:
+            try:
+                text = await asyncio.wait_for(ws.recv(), timeout=max(stop + 0.2 - loop.time(), 0.01))
+            except TimeoutError:
+                break
+            now_ns = time.time_ns()
+            msg = json.loads(text)
+            if msg["type"] == "states" and loop.time() > warmup:
+                out.received += len(msg["states"])
+                out.first = out.first or loop.time()
+                out.last = loop.time()
+                out.latencies_ms += [(now_ns - s["sent_ns"]) / 1e6 for s in msg["states"] if s["sent_ns"]]
+            elif msg["type"] == "health":
+                out.dropped_client, out.dropped_input = msg["dropped_client"], msg["dropped_input"]
+    return out
+
+
+def _worker(job: tuple[str, str, list[int], dict[str, object]]) -> list[object]:
+    """One load-generating process: all the devices, or a share of the browser clients (uvloop)."""
+    import uvloop
+
+    kind, ws_base, ids, p = job
+
+    async def main() -> list[object]:
+        if kind == "devices":
+            frames = p["frames"]
+            tasks = [_device(ws_base, i, frames, p["rate"], p["stop"]) for i in ids]  # type: ignore[arg-type]
+        else:
+            tasks = [_browser(ws_base, i, p["batch_ms"], p["stop"], p["warmup"]) for i in ids]  # type: ignore[arg-type]
+        return list(await asyncio.gather(*tasks))
+
+    return uvloop.run(main())
+
+
+def _run(base: str, sessions: int, clients: int, rate: float, seconds: float, batch_ms: float) -> dict:
+    """Devices in one process, browser clients spread over two more, so the load generator is not the
+    bottleneck it would be in a single Python process."""
+    ws_base = base.replace("http://", "ws://")
+    sensors, _, _ = sensor_trial([(1.2, 0.0, 40)], rate_hz=rate)
+    data = replay_input(sensors)
+    frames = [{"type": "frame", **{k: float(v[i]) for k, v in data.signals.items()}} for i in range(len(data.time_s))]
+    subject = _post(base, "/api/subjects", {"code": f"LB{time.time_ns() % 10**8}", "leg_length_m": 0.9, "mass_kg": 70})
+    ids = [
+        int(_post(base, "/api/sessions", {"subject_id": subject["id"], "source": {"kind": "device"}})["id"])  # type: ignore[call-overload]
+        for _ in range(sessions)
+    ]
+    now = time.time()
+    common = {"rate": rate, "batch_ms": batch_ms, "warmup": now + 3.0, "stop": now + 3.0 + seconds}
+    browser_ids = [i for i in ids for _ in range(clients)]
+    shares = [browser_ids[k::2] for k in range(2)] if len(browser_ids) > 1 else [browser_ids]
+    jobs = [("browsers", ws_base, share, common) for share in shares if share]
+    jobs.append(("devices", ws_base, ids, {**common, "frames": frames}))
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=len(jobs), mp_context=ctx) as pool:
+        results = list(pool.map(_worker, jobs))
+    for i in ids:
+        _post(base, f"/api/sessions/{i}/stop", {})
+    streams = [s for r in results[:-1] for s in r]
+    return {"sent": results[-1], "streams": streams}
+
+
+def _summary(label: str, result: dict, cpu_s: float, wall_s: float, mem: tuple[float, float]) -> dict[str, float]:
+    streams: list[Stream] = result["streams"]
+    lat = np.concatenate([np.asarray(s.latencies_ms) for s in streams]) if streams else np.array([0.0])
+    rates = [s.rate_hz for s in streams]
+    out = {
+        "streams": float(len(streams)),
+        "rate_min_hz": float(min(rates)),
+        "rate_mean_hz": float(np.mean(rates)),
+        "p50_ms": float(np.percentile(lat, 50)),
+        "p95_ms": float(np.percentile(lat, 95)),
+        "p99_ms": float(np.percentile(lat, 99)),
+        "dropped_input": float(sum(s.dropped_input for s in streams) / max(len(streams), 1)),
+        "dropped_client": float(sum(s.dropped_client for s in streams)),
+        "server_cpu_pct": 100.0 * cpu_s / wall_s,
+        "server_rss_mb": mem[0],
+        "server_peak_rss_mb": mem[1],
+    }
+    print(
+        f"{label:<28} streams {len(streams):3d}  rate min/mean {out['rate_min_hz']:6.1f}/{out['rate_mean_hz']:6.1f} Hz"
+        f"  latency p50/p95/p99 {out['p50_ms']:6.1f}/{out['p95_ms']:6.1f}/{out['p99_ms']:6.1f} ms"
+        f"  dropped input {out['dropped_input']:.0f} client {out['dropped_client']:.0f}"
+        f"  server CPU {out['server_cpu_pct']:5.1f} %  RSS {mem[0]:.0f} MB (peak {mem[1]:.0f})"
+    )
+    return out
+
+
+def run_loadbench(
+    sessions: int = 10, clients: int = 2, rate: float = 200.0, seconds: float = 20.0, batch_ms: float = 33.0
+) -> dict[str, dict[str, float]]:
+    """Start a server, measure the single-stream baseline, then the full load; print and return both."""
+    port = _free_port()
+    base = f"http://127.0.0.1:{port}"
+    exe = str(Path(sys.executable).with_name("gaitscope"))
+    with tempfile.TemporaryDirectory() as d:
+        proc = subprocess.Popen(
+            [exe, "serve", "--no-demo", "--no-leg-view", "--port", str(port), "--data-dir", d],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+        )
+        try:
+            deadline = time.monotonic() + 60
+            while True:
+                try:
+                    urllib.request.urlopen(base + "/api/health", timeout=1)
+                    break
+                except OSError:
+                    if time.monotonic() > deadline or proc.poll() is not None:
+                        raise RuntimeError("server did not start") from None
+                    time.sleep(0.2)
+            print(f"server pid {proc.pid} on {base}; {os.cpu_count()} cores; batch_ms={batch_ms}; {seconds:.0f} s each")
+            results = {}
+            for label, n, m in (
+                ("baseline: 1 device x 1 client", 1, 1),
+                (f"load: {sessions} devices x {clients} clients", sessions, clients),
+            ):
+                cpu0, t0 = _proc_cpu_s(proc.pid), time.monotonic()
+                result = _run(base, n, m, rate, seconds, batch_ms)
+                cpu, wall = _proc_cpu_s(proc.pid) - cpu0, time.monotonic() - t0
+                results[label.split(":")[0]] = _summary(label, result, cpu, wall, _proc_mem_mb(proc.pid))
+            load, baseline = results["load"], results["baseline"]
+            print(
+                f"p95 latency under load / baseline: {load['p95_ms'] / baseline['p95_ms']:.2f}x; "
+                f"target p95 < {TARGET_P95_MS:.0f} ms: {'met' if load['p95_ms'] < TARGET_P95_MS else 'NOT met'}; "
+                f"frames dropped at the server: {load['dropped_input'] + load['dropped_client']:.0f}"
+            )
+            return results
+        finally:
+            proc.terminate()
+            proc.wait(timeout=20)
