@@ -62,7 +62,7 @@ def _post(base: str, path: str, body: dict[str, object]) -> dict[str, object]:
         base + path, data=json.dumps(body).encode(), headers={"Content-Type": "application/json"}, method="POST"
     )
     with urllib.request.urlopen(req, timeout=10) as r:
-        return json.loads(r.read())  # type: ignore[no-any-return]
+        return json.loads(r.read())
 
 
 def _proc_cpu_s(pid: int) -> float:
@@ -130,21 +130,37 @@ async def _browser(ws_base: str, session_id: int, batch_ms: float, stop_wall: fl
     return out
 
 
-def _worker(job: tuple[str, str, list[int], dict[str, object]]) -> list[object]:
+@dataclass(frozen=True)
+class _Job:
+    """Work of one load-generating process."""
+
+    kind: str  # "devices" or "browsers"
+    ws_base: str
+    ids: list[int]
+    rate: float
+    batch_ms: float
+    warmup_wall: float
+    stop_wall: float
+    frames: list[dict[str, object]] = field(default_factory=list)
+
+
+def _worker(job: _Job) -> list[int] | list[Stream]:
     """One load-generating process: all the devices, or a share of the browser clients (uvloop)."""
     import uvloop
 
-    kind, ws_base, ids, p = job
+    async def devices() -> list[int]:
+        return list(
+            await asyncio.gather(*(_device(job.ws_base, i, job.frames, job.rate, job.stop_wall) for i in job.ids))
+        )
 
-    async def main() -> list[object]:
-        if kind == "devices":
-            frames = p["frames"]
-            tasks = [_device(ws_base, i, frames, p["rate"], p["stop"]) for i in ids]  # type: ignore[arg-type]
-        else:
-            tasks = [_browser(ws_base, i, p["batch_ms"], p["stop"], p["warmup"]) for i in ids]  # type: ignore[arg-type]
-        return list(await asyncio.gather(*tasks))
+    async def browsers() -> list[Stream]:
+        return list(
+            await asyncio.gather(
+                *(_browser(job.ws_base, i, job.batch_ms, job.stop_wall, job.warmup_wall) for i in job.ids)
+            )
+        )
 
-    return uvloop.run(main())
+    return uvloop.run(devices()) if job.kind == "devices" else uvloop.run(browsers())
 
 
 def _run(base: str, sessions: int, clients: int, rate: float, seconds: float, batch_ms: float) -> dict:
@@ -160,17 +176,16 @@ def _run(base: str, sessions: int, clients: int, rate: float, seconds: float, ba
         for _ in range(sessions)
     ]
     now = time.time()
-    common = {"rate": rate, "batch_ms": batch_ms, "warmup": now + 3.0, "stop": now + 3.0 + seconds}
     browser_ids = [i for i in ids for _ in range(clients)]
     shares = [browser_ids[k::2] for k in range(2)] if len(browser_ids) > 1 else [browser_ids]
-    jobs = [("browsers", ws_base, share, common) for share in shares if share]
-    jobs.append(("devices", ws_base, ids, {**common, "frames": frames}))
+    jobs = [_Job("browsers", ws_base, share, rate, batch_ms, now + 3.0, now + 3.0 + seconds) for share in shares]
+    jobs.append(_Job("devices", ws_base, ids, rate, batch_ms, now + 3.0, now + 3.0 + seconds, frames))
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=len(jobs), mp_context=ctx) as pool:
         results = list(pool.map(_worker, jobs))
     for i in ids:
         _post(base, f"/api/sessions/{i}/stop", {})
-    streams = [s for r in results[:-1] for s in r]
+    streams = [s for r in results[:-1] for s in r if isinstance(s, Stream)]
     return {"sent": results[-1], "streams": streams}
 
 
