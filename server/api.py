@@ -243,7 +243,7 @@ async def rerun(trial_id: int, body: schema.RerunRequest, c: Ctx, max_points: in
 
     def run() -> dict[str, list[Any]]:
         frames = read_sensor_frames(path)
-        states = estimate(frames, model, subject.leg_length_m, subject.mass_kg, body.settings)
+        states = estimate(frames, model, subject.leg_length_m, subject.mass_kg, body.settings, time_origin=0.0)
         return decimate([s.model_dump() for s in states], max_points)
 
     return await asyncio.to_thread(run)

@@ -89,6 +89,9 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
             sub.pending.clear()
             batch = schema.StreamBatch(session_id=runtime.session.id, states=states, decimation=sub.decimation)
             await ws.send_text(batch.model_dump_json())
+        if sub.closed:
+            await ws.close(code=1000, reason=f"session {runtime.session.id} stopped")
+            return
         if sub.dropped > last_dropped:
             behind_since = behind_since or time.monotonic()
             if time.monotonic() - behind_since > SLOW_CLIENT_S:
@@ -132,7 +135,7 @@ async def device_ingest(ws: WebSocket, session_id: int) -> None:
                     return
                 continue
             bad = 0
-            if not frame.t > runtime.last_t + (runtime.estimator._t_offset or 0.0) and runtime.samples:
+            if not runtime.accepts(frame):
                 runtime.dropped_input += 1
                 await ws.send_json(
                     {"type": "error", "detail": f"frame seq {frame.seq}: time {frame.t} does not increase"}

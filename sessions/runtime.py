@@ -53,6 +53,7 @@ class Subscriber:
     messages: deque[schema.BaseModel] = field(default_factory=lambda: deque(maxlen=100))
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     dropped: int = 0
+    closed: bool = False
     _count: int = 0
     _carry_hs: bool = False
 
@@ -69,6 +70,11 @@ class Subscriber:
         self.pending.append(state)
         self.wake.set()
 
+    def close(self) -> None:
+        """The session ended: the stream sends what it has, then closes."""
+        self.closed = True
+        self.wake.set()
+
     def notify(self, message: schema.BaseModel) -> None:
         self.messages.append(message)
         self.wake.set()
@@ -77,9 +83,10 @@ class Subscriber:
 class FrameEstimator:
     """Sensor frames in, gait states out: the pipeline plus what a device stream needs around it.
 
-    Session time starts at 0 on the first frame; angular velocities a device does not send are
-    derived by backward difference; ``foot_pred_deg`` and ``shank_pred_deg`` are the gait model at
-    the prior estimate (what the filter expected to measure). Used live and for offline re-runs.
+    Session time starts at 0 on the first frame (or is ``frame.t - time_origin`` when given);
+    angular velocities a device does not send are derived by backward difference; ``foot_pred_deg``
+    and ``shank_pred_deg`` are the gait model at the prior estimate (what the filter expected to
+    measure). Used live and for offline re-runs.
     """
 
     def __init__(
@@ -89,6 +96,7 @@ class FrameEstimator:
         mass_kg: float,
         settings: SessionSettings,
         sample_period: float = DEFAULT_PERIOD,
+        time_origin: float | None = None,
     ):
         self.pipeline = GaitStatePipeline(
             model,
@@ -102,7 +110,7 @@ class FrameEstimator:
         )
         self.retune(settings)
         self.last_t = 0.0
-        self._t_offset: float | None = None
+        self._t_offset = time_origin
         self._prev: SensorFrame | None = None
 
     def retune(self, s: SessionSettings) -> None:
@@ -112,6 +120,10 @@ class FrameEstimator:
             measurement_noise_scale=s.measurement_noise_scale,
             process_noise_scale=s.process_noise_scale,
         )
+
+    def accepts(self, frame: SensorFrame) -> bool:
+        """True if ``frame`` comes after the last frame stepped (or is the first)."""
+        return self._prev is None or self._t_offset is None or frame.t - self._t_offset > self.last_t
 
     def step(self, frame: SensorFrame, recv_ns: int) -> GaitState:
         if self._t_offset is None:
@@ -170,10 +182,14 @@ def estimate(
     leg_length: float,
     mass_kg: float,
     settings: SessionSettings,
+    time_origin: float | None = None,
 ) -> list[GaitState]:
-    """Run recorded frames through a fresh estimator (review re-runs, imports of raw logs)."""
+    """Run recorded frames through a fresh estimator (review re-runs, imports of raw logs).
+
+    Recorded ``/sensor`` frames carry session time, so a re-run passes ``time_origin=0`` to keep it.
+    """
     period = (frames[-1].t - frames[0].t) / (len(frames) - 1) if len(frames) > 1 else DEFAULT_PERIOD
-    est = FrameEstimator(model, leg_length, mass_kg, settings, period)
+    est = FrameEstimator(model, leg_length, mass_kg, settings, period, time_origin)
     return [est.step(f, 0) for f in frames]
 
 
@@ -236,6 +252,8 @@ class SessionRuntime:
                 with contextlib.suppress(asyncio.CancelledError):
                     await task
         self.stop_recording()
+        for sub in self.subscribers:
+            sub.close()
 
     async def _run(self) -> None:
         async for frame in self.source.frames():
@@ -256,7 +274,7 @@ class SessionRuntime:
         if frame.sent_ns is not None:
             self._recent_latency.append((recv_ns - frame.sent_ns) / 1e6)
         if self.recorder is not None:
-            self.recorder.write("/sensor", t, frame)
+            self.recorder.write("/sensor", t, frame.model_copy(update={"t": t}))  # session time, as the rest
             self.recorder.write("/gait_state", t, state)
             self.recorder.write("/torque", t, schema.TorqueCommand(seq=frame.seq, t=t, torque_Nm=state.torque_Nm))
         for sub in self.subscribers:
@@ -264,6 +282,10 @@ class SessionRuntime:
         if self.on_state is not None:
             self.on_state(self.session.id, state, self.subject.leg_length_m)
         return state
+
+    def accepts(self, frame: SensorFrame) -> bool:
+        """Whether a device frame's time follows the last one (a device may restart its clock)."""
+        return self.estimator.accepts(frame)
 
     # --- subscribers and health ---------------------------------------------------------------
     def subscribe(self, max_rate_hz: float) -> Subscriber:

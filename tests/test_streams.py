@@ -150,3 +150,14 @@ def test_a_slow_subscriber_loses_its_oldest_samples_and_counts_them() -> None:
         sub.offer(state.model_copy(update={"seq": k}))
     assert sub.dropped == 25 and len(sub.pending) == SUBSCRIBER_CAPACITY
     assert sub.pending[0].seq == 25  # the newest are kept
+
+
+def test_stopping_a_session_closes_its_streams(client: TestClient) -> None:
+    sid = _session(client, SIM)
+    with client.websocket_connect(f"/ws/sessions/{sid}?max_rate_hz=20") as ws:
+        json.loads(ws.receive_text())
+        assert client.post(f"/api/sessions/{sid}/stop").status_code == 200
+        with pytest.raises(WebSocketDisconnect) as exc:
+            for _ in range(200):
+                ws.receive_text()
+    assert exc.value.code == 1000 and "stopped" in exc.value.reason

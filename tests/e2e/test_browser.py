@@ -1,0 +1,335 @@
+"""The dashboard in a real browser against the real server (``gaitscope serve`` as a subprocess).
+
+A clinician's path through it: create a subject and a simulated session, watch the live plots move,
+change the torque gain (and see a too-large and a too-soon change refused), annotate, upload a replay
+CSV (and see a broken MCAP refused), then review the upload, scrub it and re-run it with other settings.
+Screenshots of the live and review views go to ``tests/e2e/artifacts/``. Every test also checks that
+the page logged no console error and that no request left 127.0.0.1.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from urllib.parse import urlsplit
+
+import pytest
+
+playwright_api = pytest.importorskip("playwright.sync_api")
+
+CHROMIUM = Path("/usr/bin/chromium")
+ARTIFACTS = Path(__file__).resolve().parent / "artifacts"
+LAUNCH_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-dev-shm-usage",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+LOOPBACK = "127.0.0.1"
+
+pytestmark = [
+    pytest.mark.e2e,
+    pytest.mark.skipif(not CHROMIUM.exists(), reason=f"Chromium not found at {CHROMIUM} (apt-get install chromium)"),
+]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind((LOOPBACK, 0))
+        return int(s.getsockname()[1])
+
+
+def _get_json(url: str) -> object:
+    with urllib.request.urlopen(url, timeout=2) as resp:
+        return json.loads(resp.read())
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """``gaitscope serve`` on free ports with a fresh data folder; yields its base URL."""
+    exe = Path(sys.executable).with_name("gaitscope")
+    data = tmp_path_factory.mktemp("gaitscope-data")
+    port, viser_port = _free_port(), _free_port()
+    log_path = data / "server.log"
+    with log_path.open("wb") as log:
+        proc = subprocess.Popen(
+            [str(exe), "serve", "--port", str(port), "--viser-port", str(viser_port), "--data-dir", str(data)],
+            stdout=log,
+            stderr=subprocess.STDOUT,
+        )
+    base = f"http://{LOOPBACK}:{port}"
+    try:
+        deadline = time.monotonic() + 90
+        while True:
+            if proc.poll() is not None:
+                pytest.fail(f"gaitscope serve exited with {proc.returncode}:\n{log_path.read_text()[-3000:]}")
+            try:
+                if _get_json(f"{base}/api/health") is not None:
+                    break
+            except OSError:
+                pass
+            if time.monotonic() > deadline:
+                pytest.fail(f"gaitscope serve did not answer /api/health in 90 s:\n{log_path.read_text()[-3000:]}")
+            time.sleep(0.25)
+        yield base
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[playwright_api.Browser]:
+    with playwright_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=str(CHROMIUM), args=LAUNCH_ARGS)
+        yield b
+        b.close()
+
+
+def _leaves_loopback(url: str) -> bool:
+    """True if a request to ``url`` would go to a host other than 127.0.0.1 (blob:/data: stay local)."""
+    if url.startswith("data:"):
+        return False
+    if url.startswith("blob:"):
+        url = url[len("blob:") :]
+    parts = urlsplit(url)
+    return parts.scheme in {"http", "https", "ws", "wss"} and parts.hostname != LOOPBACK
+
+
+_FAILED_LOAD = re.compile(r"Failed to load resource: the server responded with a status of (\d{3})")
+
+
+@dataclass
+class Watched:
+    """A page plus what it logged. Chromium logs every 4xx response as a console error; the refusals a
+    test provokes on purpose are declared with :meth:`allow_refusal`, and only those are let through."""
+
+    page: playwright_api.Page
+    console_errors: list[str] = field(default_factory=list)
+    external: list[str] = field(default_factory=list)
+    requests: int = 0
+    allowed: list[tuple[int, re.Pattern[str]]] = field(default_factory=list)
+
+    def allow_refusal(self, status: int, url_pattern: str) -> None:
+        self.allowed.append((status, re.compile(url_pattern)))
+
+    def on_console(self, msg: playwright_api.ConsoleMessage) -> None:
+        if msg.type != "error":
+            return
+        m = _FAILED_LOAD.search(msg.text)
+        url = str(msg.location.get("url", ""))
+        if m and any(int(m[1]) == st and pat.search(url) for st, pat in self.allowed):
+            return
+        self.console_errors.append(f"{msg.text} ({url})")
+
+    def check_clean(self) -> None:
+        assert self.console_errors == [], "console errors:\n" + "\n".join(self.console_errors)
+        assert self.external == [], f"requests left {LOOPBACK}: {self.external}"
+
+
+@pytest.fixture
+def watched(browser: playwright_api.Browser) -> Iterator[Watched]:
+    """A 1024x768 page (the smallest tablet we support) recording console errors and foreign requests."""
+    context = browser.new_context(viewport={"width": 1024, "height": 768})
+    page = context.new_page()
+    page.set_default_timeout(15_000)
+    w = Watched(page)
+
+    def on_request(req: playwright_api.Request) -> None:
+        w.requests += 1
+        if _leaves_loopback(req.url):
+            w.external.append(req.url)
+
+    page.on("console", w.on_console)
+    page.on("pageerror", lambda e: w.console_errors.append(f"uncaught: {e}"))
+    page.on("request", on_request)
+    page.on("websocket", lambda ws: w.external.append(ws.url) if _leaves_loopback(ws.url) else None)
+    yield w
+    context.close()
+
+
+def _patch(url: str, body: dict[str, object]) -> object:
+    """A PATCH from outside the browser: another clinician's screen."""
+    req = urllib.request.Request(
+        url, data=json.dumps(body).encode(), method="PATCH", headers={"Content-Type": "application/json"}
+    )
+    with urllib.request.urlopen(req, timeout=5) as resp:
+        return json.loads(resp.read())
+
+
+def _wait_responsive(page: playwright_api.Page, timeout_s: float = 30.0) -> None:
+    """Wait until the renderer draws frames promptly again (three two-frame round trips under 100 ms)."""
+    deadline = time.monotonic() + timeout_s
+    fast = 0
+    while fast < 3:
+        ms = page.evaluate(
+            "() => new Promise((r) => { const t0 = performance.now();"
+            " requestAnimationFrame(() => requestAnimationFrame(() => r(performance.now() - t0))); })"
+        )
+        fast = fast + 1 if ms < 100 else 0
+        assert time.monotonic() < deadline, f"the page stayed busy for {timeout_s} s (last frame pair {ms:.0f} ms)"
+
+
+def _number(text: str | None) -> float:
+    assert text is not None and re.fullmatch(r"-?\d+(\.\d+)?", text.strip()), f"not a number: {text!r}"
+    return float(text)
+
+
+def _replay_csv(path: Path, strides: int = 20) -> Path:
+    from sessions.trials import replay_columns, sensor_trial
+
+    sensors, _, _ = sensor_trial(schedule=[(1.2, 0.0, strides)])
+    replay_columns(sensors).to_csv(path, index=False)
+    return path
+
+
+def test_no_request_leaves_loopback(server: str, watched: Watched) -> None:
+    page = watched.page
+    page.goto(f"{server}/")
+    playwright_api.expect(page.get_by_test_id("server-status")).to_contain_text("ok")
+    page.goto(f"{server}/#/sessions/1")  # the demo session, with the leg view iframe
+    playwright_api.expect(page.get_by_test_id("live-indicator")).to_have_text("LIVE", timeout=20_000)
+    playwright_api.expect(page.get_by_title("3D leg view")).to_be_visible()
+    page.wait_for_timeout(2000)  # let the iframe load its assets
+    assert watched.requests > 5
+    watched.check_clean()
+
+
+def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
+    page = watched.page
+    expect = playwright_api.expect
+    ARTIFACTS.mkdir(exist_ok=True)
+
+    watched.allow_refusal(409, r"/api/subjects$")  # a duplicate subject code
+    watched.allow_refusal(409, r"/api/sessions/\d+/settings$")  # a change too soon after the last
+    watched.allow_refusal(422, r"/api/uploads/\w+/finish$")  # a broken MCAP
+
+    # --- a subject: invalid input is refused before sending; a duplicate code by the server (409) ---
+    page.goto(f"{server}/")
+    page.get_by_test_id("subject-code").fill("E2E01")
+    page.get_by_test_id("subject-leg").fill("2.0")
+    page.get_by_test_id("subject-submit").click()
+    expect(page.get_by_test_id("subject-error")).to_have_text("Leg length must be at most 1.3.")
+    page.get_by_test_id("subject-leg").fill("0.92")
+    page.get_by_test_id("subject-mass").fill("72")
+    page.get_by_test_id("subject-submit").click()
+    expect(page.get_by_test_id("subject-ok")).to_contain_text("Subject E2E01 created")
+    page.get_by_test_id("subject-code").fill("E2E01")
+    page.get_by_test_id("subject-submit").click()
+    expect(page.get_by_test_id("subject-error")).to_contain_text("Refused: subject code 'E2E01' exists")
+
+    # --- a simulated session; the view follows it -------------------------------------------------
+    subject_id = page.get_by_test_id("session-subject").locator("option", has_text="E2E01").get_attribute("value")
+    assert subject_id
+    page.get_by_test_id("session-subject").select_option(subject_id)
+    page.get_by_test_id("source-simulated").check()
+    page.get_by_test_id("session-submit").click()
+    page.wait_for_url(re.compile(r"#/sessions/\d+$"))
+    session_id = int(page.url.rsplit("/", 1)[1])
+    assert session_id >= 2  # the demo session is 1
+
+    # --- live data move ---------------------------------------------------------------------------
+    expect(page.get_by_test_id("live-indicator")).to_have_text("LIVE", timeout=20_000)
+    expect(page.get_by_test_id("live-title")).to_contain_text("E2E01")
+    first = _number(page.get_by_test_id("summary-phase").text_content())
+    page.wait_for_timeout(1000)
+    second = _number(page.get_by_test_id("summary-phase").text_content())
+    assert first != second
+    assert 0.0 <= second <= 100.0
+    expect(page.get_by_test_id("health-rate")).to_contain_text("Hz")
+    expect(page.get_by_test_id("health-clients")).not_to_have_text("–")
+    expect(page.get_by_test_id("stride-count")).to_contain_text("stride", timeout=20_000)
+    assert _number(page.get_by_test_id("summary-cadence").text_content()) > 20  # strides/min while walking
+
+    # The leg view (viser, WebGL) loads lazily and keeps the renderer busy while it starts; load it
+    # first so that the timing of the next steps is the UI's own.
+    page.get_by_title("3D leg view").scroll_into_view_if_needed()
+    page.frame_locator("iframe[title='3D leg view']").locator("canvas").first.wait_for(state="attached", timeout=30_000)
+    _wait_responsive(page)
+
+    # --- torque gain 1.0 -> 1.3; a change again too soon (server 409) and too large a step (client) ----
+    gain = page.get_by_test_id("setting-torque_gain")
+    expect(gain).to_have_value("1")
+    gain.fill("1.3")
+    page.get_by_test_id("settings-apply").click()
+    expect(page.get_by_test_id("settings-ok")).to_have_text("Applied: torque_gain.")
+    gain.fill("1.8")  # a step of 0.5 is allowed, but only 1 s after the last change of the field
+    page.get_by_test_id("settings-apply").click()
+    expect(page.get_by_test_id("settings-error")).to_contain_text("Refused: torque_gain changed")
+    gain.fill("2.9")
+    page.get_by_test_id("settings-apply").click()
+    expect(page.get_by_test_id("settings-error")).to_contain_text("Torque gain may change by at most 0.5 per step")
+    page.get_by_test_id("settings-revert").click()
+    expect(gain).to_have_value("1.3")
+    setting_row = page.get_by_test_id("event-row").and_(page.locator("[data-kind=setting]"))
+    expect(setting_row).to_have_count(1)
+    expect(setting_row.get_by_test_id("event-change")).to_have_text("torque_gain: 1.00 → 1.30")
+    expect(setting_row.get_by_test_id("event-actor")).to_have_text("by clinician")
+
+    # --- another screen changes the maximum torque: the controls and the events follow ---------------
+    _patch(f"{server}/api/sessions/{session_id}/settings", {"max_torque_Nm": 35.0, "actor": "experimenter"})
+    expect(page.get_by_test_id("setting-max_torque_Nm")).to_have_value("35")
+    expect(page.get_by_test_id("setting-max_torque_Nm-note")).to_have_text("changed elsewhere to 35.0")
+    expect(setting_row).to_have_count(2)
+    expect(setting_row.first.get_by_test_id("event-change")).to_have_text("max_torque_Nm: 30.0 → 35.0")
+    expect(setting_row.first.get_by_test_id("event-actor")).to_have_text("by experimenter")
+
+    # --- an annotation ---------------------------------------------------------------------------------
+    page.get_by_test_id("annotation-add").click()
+    expect(page.get_by_test_id("annotation-error")).to_have_text("Write the annotation first.")
+    page.get_by_test_id("annotation-text").fill("E2E: subject reports a comfortable push-off")
+    page.get_by_test_id("annotation-add").click()
+    expect(page.get_by_test_id("annotation-error")).to_be_hidden()
+    note = page.get_by_test_id("event-row").and_(page.locator("[data-kind=annotation]"))
+    expect(note).to_contain_text("comfortable push-off")
+    expect(page.get_by_test_id("event-row").first).to_contain_text("comfortable push-off")  # newest first
+    page.wait_for_timeout(1500)  # a few more strides in the overlay for the screenshot
+    page.screenshot(path=str(ARTIFACTS / "live.png"), full_page=True)
+
+    # --- uploads: a broken MCAP is refused with the server's reason; a replay CSV becomes a trial -------
+    page.goto(f"{server}/")
+    bad = tmp_path / "broken.mcap"
+    bad.write_bytes(b"this is not an MCAP file\n" * 10)
+    page.get_by_test_id("upload-file").set_input_files(str(bad))
+    page.get_by_test_id("upload-subject").select_option(subject_id)
+    page.get_by_test_id("upload-submit").click()
+    expect(page.get_by_test_id("upload-error")).to_contain_text("The file was not accepted")
+    csv = _replay_csv(tmp_path / "walk_20_strides.csv")
+    page.get_by_test_id("upload-file").set_input_files(str(csv))
+    page.get_by_test_id("upload-submit").click()
+    page.wait_for_url(re.compile(r"#/trials/\d+$"), timeout=60_000)
+
+    # --- review: timeline, scrubbing, re-run ---------------------------------------------------------
+    expect(page.get_by_test_id("trial-info")).to_contain_text("uploaded")
+    expect(page.get_by_test_id("timeline").locator("canvas")).to_be_visible()
+    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
+    scrubber = page.get_by_test_id("scrubber")
+    t_max = float(scrubber.get_attribute("max") or "nan")
+    assert 15.0 < t_max < 40.0  # 20 strides at 1.2 m/s
+    scrubber.fill(f"{t_max / 2:.2f}")
+    expect(page.get_by_test_id("cursor-time")).to_have_text(f"{t_max / 2:.2f}")
+    page.get_by_test_id("zoom-from").fill("5")
+    page.get_by_test_id("zoom-to").fill("10")
+    page.get_by_test_id("zoom-apply").click()
+    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
+    page.get_by_test_id("rerun-torque_gain").fill("1.5")
+    page.get_by_test_id("rerun-submit").click()
+    expect(page.get_by_test_id("rerun-ok")).to_contain_text("Overlaid: torque_gain 1.5", timeout=60_000)
+    expect(page.get_by_test_id("viewer-error")).to_be_hidden()
+    expect(page.get_by_test_id("download-link")).to_have_attribute("href", re.compile(r"/api/trials/\d+/download$"))
+    page.screenshot(path=str(ARTIFACTS / "review.png"), full_page=True)
+    watched.check_clean()

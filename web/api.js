@@ -1,0 +1,164 @@
+// REST and websocket helpers for the gaitscope server (docs/api.md). Every body and message follows
+// sessions/schema.py; this module does no rendering, only transport and plain-words errors.
+
+/** A refused request: HTTP status, the server's `detail`, and a sentence a clinician can read. */
+export class ApiError extends Error {
+  constructor(status, detail, message) {
+    super(message);
+    this.name = "ApiError";
+    this.status = status;
+    this.detail = detail;
+  }
+}
+
+const _STATUS_WORDS = {
+  400: "The request was not understood",
+  404: "Not found",
+  409: "Refused",
+  413: "Too large",
+  422: "Not accepted",
+  500: "The server failed",
+  503: "The server is busy",
+};
+
+/** FastAPI's `detail` (a string, or pydantic's list of {loc, msg}) as one readable sentence. */
+export function describeDetail(detail) {
+  if (detail == null) return "";
+  if (typeof detail === "string") return detail;
+  if (Array.isArray(detail)) {
+    return detail
+      .map((d) => {
+        if (typeof d === "string") return d;
+        const loc = (d.loc || []).filter((p) => p !== "body" && p !== "query" && p !== "path");
+        const where = loc.length ? `${loc.join(".")}: ` : "";
+        return `${where}${d.msg || JSON.stringify(d)}`;
+      })
+      .join("; ");
+  }
+  if (typeof detail === "object" && detail.message) return String(detail.message);
+  return JSON.stringify(detail);
+}
+
+/** The plain-words message of a failed request (ApiError) or of a network failure. */
+export function errorText(err) {
+  if (err instanceof ApiError) return err.message;
+  if (err instanceof TypeError) return "Could not reach the gaitscope server (network error).";
+  return String((err && err.message) || err);
+}
+
+async function _raise(resp) {
+  let detail = null;
+  try {
+    const body = await resp.json();
+    detail = body && "detail" in body ? body.detail : body;
+  } catch {
+    detail = resp.statusText;
+  }
+  const words = _STATUS_WORDS[resp.status] || `Error ${resp.status}`;
+  const text = describeDetail(detail);
+  throw new ApiError(resp.status, detail, text ? `${words}: ${text}` : `${words}.`);
+}
+
+/**
+ * Calls a REST endpoint and returns its JSON (null for 204).
+ * @param {string} method
+ * @param {string} path e.g. "/api/sessions"
+ * @param {object} [body] sent as JSON
+ */
+export async function api(method, path, body) {
+  const init = { method, headers: { Accept: "application/json" } };
+  if (body !== undefined) {
+    init.headers["Content-Type"] = "application/json";
+    init.body = JSON.stringify(body);
+  }
+  const resp = await fetch(path, init);
+  if (!resp.ok) await _raise(resp);
+  if (resp.status === 204) return null;
+  return resp.json();
+}
+
+/** `PUT /api/uploads/{id}?offset=N` with raw bytes; returns the `Upload`. */
+export async function putChunk(uploadId, offset, blob) {
+  const resp = await fetch(`/api/uploads/${encodeURIComponent(uploadId)}?offset=${offset}`, {
+    method: "PUT",
+    headers: { "Content-Type": "application/octet-stream", Accept: "application/json" },
+    body: blob,
+  });
+  if (!resp.ok) await _raise(resp);
+  return resp.json();
+}
+
+/** Query string from an object, skipping null/undefined values. */
+export function query(params) {
+  const q = new URLSearchParams();
+  for (const [k, v] of Object.entries(params)) if (v !== null && v !== undefined) q.set(k, String(v));
+  const s = q.toString();
+  return s ? `?${s}` : "";
+}
+
+// Close codes after which reconnecting cannot help: policy violation and the 4xxx application codes
+// (the server closes with 4404-style codes for an unknown session).
+function _isFinalClose(code) {
+  return code === 1008 || (code >= 4000 && code < 5000);
+}
+
+/**
+ * A live session stream that reconnects with exponential backoff (0.5 s doubling to 10 s, reset after a
+ * `hello`). Closed by the server with 1013 (this client fell behind) it reconnects like any other drop.
+ *
+ * @param {number} sessionId
+ * @param {{onMessage: (msg: object) => void, onStatus?: (status: string, info?: object) => void}} handlers
+ *   status is "connecting", "open", "reconnecting" (info.delayMs, info.code) or "closed" (info.code).
+ * @param {{maxRateHz?: number, batchMs?: number}} [opts]
+ * @returns {{close: () => void}}
+ */
+export function openSessionStream(sessionId, handlers, opts = {}) {
+  const maxRate = opts.maxRateHz ?? 60;
+  const batchMs = opts.batchMs ?? 33;
+  const proto = location.protocol === "https:" ? "wss:" : "ws:";
+  const url = `${proto}//${location.host}/ws/sessions/${sessionId}?max_rate_hz=${maxRate}&batch_ms=${batchMs}`;
+  const status = handlers.onStatus || (() => {});
+  let ws = null;
+  let delay = 500;
+  let timer = null;
+  let stopped = false;
+
+  function connect() {
+    if (stopped) return;
+    status("connecting");
+    ws = new WebSocket(url);
+    ws.onmessage = (ev) => {
+      let msg;
+      try {
+        msg = JSON.parse(ev.data);
+      } catch {
+        return; // not JSON: ignore rather than break the stream
+      }
+      if (msg.type === "hello") {
+        delay = 500;
+        status("open");
+      }
+      handlers.onMessage(msg);
+    };
+    ws.onclose = (ev) => {
+      ws = null;
+      if (stopped) return;
+      if (_isFinalClose(ev.code)) {
+        status("closed", { code: ev.code, reason: ev.reason });
+        return;
+      }
+      status("reconnecting", { delayMs: delay, code: ev.code });
+      timer = setTimeout(connect, delay);
+      delay = Math.min(delay * 2, 10000);
+    };
+  }
+
+  connect();
+  return {
+    close() {
+      stopped = true;
+      clearTimeout(timer);
+      if (ws) ws.close(1000, "view closed");
+    },
+  };
+}

@@ -1,0 +1,57 @@
+// Entry point: the hash router (`#/`, `#/sessions/{id}`, `#/trials/{id}`) and the server badge.
+// Each view is `mount(container, id) -> {unmount()}`; unmount closes sockets, timers and plots.
+
+import { api, errorText } from "./api.js";
+import { mountLive } from "./live.js";
+import { mountReview } from "./review.js";
+import { mountSessions } from "./sessions.js";
+import { h } from "./ui.js";
+
+const ROUTES = [
+  [/^#?\/?$/, (el) => mountSessions(el)],
+  [/^#\/sessions\/(\d+)$/, (el, m) => mountLive(el, Number(m[1]))],
+  [/^#\/trials\/(\d+)$/, (el, m) => mountReview(el, Number(m[1]))],
+];
+
+let current = null;
+
+function route() {
+  const view = document.getElementById("view");
+  if (current && current.unmount) {
+    try {
+      current.unmount();
+    } catch (err) {
+      console.warn("unmount failed", err);
+    }
+  }
+  current = null;
+  view.replaceChildren();
+  const hash = location.hash || "#/";
+  for (const [re, mount] of ROUTES) {
+    const m = hash.match(re);
+    if (m) {
+      current = mount(view, m);
+      view.focus({ preventScroll: true });
+      window.scrollTo(0, 0);
+      return;
+    }
+  }
+  view.append(h("section", { class: "card" }, h("h1", { text: "Page not found" }),
+    h("p", {}, "No page at ", h("code", { text: hash }), ". ", h("a", { href: "#/", text: "Back to sessions" }))));
+}
+
+async function serverBadge() {
+  const el = document.getElementById("server-status");
+  try {
+    const health = await api("GET", "/api/health");
+    el.textContent = `server ${health.status}, v${health.version}`;
+    el.classList.add("ok");
+  } catch (err) {
+    el.textContent = errorText(err);
+    el.classList.add("bad");
+  }
+}
+
+window.addEventListener("hashchange", route);
+route();
+serverBadge();

@@ -1,0 +1,276 @@
+// Live view (`#/sessions/{id}`): the session's stream in plots redrawn once per animation frame, the
+// per-stride overlay, data health, controls, events and the 3D leg view.
+
+import { api, errorText, openSessionStream } from "./api.js";
+import { actorSelect, mountControls } from "./controls.js";
+import { EventList } from "./events.js";
+import { COLORS, Plot, Ring, StrideOverlay } from "./plots.js";
+import { errorBox, fmt, h, showError } from "./ui.js";
+
+export const WINDOW_S = 10; // seconds of full-rate history the live plots show
+const RING_CAPACITY = 2048; // > 10 s at the 60 Hz the stream is asked for (34 s), bounded memory
+const STALE_MS = 1000;
+const COLUMNS = ["t", "phase_pct", "tbe_pct", "phase_rate", "incline_deg", "stride_length_m", "torque_Nm",
+  "foot_angle_deg", "foot_pred_deg", "shank_angle_deg", "shank_pred_deg"];
+
+/** The plots of a gait-state series; `review.js` uses the same list. */
+export const PLOT_SPECS = [
+  { key: "phase", title: "Phase: EKF and timing-based", yLabel: "% of cycle", yRange: [0, 100],
+    cols: ["phase_pct", "tbe_pct"], series: [{ label: "phase", color: COLORS.blue }, { label: "timing-based", color: COLORS.orange, dash: [6, 4] }] },
+  { key: "phase_rate", title: "Phase rate", yLabel: "1/s", cols: ["phase_rate"], series: [{ label: "phase rate", color: COLORS.blue }] },
+  { key: "incline", title: "Incline", yLabel: "deg", cols: ["incline_deg"], series: [{ label: "incline", color: COLORS.green }] },
+  { key: "stride_length", title: "Stride length", yLabel: "m", cols: ["stride_length_m"], series: [{ label: "stride length", color: COLORS.teal }] },
+  { key: "torque", title: "Torque command", yLabel: "N·m", cols: ["torque_Nm"], series: [{ label: "torque", color: COLORS.orange }] },
+  { key: "foot", title: "Foot angle: measured and predicted", yLabel: "deg", cols: ["foot_angle_deg", "foot_pred_deg"],
+    series: [{ label: "measured", color: COLORS.blue }, { label: "predicted", color: COLORS.orange, dash: [6, 4] }] },
+  { key: "shank", title: "Shank angle: measured and predicted", yLabel: "deg", cols: ["shank_angle_deg", "shank_pred_deg"],
+    series: [{ label: "measured", color: COLORS.blue }, { label: "predicted", color: COLORS.orange, dash: [6, 4] }] },
+];
+
+/** A `GaitState` as one row of plot columns (phase in % of the cycle). */
+export function stateRow(s) {
+  return { ...s, phase_pct: s.phase * 100, tbe_pct: s.tbe_phase * 100 };
+}
+
+/** Mean +/- SD band plot over the gait cycle. */
+export function bandPlot(container, title, yLabel, color, fill) {
+  return new Plot(container, {
+    title, yLabel, xLabel: "% of gait cycle", xRange: [0, 100], height: 190,
+    series: [{ label: "mean", color, width: 3 }, { label: "−1 SD", color: fill.line, width: 1 },
+      { label: "+1 SD", color: fill.line, width: 1 }, { label: "newest stride", color: COLORS.grey, dash: [4, 4], width: 1.5 }],
+    bands: [{ series: [3, 2], fill: fill.band }],
+  });
+}
+
+/** Resolves the leg view's address for this browser: a loopback URL is moved to the dashboard's host. */
+export function viewerUrl(url) {
+  const u = new URL(url);
+  const loop = (host) => ["127.0.0.1", "localhost", "[::1]"].includes(host);
+  if (loop(u.hostname) && !loop(location.hostname)) u.hostname = location.hostname;
+  return u.toString();
+}
+
+/** The 3D leg view iframe (or why it is missing); `focus` tells the server what to show. */
+export function legView(focus) {
+  const box = h("section", { class: "card leg-card" }, h("h2", { text: "3D leg view" }));
+  const msg = h("p", { class: "hint", "data-testid": "leg-view-message" });
+  box.append(msg);
+  api("GET", "/api/viewer").then((v) => {
+    if (!v.url) {
+      msg.textContent = "The leg view is switched off on this server.";
+      return;
+    }
+    box.append(h("iframe", { title: "3D leg view", "data-testid": "leg-view", src: viewerUrl(v.url), loading: "lazy" }));
+    return focus && api("POST", "/api/viewer/focus", focus);
+  }).catch((err) => {
+    msg.textContent = `The leg view is unavailable: ${errorText(err)}`;
+  });
+  return box;
+}
+
+export function mountLive(root, sessionId) {
+  const ring = new Ring(RING_CAPACITY, COLUMNS);
+  const overlay = new StrideOverlay(["torque_Nm", "foot_angle_deg", "phase_rate", "stride_length_m", "incline_deg"]);
+  const events = new EventList("events-list");
+  let lastT = -Infinity;
+  let lastBatchAt = 0;
+  let dataDirty = false;
+  let strideDirty = false;
+  let lastText = 0;
+  let raf = 0;
+  let lastStatePoll = performance.now();
+  let alive = true;
+
+  // --- header, summary, health --------------------------------------------------------------------
+  const title = h("h1", { "data-testid": "live-title", text: `Session ${sessionId}` });
+  const indicator = h("div", { class: "indicator stale", "data-testid": "live-indicator", role: "status", text: "NO DATA" });
+  const conn = h("span", { class: "hint", "data-testid": "connection", text: "connecting…" });
+  const streamError = errorBox("stream-error");
+  const cell = (key, label, unit) => {
+    const v = h("span", { class: "value", "data-testid": `summary-${key}`, text: "–" });
+    return [h("div", { class: "metric" }, h("span", { class: "label", text: label }), v, h("span", { class: "unit", text: unit })), v];
+  };
+  const [phaseCell, phaseV] = cell("phase", "Phase", "%");
+  const [cadCell, cadV] = cell("cadence", "Cadence", "strides/min");
+  const [slCell, slV] = cell("stride-length", "Stride length", "m");
+  const [spCell, spV] = cell("speed", "Speed", "m/s");
+  const [incCell, incV] = cell("incline", "Incline", "deg");
+  const [pkCell, pkV] = cell("peak-torque", "Peak torque, last stride", "N·m");
+  const summary = h("div", { class: "summary", "data-testid": "summary" }, phaseCell, cadCell, slCell, spCell, incCell, pkCell);
+
+  const hv = (key) => h("dd", { "data-testid": `health-${key}`, text: "–" });
+  const health = { t: hv("session-time"), rate: hv("rate"), latency: hv("latency"), serverLatency: hv("server-latency"), input: hv("dropped-input"), client: hv("dropped-client"), clients: hv("clients"), samples: hv("samples") };
+  const healthCard = h("section", { class: "card health", "data-testid": "health" }, h("h2", { text: "Data health" }), indicator,
+    h("dl", {}, h("dt", { text: "Session time" }), health.t, h("dt", { text: "Rate" }), health.rate, h("dt", { text: "Device → screen latency p50 / p95" }), health.latency,
+      h("dt", { text: "Device → server p50 / p95" }), health.serverLatency,
+      h("dt", { text: "Dropped device frames" }), health.input, h("dt", { text: "Dropped batches (this screen)" }), health.client,
+      h("dt", { text: "Screens connected" }), health.clients, h("dt", { text: "Samples" }), health.samples), conn);
+
+  // --- plots --------------------------------------------------------------------------------------
+  const plotsBox = h("div", { class: "plots" });
+  const follow = (u, min, max) => (max == null ? [0, WINDOW_S] : [max - WINDOW_S, max]);
+  const plots = PLOT_SPECS.map((spec) => {
+    const div = h("div", { class: "plot", "data-testid": `plot-${spec.key}` });
+    plotsBox.append(div);
+    return { spec, plot: new Plot(div, { ...spec, xRange: follow }) };
+  });
+  const strideCount = h("span", { class: "hint", "data-testid": "stride-count", text: "waiting for heel strikes…" });
+  const bandTorque = h("div", { class: "plot", "data-testid": "overlay-torque" });
+  const bandFoot = h("div", { class: "plot", "data-testid": "overlay-foot" });
+  const overlayCard = h("section", { class: "card overlay" },
+    h("div", { class: "card-head" }, h("h2", { text: "Per stride: mean ± SD of the last 20" }), strideCount),
+    h("div", { class: "overlay-plots" }, bandTorque, bandFoot));
+
+  // --- controls, events, leg view ------------------------------------------------------------------
+  let subjectCode = "";
+  const controls = mountControls(sessionId, {
+    onEvent: (ev) => events.add(ev),
+    onSession: (s) => {
+      title.textContent = `Session ${sessionId} · ${subjectCode || `subject ${s.subject_id}`} · ${s.source.kind} · ${s.state}`;
+    },
+  });
+  const eventsCard = h("section", { class: "card", "data-testid": "events-card" }, h("h2", { text: "Events (newest first)" }), events.el);
+
+  const layout = h("div", { class: "page live-page" },
+    h("div", { class: "page-head" }, title, h("label", { class: "actor" }, "Acting as ", actorSelect()),
+      h("a", { class: "button", href: "#/", text: "← Sessions" })),
+    summary, streamError,
+    h("div", { class: "live-grid" },
+      h("div", { class: "main-col" }, overlayCard, legView({ session_id: sessionId }), plotsBox),
+      h("aside", { class: "side-col" }, healthCard, controls.el, eventsCard)));
+  root.append(layout);
+  const bands = [
+    { c: "torque_Nm", plot: bandPlot(bandTorque, "Torque command", "N·m", COLORS.orange, { line: "#e8a07f", band: "rgba(194,65,12,0.18)" }) },
+    { c: "foot_angle_deg", plot: bandPlot(bandFoot, "Foot angle (measured)", "deg", COLORS.blue, { line: "#7fa6d1", band: "rgba(11,92,173,0.18)" }) },
+  ];
+
+  // --- stream ---------------------------------------------------------------------------------------
+  // device-to-browser latency: the device stamps sent_ns (wall clock, ns); one clock when on this machine
+  const recentLatency = [];
+  function noteLatency(states) {
+    const now = Date.now();
+    for (const s of states) if (s.sent_ns != null) recentLatency.push([now, now - s.sent_ns / 1e6]);
+    while (recentLatency.length && now - recentLatency[0][0] > 1000) recentLatency.shift();
+  }
+  function latencyText() {
+    if (!recentLatency.length) return "–";
+    const v = recentLatency.map((x) => x[1]).sort((a, b) => a - b);
+    const q = (p) => v[Math.min(v.length - 1, Math.floor(p * v.length))];
+    return `${fmt(q(0.5), 1)} / ${fmt(q(0.95), 1)} ms`;
+  }
+
+  function onStates(states) {
+    noteLatency(states);
+    for (const s of states) {
+      if (s.t < lastT) {
+        ring.clear(); // the source restarted (a replay looping): keep time increasing in the window
+        lastT = -Infinity;
+      }
+      lastT = s.t;
+      const row = stateRow(s);
+      ring.push(row);
+      if (overlay.push(s.t, row, s.heel_strike)) strideDirty = true;
+    }
+    if (states.length) {
+      lastBatchAt = performance.now();
+      dataDirty = true;
+    }
+  }
+
+  function onHealth(m) {
+    health.rate.textContent = `${fmt(m.rate_hz, 0)} Hz`;
+    health.latency.textContent = latencyText();
+    health.serverLatency.textContent = `${fmt(m.latency_ms_p50, 1)} / ${fmt(m.latency_ms_p95, 1)} ms`;
+    health.input.textContent = String(m.dropped_input);
+    health.client.textContent = String(m.dropped_client);
+    health.clients.textContent = String(m.clients);
+    health.samples.textContent = String(m.samples);
+    health.client.classList.toggle("warn", m.dropped_client > 0);
+    health.input.classList.toggle("warn", m.dropped_input > 0);
+  }
+
+  const stream = openSessionStream(sessionId, {
+    onMessage(msg) {
+      switch (msg.type) {
+        case "hello":
+          showError(streamError, null);
+          subjectCode = msg.subject.code;
+          controls.setSession(msg.session);
+          break;
+        case "states":
+          onStates(msg.states);
+          break;
+        case "health":
+          onHealth(msg);
+          break;
+        case "event":
+          events.add(msg.event);
+          if (msg.event.kind === "recording" || msg.event.kind === "system") controls.refreshRecording();
+          break;
+        case "settings":
+          controls.setSettings(msg.settings);
+          break;
+        default:
+          break; // message types this view does not use
+      }
+    },
+    onStatus(status, info) {
+      if (status === "open") conn.textContent = "connected";
+      else if (status === "connecting") conn.textContent = "connecting…";
+      else if (status === "reconnecting") conn.textContent = `connection lost (code ${info.code}); retrying in ${(info.delayMs / 1000).toFixed(1)} s`;
+      else if (status === "closed") {
+        conn.textContent = "not streaming";
+        showError(streamError, `No live data: ${info.reason || `the server closed the stream (code ${info.code})`}.`);
+        api("GET", `/api/sessions/${sessionId}`).then((s) => controls.setSession(s)).catch(() => {});
+      }
+    },
+  });
+
+  // --- drawing: at most once per animation frame, whatever the message rate ---------------------------
+  function frame(now) {
+    raf = requestAnimationFrame(frame);
+    if (dataDirty) {
+      dataDirty = false;
+      for (const { spec, plot } of plots) plot.setData(ring.window("t", spec.cols, WINDOW_S));
+    }
+    if (strideDirty) {
+      strideDirty = false;
+      for (const b of bands) b.plot.setData(overlay.bandData(b.c));
+      strideCount.textContent = `${overlay.count} stride${overlay.count === 1 ? "" : "s"}`;
+    }
+    if (now - lastText > 200) {
+      lastText = now;
+      const stale = now - lastBatchAt > STALE_MS;
+      indicator.textContent = lastBatchAt === 0 ? "NO DATA" : stale ? "STALE" : "LIVE";
+      indicator.className = `indicator ${stale ? "stale" : "live"}`;
+      // The stream stays open, silent, when another screen stops the session: ask for its state.
+      if (stale && now - lastStatePoll > 5000) {
+        lastStatePoll = now;
+        api("GET", `/api/sessions/${sessionId}`).then((s) => alive && controls.setSession(s)).catch(() => {});
+      }
+      phaseV.textContent = fmt(ring.last("phase_pct"), 1);
+      health.t.textContent = `${fmt(ring.last("t"), 1)} s`;
+      const st = overlay.lastStride; // the last complete stride, else the newest sample
+      const rate = st ? st.mean.phase_rate : ring.last("phase_rate");
+      const sl = st ? st.mean.stride_length_m : ring.last("stride_length_m");
+      cadV.textContent = fmt(60 * rate, 1);
+      slV.textContent = fmt(sl, 2);
+      spV.textContent = fmt(sl * rate, 2);
+      incV.textContent = fmt(st ? st.mean.incline_deg : ring.last("incline_deg"), 1);
+      pkV.textContent = fmt(st ? st.peak.torque_Nm : NaN, 1);
+    }
+  }
+  raf = requestAnimationFrame(frame);
+
+  api("GET", `/api/sessions/${sessionId}/events`).then((evs) => events.add(...evs)).catch((err) => showError(streamError, err));
+
+  return {
+    unmount() {
+      alive = false;
+      cancelAnimationFrame(raf);
+      stream.close();
+      for (const { plot } of plots) plot.destroy();
+      for (const b of bands) b.plot.destroy();
+    },
+  };
+}

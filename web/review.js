@@ -1,0 +1,279 @@
+// Review (`#/trials/{id}`): a timeline of the whole trial (decimated by the server) with its events,
+// zoom (server fetch of the range), a scrubbed cursor the leg view follows, the live view's plots, and
+// "re-run with settings" overlaid on the original.
+
+import { api, errorText, query } from "./api.js";
+import { EVENT_COLORS, EventList } from "./events.js";
+import { bandPlot, legView, PLOT_SPECS } from "./live.js";
+import { COLORS, decimateMinMax, markersPlugin, Plot, StrideOverlay, uPlot } from "./plots.js";
+import { loadLimits, SettingsEditor } from "./settings.js";
+import { errorBox, fmt, fmtUtc, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
+
+const MAX_POINTS = 2000; // per request, as the server decimates
+const RERUN_POINTS = 10000; // kept of a re-run, decimated again to MAX_POINTS per view
+const RERUN_COLS = { phase: "phase_pct", torque: "torque_Nm", incline: "incline_deg" }; // plot key -> column
+
+/** Series columns plus phase in % (the plots' unit); nulls kept. */
+function derive(series) {
+  const pct = (a) => (a || []).map((v) => (v == null ? null : v * 100));
+  return { ...series, phase_pct: pct(series.phase), tbe_pct: pct(series.tbe_phase) };
+}
+
+export function mountReview(root, trialId) {
+  const st = { trial: null, full: null, view: null, range: null, cursor: null, events: [], rerun: null, alive: true };
+  const error = errorBox("review-error");
+  const title = h("h1", { "data-testid": "review-title", text: `Trial ${trialId}` });
+  const info = h("p", { class: "hint", "data-testid": "trial-info" });
+  const download = h("a", { class: "button", href: `/api/trials/${trialId}/download`, download: `gaitscope_trial${trialId}.mcap`,
+    "data-testid": "download-link", text: "Download MCAP (opens in Foxglove)" });
+  const marks = () => [
+    ...st.events.map((e) => ({ t: e.t, color: EVENT_COLORS[e.kind], width: 2, dash: [4, 3] })),
+    ...(st.cursor == null ? [] : [{ t: st.cursor, color: "#111", width: 2 }]),
+  ];
+
+  // --- timeline, zoom, scrubber -------------------------------------------------------------------
+  const timelineDiv = h("div", { class: "plot", "data-testid": "timeline" });
+  const from = h("input", { type: "number", id: "zoom-from", "data-testid": "zoom-from", step: 0.1, inputmode: "decimal" });
+  const to = h("input", { type: "number", id: "zoom-to", "data-testid": "zoom-to", step: 0.1, inputmode: "decimal" });
+  const zoomBtn = h("button", { type: "button", class: "primary", "data-testid": "zoom-apply", text: "Zoom" });
+  const allBtn = h("button", { type: "button", "data-testid": "zoom-all", text: "Whole trial" });
+  const zoomError = errorBox("zoom-error");
+  const scrubber = h("input", { type: "range", id: "scrubber", "data-testid": "scrubber", min: 0, max: 1, step: 0.01, value: 0,
+    "aria-label": "Cursor time" });
+  const cursorText = h("span", { class: "value", "data-testid": "cursor-time", text: "–" });
+  const viewerError = errorBox("viewer-error");
+  const timelineCard = h("section", { class: "card" },
+    h("h2", { text: "Timeline (drag across it to zoom)" }), timelineDiv,
+    h("div", { class: "scrub-row" }, h("label", { for: "scrubber", class: "caption", text: "Cursor" }), scrubber, cursorText, h("span", { text: "s" })),
+    h("div", { class: "inline zoom-row" }, h("label", {}, "From ", from, " s"), h("label", {}, "to ", to, " s"), zoomBtn, allBtn),
+    zoomError, viewerError);
+
+  // --- plots ------------------------------------------------------------------------------------------
+  const plotsBox = h("div", { class: "plots" });
+  const plots = PLOT_SPECS.map((spec) => {
+    const div = h("div", { class: "plot", "data-testid": `review-plot-${spec.key}` });
+    plotsBox.append(div);
+    const series = RERUN_COLS[spec.key] ? [...spec.series, { label: "re-run", color: COLORS.purple, width: 2 }] : spec.series;
+    return { spec, plot: new Plot(div, { ...spec, series, plugins: [markersPlugin(marks)] }) };
+  });
+  const strideNote = h("span", { class: "hint", "data-testid": "review-stride-count" });
+  const bandT = h("div", { class: "plot" });
+  const bandF = h("div", { class: "plot" });
+  const overlayCard = h("section", { class: "card overlay" },
+    h("div", { class: "card-head" }, h("h2", { text: "Strides in view: mean ± SD" }), strideNote),
+    h("div", { class: "overlay-plots" }, bandT, bandF));
+
+  // --- re-run -----------------------------------------------------------------------------------------
+  const editor = new SettingsEditor("rerun");
+  // SessionSettings' defaults until the trial's session is loaded.
+  editor.setBaseline({ torque_gain: 1.0, max_torque_Nm: 30.0, measurement_noise_scale: 1.0, process_noise_scale: 1.0 });
+  const rerunBtn = h("button", { type: "button", class: "primary", "data-testid": "rerun-submit", text: "Re-run with these settings" });
+  const rerunClear = h("button", { type: "button", "data-testid": "rerun-clear", text: "Remove overlay", disabled: true });
+  const rerunError = errorBox("rerun-error");
+  const rerunOk = h("p", { class: "ok", role: "status", "data-testid": "rerun-ok" });
+  const rerunCard = h("section", { class: "card", "data-testid": "rerun-card" }, h("h2", { text: "Re-run with settings" }),
+    h("p", { class: "hint", text: "The trial's raw sensor frames through the estimators again; phase, torque and incline are overlaid (purple)." }),
+    editor.el, h("div", { class: "buttons" }, rerunBtn, rerunClear), rerunError, rerunOk);
+
+  const events = new EventList("review-events", { onSelect: (ev) => setCursor(ev.t, true) });
+  root.append(h("div", { class: "page review-page" },
+    h("div", { class: "page-head" }, title, download, h("a", { class: "button", href: "#/", text: "← Sessions" })),
+    info, error, timelineCard,
+    h("div", { class: "live-grid" },
+      h("div", { class: "main-col" }, plotsBox, overlayCard),
+      h("aside", { class: "side-col" }, legView(null), rerunCard,
+        h("section", { class: "card" }, h("h2", { text: "Events of the trial" }), events.el)))));
+
+  const timeline = new Plot(timelineDiv, {
+    title: "Torque command, whole trial", yLabel: "N·m", height: 200, drag: true,
+    series: [{ label: "torque", color: COLORS.orange }],
+    plugins: [markersPlugin(() => [...marks(), ...(st.range && st.view !== st.full
+      ? [{ t: st.range[0], color: COLORS.blue, width: 3 }, { t: st.range[1], color: COLORS.blue, width: 3 }] : [])])],
+    onSelect: (x0, x1) => zoom(x0, x1),
+  });
+  const bands = [
+    { c: "torque_Nm", plot: bandPlot(bandT, "Torque command", "N·m", COLORS.orange, { line: "#e8a07f", band: "rgba(194,65,12,0.18)" }) },
+    { c: "foot_angle_deg", plot: bandPlot(bandF, "Foot angle (measured)", "deg", COLORS.blue, { line: "#7fa6d1", band: "rgba(11,92,173,0.18)" }) },
+  ];
+
+  // --- drawing ----------------------------------------------------------------------------------------
+  function rerunSlice(t0, t1) {
+    const r = st.rerun;
+    if (!r) return null;
+    let i0 = r.t.findIndex((t) => t >= t0);
+    if (i0 < 0) return null;
+    let i1 = i0;
+    while (i1 < r.t.length && r.t[i1] <= t1) i1++;
+    const cols = Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c].slice(i0, i1)]));
+    return decimateMinMax(r.t.slice(i0, i1), cols, MAX_POINTS);
+  }
+
+  function drawView() {
+    const s = st.view;
+    if (!s || !s.t.length) return;
+    const rr = rerunSlice(s.t[0], s.t[s.t.length - 1]);
+    for (const { spec, plot } of plots) {
+      const base = [s.t, ...spec.cols.map((c) => s[c])];
+      const rc = RERUN_COLS[spec.key];
+      if (!rc) plot.setData(base);
+      else if (!rr || !rr.t.length) plot.setData([...base, s.t.map(() => null)]);
+      else plot.setData(uPlot.join([base, [rr.t, rr[rc]]]));
+    }
+    const ov = new StrideOverlay(["torque_Nm", "foot_angle_deg"], { n: 500, maxSamples: 4096 });
+    for (let i = 0; i < s.t.length; i++) ov.push(s.t[i], { torque_Nm: s.torque_Nm[i], foot_angle_deg: s.foot_angle_deg[i] }, !!s.heel_strike[i]);
+    for (const b of bands) b.plot.setData(ov.bandData(b.c));
+    strideNote.textContent = ov.count ? `${ov.count} strides` : "no complete stride in view";
+  }
+
+  function redrawMarks() {
+    timeline.redraw();
+    for (const { plot } of plots) plot.redraw();
+  }
+
+  // --- actions ----------------------------------------------------------------------------------------
+  async function zoom(x0, x1) {
+    showError(zoomError, null);
+    const [T0, T1] = [st.full.t[0], st.full.t[st.full.t.length - 1]];
+    const t0 = Math.max(T0, Math.min(x0, x1));
+    const t1 = Math.min(T1, Math.max(x0, x1));
+    if (!(t1 - t0 > 0.05)) {
+      showError(zoomError, "Choose a range of at least 0.05 s inside the trial.");
+      return;
+    }
+    try {
+      const s = derive(await api("GET", `/api/trials/${trialId}/series${query({ t0, t1, max_points: MAX_POINTS })}`));
+      if (!st.alive) return;
+      st.view = s;
+      st.range = [t0, t1];
+      from.value = t0.toFixed(2);
+      to.value = t1.toFixed(2);
+      drawView();
+      redrawMarks();
+    } catch (err) {
+      showError(zoomError, err);
+    }
+  }
+
+  function showAll() {
+    st.view = st.full;
+    st.range = [st.full.t[0], st.full.t[st.full.t.length - 1]];
+    from.value = st.range[0].toFixed(2);
+    to.value = st.range[1].toFixed(2);
+    drawView();
+    redrawMarks();
+  }
+
+  zoomBtn.addEventListener("click", () => {
+    try {
+      const [T0, T1] = [st.full.t[0], st.full.t[st.full.t.length - 1]];
+      const a = readNumber(from, { label: "From", min: +T0.toFixed(2) - 0.01, max: T1 });
+      const b = readNumber(to, { label: "To", min: T0, max: +T1.toFixed(2) + 0.01 });
+      if (b <= a) throw new ValidationError("'To' must be after 'From'.");
+      zoom(a, b);
+    } catch (err) {
+      showError(zoomError, err);
+    }
+  });
+  allBtn.addEventListener("click", () => showAll());
+
+  // The leg view follows the cursor: one request in flight, the newest position sent next.
+  let showBusy = false;
+  let showNext = null;
+  async function postShow(t) {
+    if (showBusy) {
+      showNext = t;
+      return;
+    }
+    showBusy = true;
+    try {
+      await api("POST", "/api/viewer/show", { trial_id: trialId, t });
+      showError(viewerError, null);
+    } catch (err) {
+      showError(viewerError, `The leg view could not follow the cursor: ${errorText(err)}`);
+    } finally {
+      showBusy = false;
+      if (showNext !== null && st.alive) {
+        const n = showNext;
+        showNext = null;
+        postShow(n);
+      }
+    }
+  }
+
+  function setCursor(t, moveSlider) {
+    st.cursor = t;
+    cursorText.textContent = fmt(t, 2);
+    if (moveSlider) scrubber.value = String(t);
+    redrawMarks();
+    postShow(t);
+  }
+  scrubber.addEventListener("input", () => setCursor(Number(scrubber.value), false));
+
+  rerunBtn.addEventListener("click", () => {
+    rerunOk.textContent = "";
+    runAction(rerunBtn, rerunError, async () => {
+      const settings = editor.values();
+      rerunOk.textContent = "re-running…";
+      const res = await api("POST", `/api/trials/${trialId}/rerun${query({ max_points: RERUN_POINTS })}`, { settings: { ...st.baseSettings, ...settings } });
+      const r = derive(res);
+      if (!r.t || !r.t.length) throw new ValidationError("The re-run produced no samples (the trial has no raw sensor frames).");
+      // Both start at the trial's first frame; if their clocks differ (a re-run counts from 0), align
+      // the re-run on the recording by that shared first sample (same seq).
+      const shift = r.seq && st.full.seq && r.seq[0] === st.full.seq[0] ? st.full.t[0] - r.t[0] : 0;
+      st.rerun = { t: r.t.map((t) => t + shift), ...Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c]])) };
+      rerunClear.disabled = false;
+      rerunOk.textContent = `Overlaid: ${Object.entries(settings).map(([k, v]) => `${k} ${v}`).join(", ")}.`;
+      drawView();
+    }).then(() => {
+      if (rerunOk.textContent === "re-running…") rerunOk.textContent = "";
+    });
+  });
+  rerunClear.addEventListener("click", () => {
+    st.rerun = null;
+    rerunClear.disabled = true;
+    rerunOk.textContent = "";
+    drawView();
+  });
+
+  // --- load -------------------------------------------------------------------------------------------
+  (async () => {
+    try {
+      const [trial, series, evs] = await Promise.all([
+        api("GET", `/api/trials/${trialId}`),
+        api("GET", `/api/trials/${trialId}/series${query({ max_points: MAX_POINTS })}`),
+        api("GET", `/api/trials/${trialId}/events`),
+      ]);
+      if (!st.alive) return;
+      st.trial = trial;
+      title.textContent = `Trial ${trial.id}${trial.name ? ` · ${trial.name}` : ""}`;
+      info.textContent = `${trial.status}, ${fmt(trial.duration_s, 1)} s, ${trial.samples} samples, session ${trial.session_id}, started ${fmtUtc(trial.started_utc)}`;
+      st.events = evs;
+      events.add(...evs);
+      st.full = derive(series);
+      if (!st.full.t.length) throw new ValidationError("This trial holds no gait states to show.");
+      const [T0, T1] = [st.full.t[0], st.full.t[st.full.t.length - 1]];
+      Object.assign(scrubber, { min: T0, max: T1, value: T0 });
+      from.min = to.min = T0;
+      from.max = to.max = T1;
+      timeline.setData([st.full.t, st.full.torque_Nm]);
+      showAll();
+      setCursor(T0, true);
+      await loadLimits();
+      editor.applyLimits();
+      const session = await api("GET", `/api/sessions/${trial.session_id}`);
+      st.baseSettings = session.settings;
+      editor.setBaseline(session.settings);
+    } catch (err) {
+      showError(error, err);
+    }
+  })();
+
+  return {
+    unmount() {
+      st.alive = false;
+      timeline.destroy();
+      for (const { plot } of plots) plot.destroy();
+      for (const b of bands) b.plot.destroy();
+    },
+  };
+}

@@ -1,0 +1,168 @@
+// The four clinician-adjustable settings: bounds, and an editor (number box + slider per setting) used by
+// the live view's "Apply" and the review view's "Re-run with settings".
+
+import { api } from "./api.js";
+import { fmt, h, ValidationError } from "./ui.js";
+
+/**
+ * Mirrors SETTING_LIMITS in sessions/schema.py: (min, max, largest change per second). min/max are
+ * refreshed from the server's JSON schema of SessionSettings (`GET /api/schema`) by `loadLimits()`;
+ * the rate has no JSON-schema form, so it is kept here and the server remains the judge (409).
+ */
+export const SETTING_LIMITS = {
+  torque_gain: { label: "Torque gain", unit: "×", min: 0.0, max: 3.0, rate: 0.5, step: 0.05, digits: 2 },
+  max_torque_Nm: { label: "Maximum torque", unit: "N·m", min: 0.0, max: 80.0, rate: 10.0, step: 1, digits: 1 },
+  measurement_noise_scale: {
+    label: "Measurement-noise scale", unit: "×", min: 0.1, max: 10.0, rate: 5.0, step: 0.1, digits: 2,
+  },
+  process_noise_scale: { label: "Process-noise scale", unit: "×", min: 0.1, max: 10.0, rate: 5.0, step: 0.1, digits: 2 },
+};
+
+export const SETTING_KEYS = Object.keys(SETTING_LIMITS);
+
+let _limitsLoaded = null;
+
+/** Refreshes min/max from `GET /api/schema` (once per page); keeps the built-in bounds if it fails. */
+export function loadLimits() {
+  if (!_limitsLoaded) {
+    _limitsLoaded = api("GET", "/api/schema")
+      .then((schemas) => {
+        const props = (schemas && schemas.SessionSettings && schemas.SessionSettings.properties) || {};
+        for (const key of SETTING_KEYS) {
+          const p = props[key];
+          if (!p) continue;
+          if (Number.isFinite(p.minimum)) SETTING_LIMITS[key].min = p.minimum;
+          if (Number.isFinite(p.maximum)) SETTING_LIMITS[key].max = p.maximum;
+        }
+      })
+      .catch(() => {});
+  }
+  return _limitsLoaded;
+}
+
+const _EPS = 1e-9;
+
+/** One editor row per setting; `prefix` names ids and test ids (e.g. "setting" -> "setting-torque_gain"). */
+export class SettingsEditor {
+  constructor(prefix) {
+    this.prefix = prefix;
+    this.baseline = {};
+    this.rows = {};
+    this.el = h("div", { class: "settings-editor" });
+    for (const key of SETTING_KEYS) this._addRow(key);
+  }
+
+  _addRow(key) {
+    const lim = SETTING_LIMITS[key];
+    const id = `${this.prefix}-${key}`;
+    const number = h("input", {
+      type: "number", id, name: key, min: lim.min, max: lim.max, step: lim.step, inputmode: "decimal",
+      "data-testid": id, "aria-describedby": `${id}-hint`,
+    });
+    const slider = h("input", {
+      type: "range", min: lim.min, max: lim.max, step: lim.step, "data-testid": `${id}-slider`,
+      "aria-label": `${lim.label} slider`,
+    });
+    const note = h("span", { class: "note", "data-testid": `${id}-note` });
+    const hint = h("span", {
+      class: "hint", id: `${id}-hint`,
+      text: `${lim.min}–${lim.max} ${lim.unit}; at most ±${lim.rate} per second`,
+    });
+    number.addEventListener("input", () => {
+      if (number.value !== "" && Number.isFinite(Number(number.value))) slider.value = number.value;
+      this._markDirty(key);
+    });
+    slider.addEventListener("input", () => {
+      number.value = slider.value;
+      this._markDirty(key);
+    });
+    const row = h("div", { class: "setting-row" },
+      h("label", { for: id, class: "caption", text: `${lim.label} (${lim.unit})` }),
+      h("div", { class: "setting-inputs" }, number, slider), hint, note);
+    this.rows[key] = { number, slider, note, row, dirty: false };
+    this.el.append(row);
+  }
+
+  _markDirty(key) {
+    const r = this.rows[key];
+    r.dirty = Math.abs(Number(r.number.value) - this.baseline[key]) > _EPS || r.number.value === "";
+    r.row.classList.toggle("dirty", r.dirty);
+  }
+
+  /** Refreshes bounds on the inputs after `loadLimits()`. */
+  applyLimits() {
+    for (const key of SETTING_KEYS) {
+      const lim = SETTING_LIMITS[key];
+      for (const input of [this.rows[key].number, this.rows[key].slider]) {
+        input.min = lim.min;
+        input.max = lim.max;
+      }
+    }
+  }
+
+  /**
+   * The server's current settings. Untouched fields follow them; a field the user is editing keeps the
+   * edit and says what it was changed to elsewhere.
+   */
+  setBaseline(settings, { fromElsewhere = false } = {}) {
+    for (const key of SETTING_KEYS) {
+      if (!(key in settings)) continue;
+      const v = settings[key];
+      const r = this.rows[key];
+      const changed = this.baseline[key] !== undefined && Math.abs(v - this.baseline[key]) > _EPS;
+      this.baseline[key] = v;
+      if (!r.dirty) {
+        r.number.value = String(v);
+        r.slider.value = String(v);
+        r.note.textContent = changed && fromElsewhere ? `changed elsewhere to ${fmt(v, SETTING_LIMITS[key].digits)}` : "";
+      } else {
+        r.note.textContent = changed ? `server now ${fmt(v, SETTING_LIMITS[key].digits)}` : r.note.textContent;
+      }
+      this._markDirty(key);
+    }
+  }
+
+  /** Every field, validated against its bounds. @throws {ValidationError} */
+  values() {
+    const out = {};
+    for (const key of SETTING_KEYS) {
+      const lim = SETTING_LIMITS[key];
+      const raw = this.rows[key].number.value.trim();
+      const x = Number(raw);
+      if (raw === "" || !Number.isFinite(x)) throw new ValidationError(`${lim.label} must be a number.`);
+      if (x < lim.min || x > lim.max) {
+        throw new ValidationError(`${lim.label} must be between ${lim.min} and ${lim.max} (got ${raw}).`);
+      }
+      out[key] = x;
+    }
+    return out;
+  }
+
+  /** Only the fields that differ from the server's values (validated). @throws {ValidationError} */
+  changes() {
+    const all = this.values();
+    const out = {};
+    for (const key of SETTING_KEYS) {
+      const step = Math.abs(all[key] - this.baseline[key]);
+      if (step <= _EPS) continue;
+      // The server also limits how soon a field may change again (409, with the wait in its message).
+      const lim = SETTING_LIMITS[key];
+      if (step > lim.rate + _EPS) {
+        throw new ValidationError(`${lim.label} may change by at most ${lim.rate} per step ` +
+          `(${this.baseline[key]} → ${all[key]} is a step of ${+step.toFixed(6)}); apply it in smaller steps.`);
+      }
+      out[key] = all[key];
+    }
+    return out;
+  }
+
+  /** Forgets edits: every field back to the server's value. */
+  revert() {
+    for (const key of SETTING_KEYS) {
+      const r = this.rows[key];
+      r.dirty = false;
+      r.note.textContent = "";
+    }
+    this.setBaseline({ ...this.baseline });
+  }
+}
