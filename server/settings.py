@@ -23,6 +23,7 @@ class Settings(BaseSettings):
         demo: on an empty database, create a demo subject and start a simulated session.
         max_upload_mb: largest accepted upload.
         upload_chunk_kb: size of one upload chunk.
+        slow_client_s: a browser that cannot take its stream for this long is disconnected (1013).
     """
 
     model_config = SettingsConfigDict(env_prefix="GAITSCOPE_", extra="ignore")
@@ -37,6 +38,7 @@ class Settings(BaseSettings):
     demo: bool = True
     max_upload_mb: int = Field(default=512, ge=1, le=16384)
     upload_chunk_kb: int = Field(default=4096, ge=64, le=65536)
+    slow_client_s: float = Field(default=10.0, gt=0.0, le=300.0)
 
     @model_validator(mode="after")
     def _defaults_and_safety(self) -> Settings:

@@ -20,8 +20,6 @@ if TYPE_CHECKING:
 
 router = APIRouter()
 
-#: A client that keeps losing samples for this long is disconnected (close code 1013, try again later).
-SLOW_CLIENT_S = 10.0
 #: Close codes.
 NOT_FOUND, POLICY, TRY_AGAIN = 4404, 1008, 1013
 #: A device that sends this many malformed frames in a row is disconnected.
@@ -61,7 +59,13 @@ async def session_stream(
                 session=runtime.session, subject=runtime.subject, source_rate_hz=runtime.source.rate_hz
             ).model_dump_json()
         )
-        await asyncio.gather(_pump(ws, runtime, sub, batch_ms / 1000.0), _drain(ws))
+        tasks = {asyncio.create_task(_pump(ws, runtime, sub, batch_ms / 1000.0)), asyncio.create_task(_drain(ws))}
+        done, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+        for task in pending:
+            task.cancel()
+        for task in tasks:
+            with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError):
+                await task
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
@@ -74,32 +78,57 @@ async def _drain(ws: WebSocket) -> None:
         await ws.receive_text()
 
 
+class _SlowClient(Exception):
+    pass
+
+
 async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s: float) -> None:
+    """Send what the runtime left for this client; never holds the runtime up.
+
+    A send that cannot complete (the client stopped reading and the socket buffers are full) or a client
+    that keeps losing samples for ``slow_client_s`` is closed with 1013; the runtime meanwhile only
+    appends to the subscriber's bounded buffer.
+    """
+    limit = ws.app.state.ctx.settings.slow_client_s
     behind_since: float | None = None
     last_dropped = 0
-    while True:
-        await sub.wake.wait()
-        sub.wake.clear()
-        if batch_s > 0:
-            await asyncio.sleep(batch_s)
-        while sub.messages:
-            await ws.send_text(sub.messages.popleft().model_dump_json())
-        if sub.pending:
-            states = list(sub.pending)
-            sub.pending.clear()
-            batch = schema.StreamBatch(session_id=runtime.session.id, states=states, decimation=sub.decimation)
-            await ws.send_text(batch.model_dump_json())
-        if sub.closed:
-            await ws.close(code=1000, reason=f"session {runtime.session.id} stopped")
-            return
-        if sub.dropped > last_dropped:
-            behind_since = behind_since or time.monotonic()
-            if time.monotonic() - behind_since > SLOW_CLIENT_S:
-                await ws.close(code=TRY_AGAIN, reason=f"client too slow: {sub.dropped} samples dropped")
+
+    async def send(text: str) -> None:
+        try:
+            await asyncio.wait_for(ws.send_text(text), timeout=limit)
+        except TimeoutError:
+            raise _SlowClient(f"client too slow: a send took over {limit:g} s, {sub.dropped} samples dropped") from None
+
+    try:
+        while True:
+            await sub.wake.wait()
+            sub.wake.clear()
+            if batch_s > 0:
+                await asyncio.sleep(batch_s)
+            while sub.messages:
+                await send(sub.messages.popleft().model_dump_json())
+            if sub.pending:
+                states = list(sub.pending)
+                sub.pending.clear()
+                await send(
+                    schema.StreamBatch(
+                        session_id=runtime.session.id, states=states, decimation=sub.decimation
+                    ).model_dump_json()
+                )
+            if sub.closed:
+                await ws.close(code=1000, reason=f"session {runtime.session.id} stopped")
                 return
-        else:
-            behind_since = None
-        last_dropped = sub.dropped
+            if sub.dropped > last_dropped:
+                behind_since = behind_since or time.monotonic()
+                if time.monotonic() - behind_since > limit:
+                    raise _SlowClient(f"client too slow: {sub.dropped} samples dropped")
+            else:
+                behind_since = None
+            last_dropped = sub.dropped
+    except _SlowClient as e:
+        runtime.unsubscribe(sub)
+        with contextlib.suppress(Exception):
+            await asyncio.wait_for(ws.close(code=TRY_AGAIN, reason=str(e)[:120]), timeout=1.0)
 
 
 @router.websocket("/ws/devices/{session_id}")

@@ -1,0 +1,87 @@
+"""A browser that stops reading: the pipeline and the other clients go on, and it is disconnected.
+
+Runs a real server (the in-process test client has no socket buffers to fill) and a client whose
+receive buffer is 4 KiB and which never reads.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import websockets
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _post(url: str, body: dict) -> dict:
+    req = urllib.request.Request(url, json.dumps(body).encode(), {"Content-Type": "application/json"}, method="POST")
+    with urllib.request.urlopen(req, timeout=10) as r:
+        return json.loads(r.read())
+
+
+async def _watch(port: int, sid: int, seconds: float) -> list[dict]:
+    sock = socket.socket()
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    sock.connect(("127.0.0.1", port))
+    slow = await websockets.connect(
+        f"ws://127.0.0.1:{port}/ws/sessions/{sid}?max_rate_hz=0&batch_ms=0", sock=sock, max_queue=1, max_size=None
+    )
+    health = []
+    async with websockets.connect(f"ws://127.0.0.1:{port}/ws/sessions/{sid}?max_rate_hz=0", max_size=None) as good:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < seconds:
+            msg = json.loads(await good.recv())
+            if msg["type"] == "health":
+                health.append(msg)
+    slow.transport.abort()
+    return health
+
+
+def test_slow_client_is_dropped_without_slowing_anyone(tmp_path: Path) -> None:
+    port = _free_port()
+    env = {**os.environ, "GAITSCOPE_SLOW_CLIENT_S": "2"}
+    exe = str(Path(sys.executable).with_name("gaitscope"))
+    proc = subprocess.Popen(
+        [exe, "serve", "--port", str(port), "--no-leg-view", "--no-demo", "--data-dir", str(tmp_path)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        for _ in range(300):
+            try:
+                urllib.request.urlopen(f"http://127.0.0.1:{port}/api/health", timeout=1)
+                break
+            except OSError:
+                time.sleep(0.2)
+        base = f"http://127.0.0.1:{port}/api"
+        subject = _post(f"{base}/subjects", {"code": "S1", "leg_length_m": 0.9, "mass_kg": 70})
+        # 1 kHz so that the socket buffers (up to 4 MiB here) fill in seconds rather than a minute
+        source = {
+            "kind": "simulated",
+            "rate_hz": 1000,
+            "protocol": [{"speed_m_s": 1.2, "incline_deg": 0, "strides": 60}],
+        }
+        sid = _post(f"{base}/sessions", {"subject_id": subject["id"], "source": source})["id"]
+        time.sleep(2.0)
+        health = asyncio.run(_watch(port, sid, 25.0))
+    finally:
+        proc.terminate()
+        proc.wait(timeout=20)
+    assert [h["clients"] for h in health][:2] == [2, 2]
+    assert health[-1]["clients"] == 1  # the slow one was disconnected by the server
+    rates = [h["rate_hz"] for h in health[1:]]
+    assert min(rates) >= 950  # the pipeline kept its 1 kHz throughout
+    assert health[-1]["dropped_client"] == 0  # the reading client lost nothing
