@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import asyncio
 import uuid
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
-from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response, status
-from fastapi.responses import FileResponse
+from fastapi import APIRouter, Depends, FastAPI, HTTPException, Query, Request, Response, status
+from fastapi.responses import FileResponse, JSONResponse
 from pydantic import BaseModel, Field
 
+from estimators.pipeline import TrainedModel
 from sessions import schema
 from sessions.errors import DataFormatError
 from sessions.manager import SessionStateError
@@ -32,14 +34,27 @@ def ctx(request: Request) -> AppContext:
 Ctx = Annotated["AppContext", Depends(ctx)]
 
 
-def _errors(exc: Exception) -> HTTPException:
-    if isinstance(exc, NotFound):
-        return HTTPException(status.HTTP_404_NOT_FOUND, str(exc))
-    if isinstance(exc, Conflict | SessionStateError | SettingRejected):
-        return HTTPException(status.HTTP_409_CONFLICT, str(exc))
-    if isinstance(exc, DataFormatError):
-        return HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, str(exc))
-    raise exc
+#: Domain errors and the HTTP status each becomes (the message is the ``detail``).
+ERROR_STATUS: dict[type[Exception], int] = {
+    NotFound: status.HTTP_404_NOT_FOUND,
+    Conflict: status.HTTP_409_CONFLICT,
+    SessionStateError: status.HTTP_409_CONFLICT,
+    SettingRejected: status.HTTP_409_CONFLICT,
+    DataFormatError: status.HTTP_422_UNPROCESSABLE_CONTENT,
+}
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Routes raise domain errors; these handlers turn them into ``{"detail": message}`` responses."""
+
+    def handler(code: int) -> Callable[[Request, Exception], Awaitable[JSONResponse]]:
+        async def handle(_: Request, exc: Exception) -> JSONResponse:
+            return JSONResponse({"detail": str(exc)}, status_code=code)
+
+        return handle
+
+    for exc_type, code in ERROR_STATUS.items():
+        app.add_exception_handler(exc_type, handler(code))
 
 
 @router.get("/health")
@@ -70,18 +85,19 @@ def list_subjects(c: Ctx) -> list[schema.Subject]:
 
 @router.post("/subjects", status_code=201)
 def create_subject(body: schema.SubjectCreate, c: Ctx) -> schema.Subject:
-    try:
-        return c.store.create_subject(body)
-    except Conflict as e:
-        raise _errors(e) from None
+    return c.store.create_subject(body)
 
 
 @router.get("/subjects/{subject_id}")
 def get_subject(subject_id: int, c: Ctx) -> schema.Subject:
+    return c.store.get_subject(subject_id)
+
+
+def _model(c: AppContext, name: str) -> TrainedModel:
     try:
-        return c.store.get_subject(subject_id)
-    except NotFound as e:
-        raise _errors(e) from None
+        return c.models.get(name)[0]
+    except DataFormatError:
+        raise HTTPException(422, f"model {name!r} does not exist") from None
 
 
 # --- sessions ----------------------------------------------------------------------------------
@@ -92,74 +108,50 @@ def list_sessions(c: Ctx, subject_id: int | None = None) -> list[schema.Session]
 
 @router.post("/sessions", status_code=201)
 async def create_session(body: schema.SessionCreate, c: Ctx) -> schema.Session:
-    try:
-        c.models.get(body.settings.model)
-    except DataFormatError:
-        raise HTTPException(422, f"model {body.settings.model!r} does not exist") from None
-    try:
-        if isinstance(body.source, schema.ReplaySource):
-            c.store.get_trial(body.source.trial_id)
-        session = c.store.create_session(body)
-        return c.manager.start(session.id) if body.start else session
-    except (NotFound, SessionStateError) as e:
-        raise _errors(e) from None
+    _model(c, body.settings.model)
+    if isinstance(body.source, schema.ReplaySource):
+        c.store.get_trial(body.source.trial_id)
+    session = c.store.create_session(body)
+    return c.manager.start(session.id) if body.start else session
 
 
 @router.get("/sessions/{session_id}")
 def get_session(session_id: int, c: Ctx) -> schema.Session:
-    try:
-        return c.store.get_session(session_id)
-    except NotFound as e:
-        raise _errors(e) from None
+    return c.store.get_session(session_id)
 
 
 @router.post("/sessions/{session_id}/start")
 async def start_session(session_id: int, c: Ctx) -> schema.Session:
-    try:
-        return c.manager.start(session_id)
-    except (NotFound, SessionStateError) as e:
-        raise _errors(e) from None
+    return c.manager.start(session_id)
 
 
 @router.post("/sessions/{session_id}/stop")
 async def stop_session(session_id: int, c: Ctx) -> schema.Session:
-    try:
-        return await c.manager.stop(session_id)
-    except (NotFound, SessionStateError) as e:
-        raise _errors(e) from None
+    return await c.manager.stop(session_id)
 
 
 @router.patch("/sessions/{session_id}/settings")
 async def change_settings(session_id: int, body: schema.SettingsChange, c: Ctx) -> schema.Session:
     runtime = c.manager.get(session_id)
-    try:
-        if runtime is None:
-            c.store.get_session(session_id)
-            raise SessionStateError(f"session {session_id} is not running; settings change only while it runs")
-        return runtime.change_settings(body)
-    except (NotFound, SessionStateError, SettingRejected) as e:
-        raise _errors(e) from None
+    if runtime is None:
+        c.store.get_session(session_id)
+        raise SessionStateError(f"session {session_id} is not running; settings change only while it runs")
+    return runtime.change_settings(body)
 
 
 @router.get("/sessions/{session_id}/events")
 def session_events(session_id: int, c: Ctx) -> list[schema.Event]:
-    try:
-        c.store.get_session(session_id)
-    except NotFound as e:
-        raise _errors(e) from None
+    c.store.get_session(session_id)
     return c.store.list_events(session_id)
 
 
 @router.post("/sessions/{session_id}/annotations", status_code=201)
 async def annotate(session_id: int, body: schema.AnnotationCreate, c: Ctx) -> schema.Event:
     runtime = c.manager.get(session_id)
-    try:
-        if runtime is not None:
-            return runtime.annotate(body.text, body.actor)
-        c.store.get_session(session_id)
-        return c.store.add_event(session_id, t=0.0, kind="annotation", text=body.text, actor=body.actor)
-    except NotFound as e:
-        raise _errors(e) from None
+    if runtime is not None:
+        return runtime.annotate(body.text, body.actor)
+    c.store.get_session(session_id)
+    return c.store.add_event(session_id, t=0.0, kind="annotation", text=body.text, actor=body.actor)
 
 
 @router.post("/sessions/{session_id}/recording")
@@ -177,10 +169,7 @@ async def recording(session_id: int, body: schema.RecordingControl, c: Ctx) -> s
 
 # --- trials ------------------------------------------------------------------------------------
 def _trial(c: AppContext, trial_id: int) -> tuple[schema.Trial, Path]:
-    try:
-        trial = c.store.get_trial(trial_id)
-    except NotFound as e:
-        raise _errors(e) from None
+    trial = c.store.get_trial(trial_id)
     if trial.status == "recording":
         raise HTTPException(409, f"trial {trial_id} is still recording; stop the recording to review it")
     return trial, c.settings.data_dir / trial.path
@@ -193,18 +182,12 @@ def list_trials(c: Ctx, session_id: int | None = None) -> list[schema.Trial]:
 
 @router.get("/trials/{trial_id}")
 def get_trial(trial_id: int, c: Ctx) -> schema.Trial:
-    try:
-        return c.store.get_trial(trial_id)
-    except NotFound as e:
-        raise _errors(e) from None
+    return c.store.get_trial(trial_id)
 
 
 @router.get("/trials/{trial_id}/events")
 def trial_events(trial_id: int, c: Ctx) -> list[schema.Event]:
-    try:
-        c.store.get_trial(trial_id)
-    except NotFound as e:
-        raise _errors(e) from None
+    c.store.get_trial(trial_id)
     return c.store.trial_events(trial_id)
 
 
@@ -236,10 +219,7 @@ async def rerun(trial_id: int, body: schema.RerunRequest, c: Ctx, max_points: in
     trial, path = _trial(c, trial_id)
     session = c.store.get_session(trial.session_id)
     subject = c.store.get_subject(session.subject_id)
-    try:
-        model, _ = c.models.get(body.settings.model)
-    except DataFormatError:
-        raise HTTPException(422, f"model {body.settings.model!r} does not exist") from None
+    model = _model(c, body.settings.model)
 
     def run() -> dict[str, list[Any]]:
         frames = read_sensor_frames(path)
@@ -265,10 +245,7 @@ def create_upload(body: schema.UploadCreate, c: Ctx) -> schema.Upload:
             413,
             f"{body.filename} is {body.size / 2**20:.1f} MiB; the limit is {c.settings.max_upload_mb} MiB",
         )
-    try:
-        c.store.get_subject(body.subject_id)
-    except NotFound as e:
-        raise _errors(e) from None
+    c.store.get_subject(body.subject_id)
     upload_id = uuid.uuid4().hex
     folder = c.settings.data_dir / "uploads"
     folder.mkdir(parents=True, exist_ok=True)
@@ -321,11 +298,9 @@ async def finish_upload(upload_id: str, c: Ctx) -> schema.Trial:
     del c.uploads[upload_id]
     try:
         subject = c.store.get_subject(state.subject_id)
-        model, _ = c.models.get("default")
+        model = _model(c, "default")
         data_dir = c.settings.data_dir
         return await asyncio.to_thread(import_log, state.path, state.info.filename, subject, c.store, data_dir, model)
-    except (DataFormatError, NotFound) as e:
-        raise _errors(e) from None
     finally:
         state.path.unlink(missing_ok=True)
 

@@ -17,7 +17,7 @@ from pathlib import Path
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
-from server.api import UploadState
+from server.api import UploadState, install_error_handlers
 from server.api import router as api_router
 from server.settings import Settings
 from server.streams import router as stream_router
@@ -103,6 +103,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description="Gait-state estimation dashboard for powered exoskeletons and prostheses.",
         lifespan=lifespan,
     )
+    install_error_handlers(app)
     app.include_router(api_router)
     app.include_router(stream_router)
     if WEB_DIR.is_dir():
