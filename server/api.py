@@ -18,7 +18,7 @@ from sessions import schema
 from sessions.errors import DataFormatError
 from sessions.manager import SessionStateError
 from sessions.models import gaitscope_version
-from sessions.runtime import SettingRejected, estimate
+from sessions.runtime import SettingRejected
 from sessions.store import Conflict, NotFound
 
 if TYPE_CHECKING:
@@ -212,21 +212,23 @@ def download(trial_id: int, c: Ctx) -> FileResponse:
 
 
 @router.post("/trials/{trial_id}/rerun")
-async def rerun(trial_id: int, body: schema.RerunRequest, c: Ctx, max_points: int = 2000) -> dict[str, list[Any]]:
+async def rerun(
+    trial_id: int,
+    body: schema.RerunRequest,
+    c: Ctx,
+    t0: float | None = None,
+    t1: float | None = None,
+    max_points: Annotated[int, Query(ge=10, le=20000)] = 2000,
+) -> dict[str, list[Any]]:
     """The trial's raw frames through the estimators with other settings (series like ``/series``)."""
-    from sessions.recording import decimate, read_sensor_frames
+    from sessions.review import rerun_series
 
     trial, path = _trial(c, trial_id)
-    session = c.store.get_session(trial.session_id)
-    subject = c.store.get_subject(session.subject_id)
+    subject = c.store.get_subject(c.store.get_session(trial.session_id).subject_id)
     model = _model(c, body.settings.model)
-
-    def run() -> dict[str, list[Any]]:
-        frames = read_sensor_frames(path)
-        states = estimate(frames, model, subject.leg_length_m, subject.mass_kg, body.settings, time_origin=0.0)
-        return decimate([s.model_dump() for s in states], max_points)
-
-    return await asyncio.to_thread(run)
+    return await asyncio.to_thread(
+        rerun_series, path, model, subject.leg_length_m, subject.mass_kg, body.settings, t0, t1, max_points
+    )
 
 
 # --- uploads -----------------------------------------------------------------------------------

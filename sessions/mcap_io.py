@@ -36,13 +36,17 @@ __all__ = [
     "CHUNK_SIZE",
     "SERIES_COLUMNS",
     "RecoveryResult",
+    "SeriesBuilder",
     "check_mcap",
+    "count_messages",
     "decimate",
+    "iter_sensor_frames",
     "read_events",
     "read_messages",
     "read_sensor_frames",
     "read_series",
     "recover",
+    "series_window",
 ]
 
 #: Uncompressed bytes per chunk. One 200 Hz sample (/sensor + /gait_state + /torque) takes about
@@ -64,8 +68,6 @@ _PLOT_COLUMNS: Final = tuple(
 )
 #: Flags kept True on the decimated row nearest to their first occurrence in the bucket.
 _FLAG_COLUMNS: Final = ("heel_strike", "backup_reset")
-#: Slack (ns) of the index seek in :func:`read_series`; the exact bounds are applied to ``t``.
-_SEEK_SLACK_NS: Final = 500_000_000
 
 
 def _is_damage(exc: BaseException) -> bool:
@@ -168,16 +170,20 @@ def read_messages(path: str | Path, topics: Sequence[str] | None = None) -> Iter
         yield channel.topic, message.log_time, _decode(str(path), channel, message)
 
 
-def read_sensor_frames(path: str | Path) -> list[schema.SensorFrame]:
-    """The ``/sensor`` frames of a finished file, validated, in log-time order."""
+def iter_sensor_frames(path: str | Path) -> Iterator[tuple[int, schema.SensorFrame]]:
+    """``(log_time_ns, frame)`` of the ``/sensor`` frames of a finished file, validated, in log-time
+    order, read lazily (a long trial never sits in memory whole)."""
     name = str(path)
-    frames = []
     for _, message in _iter_raw(path, ["/sensor"]):
         try:
-            frames.append(schema.SensorFrame.model_validate_json(message.data))
+            yield message.log_time, schema.SensorFrame.model_validate_json(message.data)
         except ValueError as exc:
             raise DataFormatError(f"bad /sensor frame at {message.log_time} ns: {exc}", file=name) from exc
-    return frames
+
+
+def read_sensor_frames(path: str | Path) -> list[schema.SensorFrame]:
+    """All ``/sensor`` frames of a finished file, validated, in log-time order."""
+    return [frame for _, frame in iter_sensor_frames(path)]
 
 
 def read_events(path: str | Path) -> list[dict[str, Any]]:
@@ -205,45 +211,95 @@ def read_events(path: str | Path) -> list[dict[str, Any]]:
     return out
 
 
+def series_window(path: str | Path, t0: float | None, t1: float | None) -> tuple[int | None, int | None] | None:
+    """Log-time bounds (ns, inclusive) of session times ``[t0, t1]`` in a gaitscope recording, whose
+    every message is logged at ``start + round(t * 1e9)``; None if the file has no gait state."""
+    if t0 is None and t1 is None:
+        return None, None
+    offset = _log_time_offset(path)
+    if offset is None:
+        return None
+    return (
+        None if t0 is None else offset + round(t0 * 1e9),
+        None if t1 is None else offset + round(t1 * 1e9),
+    )
+
+
+def count_messages(path: str | Path, topic: str, starting_at: int | None, ending_at: int | None) -> int:
+    """Number of messages on ``topic`` within the log-time bounds (no JSON is decoded)."""
+    return sum(1 for _ in _iter_raw(path, [topic], starting_at, ending_at))
+
+
+class SeriesBuilder:
+    """Builds :data:`SERIES_COLUMNS` from gait states fed one at a time, in memory bounded by
+    ``max_points`` and one bucket: with more than ``max_points`` of the ``n`` expected rows, each of
+    ``max_points // 2`` buckets of consecutive rows becomes two rows as :func:`read_series` describes."""
+
+    def __init__(self, n: int, max_points: int):
+        if max_points < 2:
+            raise ValueError(f"max_points must be at least 2, got {max_points}")
+        self._out: dict[str, list[Any]] = {c: [] for c in SERIES_COLUMNS}
+        self._bucketed = n > max_points
+        self._edges = [int(e) for e in np.linspace(0, n, max_points // 2 + 1).round()][1:] if self._bucketed else []
+        self._bucket: list[Mapping[str, Any]] = []
+        self._seen = 0
+
+    def add(self, row: Mapping[str, Any]) -> None:
+        if not self._bucketed:
+            for c in SERIES_COLUMNS:
+                self._out[c].append(row.get(c))
+            return
+        self._bucket.append(row)
+        self._seen += 1
+        if self._edges and self._seen >= self._edges[0]:
+            self._edges.pop(0)
+            self._flush()
+
+    def _flush(self) -> None:
+        if self._bucket:
+            part = _decimate({c: [r.get(c) for r in self._bucket] for c in SERIES_COLUMNS}, 1)
+            for c in SERIES_COLUMNS:
+                self._out[c].extend(part[c])
+            self._bucket = []
+
+    def result(self) -> dict[str, list[Any]]:
+        self._flush()
+        return self._out
+
+
 def read_series(path: str | Path, t0: float | None, t1: float | None, max_points: int) -> dict[str, list[Any]]:
     """Columns of the ``/gait_state`` messages with ``t0 <= t <= t1`` (None: unbounded).
 
     Keys are :data:`SERIES_COLUMNS` (every GaitState field, ``t`` first). Bounds seek through the
-    chunk index, so only the chunks around the window are read. Above ``max_points`` samples the
-    window is cut into ``max_points // 2`` buckets of consecutive samples and each gives two rows:
-    ``t``, ``seq`` and the ns clocks of the bucket's first and last sample, and for each plotted float
-    its minimum and maximum in the order they occur, so peaks survive; ``heel_strike`` and
-    ``backup_reset`` are True on the row nearer to their first occurrence in the bucket.
+    chunk index, so only the chunks around the window are read, and memory stays bounded by
+    ``max_points`` whatever the trial's length (one counting pass, then one decoding pass). Above
+    ``max_points`` samples the window is cut into ``max_points // 2`` buckets of consecutive samples and
+    each gives two rows: ``t``, ``seq`` and the ns clocks of the bucket's first and last sample, and for
+    each plotted float its minimum and maximum in the order they occur, so peaks survive;
+    ``heel_strike`` and ``backup_reset`` are True on the row nearer to their first occurrence.
     """
     if max_points < 2:
         raise ValueError(f"max_points must be at least 2, got {max_points}")
-    starting_at = ending_at = None
-    if t0 is not None or t1 is not None:
-        offset = _log_time_offset(path)
-        if offset is None:
-            return {c: [] for c in SERIES_COLUMNS}
-        if t0 is not None:
-            starting_at = max(0, offset + round(t0 * 1e9) - _SEEK_SLACK_NS)
-        if t1 is not None:
-            ending_at = max(0, offset + round(t1 * 1e9) + _SEEK_SLACK_NS)
-    rows = []
+    window = series_window(path, t0, t1)
+    if window is None:
+        return {c: [] for c in SERIES_COLUMNS}
+    starting_at, ending_at = window
+    builder = SeriesBuilder(count_messages(path, "/gait_state", starting_at, ending_at), max_points)
     for channel, message in _iter_raw(path, ["/gait_state"], starting_at, ending_at):
         row = _decode(str(path), channel, message)
-        t = row.get("t") if isinstance(row, dict) else None
-        if not isinstance(t, int | float):
+        if not isinstance(row, dict) or not isinstance(row.get("t"), int | float):
             raise DataFormatError(f"/gait_state message without t at {message.log_time} ns", file=str(path))
-        if (t0 is None or t >= t0) and (t1 is None or t <= t1):
-            rows.append(row)
-    return decimate(rows, max_points)
+        builder.add(row)
+    return builder.result()
 
 
 def decimate(rows: Sequence[Mapping[str, Any]], max_points: int) -> dict[str, list[Any]]:
     """Gait states (GaitState dicts) as :data:`SERIES_COLUMNS`, min/max-decimated to at most
     ``max_points`` rows as :func:`read_series` describes."""
-    if max_points < 2:
-        raise ValueError(f"max_points must be at least 2, got {max_points}")
-    columns = {c: [r.get(c) for r in rows] for c in SERIES_COLUMNS}
-    return columns if len(rows) <= max_points else _decimate(columns, max_points // 2)
+    builder = SeriesBuilder(len(rows), max_points)
+    for row in rows:
+        builder.add(row)
+    return builder.result()
 
 
 def _log_time_offset(path: str | Path) -> int | None:

@@ -28,13 +28,17 @@ from sessions import schema
 from sessions.mcap_io import (
     CHUNK_SIZE,
     RecoveryResult,
+    SeriesBuilder,
     check_mcap,
+    count_messages,
     decimate,
+    iter_sensor_frames,
     read_events,
     read_messages,
     read_sensor_frames,
     read_series,
     recover,
+    series_window,
 )
 
 if TYPE_CHECKING:
@@ -44,13 +48,17 @@ __all__ = [
     "METADATA_NAME",
     "Recorder",
     "RecoveryResult",
+    "SeriesBuilder",
     "check_mcap",
+    "count_messages",
     "decimate",
+    "iter_sensor_frames",
     "read_events",
     "read_messages",
     "read_sensor_frames",
     "read_series",
     "recover",
+    "series_window",
 ]
 
 #: Name of the MCAP metadata record holding the trial's key/values (subject code, session id, ...).

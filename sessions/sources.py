@@ -14,9 +14,10 @@ up (the frames already due go out at once) instead of drifting.
 from __future__ import annotations
 
 import asyncio
+import itertools
 import math
 import time
-from collections.abc import AsyncIterator, Sequence
+from collections.abc import AsyncIterator, Callable, Sequence
 from pathlib import Path
 from typing import Protocol
 
@@ -49,29 +50,39 @@ def frames_from_table(table: pd.DataFrame) -> list[SensorFrame]:
     return out
 
 
-async def _paced(frames: Sequence[SensorFrame], speed: float, loop: bool) -> AsyncIterator[SensorFrame]:
-    """Yield ``frames`` at ``speed`` x real time (their ``t`` shifted to continue across loops)."""
-    if not frames:
-        return
+async def _paced(
+    passes: Callable[[], AsyncIterator[SensorFrame]], speed: float, loop: bool
+) -> AsyncIterator[SensorFrame]:
+    """Yield the frames of ``passes()`` at ``speed`` x real time, again and again if ``loop``.
+
+    Times restart at 0 and continue across passes (one sample period apart), ``seq`` keeps counting,
+    and each frame is stamped with its send time (``sent_ns``).
+    """
     clock = asyncio.get_running_loop().time
-    span = frames[-1].t - frames[0].t
-    period = span / max(len(frames) - 1, 1)
-    offset, seq = 0.0, 0
-    t0 = frames[0].t
     start = clock()
+    offset, seq = 0.0, 0
     while True:
-        for f in frames:
+        t0: float | None = None
+        last_t, period = 0.0, 0.0
+        async for f in passes():
+            if t0 is None:
+                t0 = f.t
             t = f.t - t0 + offset
-            due = start + t / speed
-            delay = due - clock()
+            period = t - last_t if t > last_t else period
+            last_t = t
+            delay = start + t / speed - clock()
             if delay > 0:
                 await asyncio.sleep(delay)
-            sent = time.time_ns()
-            yield f.model_copy(update={"seq": seq, "t": t, "sent_ns": sent})
+            yield f.model_copy(update={"seq": seq, "t": t, "sent_ns": time.time_ns()})
             seq += 1
-        if not loop:
+        if not loop or t0 is None:
             return
-        offset += span + period
+        offset = last_t + period
+
+
+async def _from_list(frames: Sequence[SensorFrame]) -> AsyncIterator[SensorFrame]:
+    for f in frames:
+        yield f
 
 
 class SimulatedDevice:
@@ -97,7 +108,8 @@ class SimulatedDevice:
     async def frames(self) -> AsyncIterator[SensorFrame]:
         if self._frames is None:
             self._frames = await asyncio.to_thread(self._generate)
-        async for f in _paced(self._frames, 1.0, self.spec.loop):
+        frames = self._frames
+        async for f in _paced(lambda: _from_list(frames), 1.0, self.spec.loop):
             yield f
 
     def subject_body(self) -> tuple[float, float]:
@@ -109,7 +121,13 @@ class SimulatedDevice:
 
 
 class ReplayDevice:
-    """A stored trial (its ``/sensor`` channel) played back at ``speed`` x real time."""
+    """A stored trial (its ``/sensor`` channel) played back at ``speed`` x real time.
+
+    Frames are read lazily in batches on a worker thread, so a long trial never sits in memory whole
+    and the event loop never waits on the disk.
+    """
+
+    BATCH = 2000
 
     def __init__(self, path: Path, speed: float = 1.0, loop: bool = False):
         self.path = path
@@ -117,13 +135,21 @@ class ReplayDevice:
         self.loop = loop
         self.rate_hz: float | None = None
 
-    async def frames(self) -> AsyncIterator[SensorFrame]:
-        from sessions.recording import read_sensor_frames
+    async def _read(self) -> AsyncIterator[SensorFrame]:
+        from sessions.recording import iter_sensor_frames
 
-        frames = await asyncio.to_thread(read_sensor_frames, self.path)
-        if len(frames) > 1:
-            self.rate_hz = (len(frames) - 1) / (frames[-1].t - frames[0].t) * self.speed
-        async for f in _paced(frames, self.speed, self.loop):
+        frames = iter_sensor_frames(self.path)
+        while True:
+            batch = await asyncio.to_thread(lambda: [f for _, f in itertools.islice(frames, self.BATCH)])
+            if not batch:
+                return
+            if self.rate_hz is None and len(batch) > 1 and batch[-1].t > batch[0].t:
+                self.rate_hz = (len(batch) - 1) / (batch[-1].t - batch[0].t) * self.speed
+            for f in batch:
+                yield f
+
+    async def frames(self) -> AsyncIterator[SensorFrame]:
+        async for f in _paced(self._read, self.speed, self.loop):
             yield f
 
 

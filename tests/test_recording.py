@@ -507,3 +507,24 @@ def test_recover_after_sigkill(tmp_path: Path) -> None:
         assert len(times) > 100 and all(b > a for a, b in itertools.pairwise(times))
     log_times = [lt for _, lt, _ in messages]
     assert log_times == sorted(log_times)
+
+
+def test_series_of_a_long_recording_needs_memory_for_max_points_only(tmp_path: Path) -> None:
+    import tracemalloc
+
+    from sessions.schema import GaitState
+
+    path = tmp_path / "long.mcap"
+    n = 30_000  # 2.5 min at 200 Hz
+    base = dict(phase=0.1, phase_rate=1.0, stride_length_m=1.3, incline_deg=0.0, torque_Nm=1.0, tbe_phase=0.1,
+                heel_strike=False, backup_reset=False, foot_angle_deg=1.0, shank_angle_deg=2.0, thigh_angle_deg=None,
+                foot_pred_deg=1.0, shank_pred_deg=2.0, recv_ns=0)  # fmt: skip
+    with Recorder(path, 10**18, {}) as rec:
+        for k in range(n):
+            rec.write("/gait_state", k * 0.005, GaitState(seq=k, t=k * 0.005, **base))
+    tracemalloc.start()
+    series = read_series(path, None, None, max_points=1000)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert len(series["t"]) == 1000 and series["t"][0] == 0.0 and series["t"][-1] == pytest.approx((n - 1) * 0.005)
+    assert peak < 8 * 2**20  # every state as a dict would take far more (about 1 kB each)

@@ -161,3 +161,25 @@ def test_stopping_a_session_closes_its_streams(client: TestClient) -> None:
             for _ in range(200):
                 ws.receive_text()
     assert exc.value.code == 1000 and "stopped" in exc.value.reason
+
+
+def test_replay_session_plays_a_recorded_trial_faster(client: TestClient) -> None:
+    sid = _session(client, SIM)
+    runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
+    deadline = time.monotonic() + 10
+    while runtime.samples < 500 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    client.post(f"/api/sessions/{sid}/stop")
+    trial = client.get(f"/api/trials?session_id={sid}").json()[0]
+    subject_id = client.get(f"/api/sessions/{sid}").json()["subject_id"]
+    source = {"kind": "replay", "trial_id": trial["id"], "speed": 4.0}
+    replay = client.post("/api/sessions", json={"subject_id": subject_id, "source": source}).json()
+    with client.websocket_connect(f"/ws/sessions/{replay['id']}?max_rate_hz=0&batch_ms=20") as ws:
+        json.loads(ws.receive_text())
+        start = time.monotonic()
+        states, _ = _states(ws, 400)
+        wall = time.monotonic() - start
+    t = [s["t"] for s in states[:400]]
+    assert t[0] == 0.0 and all(b > a for a, b in itertools.pairwise(t))
+    assert t[-1] - t[0] == pytest.approx(399 * 0.005, rel=1e-6)  # the recording's own 200 Hz
+    assert wall < 0.9 * (t[-1] - t[0])  # played faster than real time (4x asked)
