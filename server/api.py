@@ -338,7 +338,7 @@ class ViewerShow(BaseModel):
 @router.get("/viewer")
 def viewer(c: Ctx) -> dict[str, str | None]:
     view = c.leg_view
-    return {"url": None if view is None else view.url}  # type: ignore[attr-defined]
+    return {"url": None if view is None else view.url}
 
 
 @router.post("/viewer/focus")
@@ -361,5 +361,5 @@ async def viewer_show(body: ViewerShow, c: Ctx) -> dict[str, float]:
     if c.leg_view is not None:
         subject = c.store.get_subject(c.store.get_session(trial.session_id).subject_id)
         c.focus = None
-        c.leg_view.show(state, subject.leg_length_m, None)  # type: ignore[attr-defined]
+        c.leg_view.show(state, subject.leg_length_m, None)
     return {"t": state.t}

@@ -19,6 +19,7 @@ from fastapi.staticfiles import StaticFiles
 
 from server.api import UploadState, install_error_handlers
 from server.api import router as api_router
+from server.leg_view import LegView
 from server.settings import Settings
 from server.streams import router as stream_router
 from sessions import schema
@@ -40,7 +41,7 @@ class AppContext:
     store: Store
     models: ModelStore
     manager: SessionManager
-    leg_view: object | None = None
+    leg_view: LegView | None = None
     focus: int | None = None
     uploads: dict[str, UploadState] = field(default_factory=dict)
     _last_view: float = 0.0
@@ -52,7 +53,7 @@ class AppContext:
         now = time.monotonic()
         if now - self._last_view >= 1.0 / LEG_VIEW_HZ:
             self._last_view = now
-            self.leg_view.show(state, leg_length, session_id)  # type: ignore[attr-defined]
+            self.leg_view.show(state, leg_length, session_id)
 
 
 def _demo(ctx: AppContext) -> None:
@@ -83,8 +84,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         for trial in ctx.manager.recover_after_crash():
             log.warning("recording of trial %d was unfinished and has been recovered", trial.id)
         if settings.leg_view:
-            from server.leg_view import LegView
-
             ctx.leg_view = LegView(settings.host, settings.viser_port, models.get("default")[0])
         app.state.ctx = ctx
         if settings.demo:
@@ -94,7 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             await ctx.manager.stop_all()
             if ctx.leg_view is not None:
-                ctx.leg_view.close()  # type: ignore[attr-defined]
+                ctx.leg_view.close()
             store.close()
 
     app = FastAPI(

@@ -82,7 +82,9 @@ class SessionManager:
         if isinstance(spec, schema.ReplaySource):
             trial = self.store.get_trial(spec.trial_id)
             return ReplayDevice(self.data_dir / trial.path, spec.speed, spec.loop)
-        return LiveDevice()
+        if isinstance(spec, schema.DeviceSource):
+            return LiveDevice()
+        raise SessionStateError(f"session {session.id} holds an uploaded log ({spec.filename}); it does not run")
 
     def start(self, session_id: int) -> schema.Session:
         session = self.store.get_session(session_id)
