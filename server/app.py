@@ -81,6 +81,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         models = ModelStore(settings.data_dir / "models")
         manager = SessionManager(store, settings.data_dir, models, on_state=lambda *a: ctx.on_state(*a))
         ctx = AppContext(settings=settings, store=store, models=models, manager=manager)
+        for stale in (settings.data_dir / "uploads").glob("*.part"):  # uploads live in memory: a restart ends them
+            stale.unlink(missing_ok=True)
         for trial in ctx.manager.recover_after_crash():
             log.warning("recording of trial %d was unfinished and has been recovered", trial.id)
         if settings.leg_view:
