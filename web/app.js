@@ -52,6 +52,23 @@ async function serverBadge() {
   }
 }
 
+// Opening the bare URL (as `gaitscope serve` prints it) goes straight to the newest running session.
+async function firstVisit() {
+  if (location.hash) return false;
+  try {
+    const live = (await api("GET", "/api/sessions")).find((s) => s.state === "running");
+    if (live) {
+      location.replace(`#/sessions/${live.id}`); // fires hashchange, which routes
+      return true;
+    }
+  } catch (err) {
+    console.warn("could not list sessions", err);
+  }
+  return false;
+}
+
 window.addEventListener("hashchange", route);
-route();
+firstVisit().then((moved) => {
+  if (!moved) route();
+});
 serverBadge();

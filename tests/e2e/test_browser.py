@@ -201,6 +201,7 @@ def test_no_request_leaves_loopback(server: str, watched: Watched) -> None:
     page = watched.page
     page.goto(f"{server}/")
     playwright_api.expect(page.get_by_test_id("server-status")).to_contain_text("ok")
+    page.wait_for_url(re.compile(r"#/sessions/1$"))  # the bare URL opens the running demo session
     page.goto(f"{server}/#/sessions/1")  # the demo session, with the leg view iframe
     playwright_api.expect(page.get_by_test_id("live-indicator")).to_have_text("LIVE", timeout=20_000)
     playwright_api.expect(page.get_by_title("3D leg view")).to_be_visible()
@@ -219,7 +220,7 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     watched.allow_refusal(422, r"/api/uploads/\w+/finish$")  # a broken MCAP
 
     # --- a subject: invalid input is refused before sending; a duplicate code by the server (409) ---
-    page.goto(f"{server}/")
+    page.goto(f"{server}/#/")
     page.get_by_test_id("subject-code").fill("E2E01")
     page.get_by_test_id("subject-leg").fill("2.0")
     page.get_by_test_id("subject-submit").click()
@@ -301,7 +302,7 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     page.screenshot(path=str(ARTIFACTS / "live.png"), full_page=True)
 
     # --- uploads: a broken MCAP is refused with the server's reason; a replay CSV becomes a trial -------
-    page.goto(f"{server}/")
+    page.goto(f"{server}/#/")
     bad = tmp_path / "broken.mcap"
     bad.write_bytes(b"this is not an MCAP file\n" * 10)
     page.get_by_test_id("upload-file").set_input_files(str(bad))
