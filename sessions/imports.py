@@ -19,10 +19,10 @@ import pandas as pd
 from estimators.pipeline import TrainedModel
 from sessions import schema
 from sessions.errors import DataFormatError
+from sessions.estimation import estimate
 from sessions.locohub import read_table
 from sessions.recording import Recorder, check_mcap, read_messages, read_sensor_frames
 from sessions.replay_io import read_replay_csv
-from sessions.runtime import estimate
 from sessions.sources import frames_from_table
 from sessions.store import Store
 

@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from estimators.pipeline import TrainedModel
+from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
 from sessions.recording import SeriesBuilder, count_messages, iter_sensor_frames, series_window
-from sessions.runtime import DEFAULT_PERIOD, FrameEstimator
 from sessions.schema import SessionSettings
 
 
