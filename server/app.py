@@ -20,6 +20,7 @@ from fastapi.staticfiles import StaticFiles
 from server.api import UploadState, install_error_handlers
 from server.api import router as api_router
 from server.leg_view import LegView
+from server.origin import SameOriginMiddleware
 from server.settings import Settings
 from server.streams import router as stream_router
 from sessions import schema
@@ -104,6 +105,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description="Gait-state estimation dashboard for powered exoskeletons and prostheses.",
         lifespan=lifespan,
     )
+    app.add_middleware(SameOriginMiddleware)
     install_error_handlers(app)
     app.include_router(api_router)
     app.include_router(stream_router)
