@@ -199,7 +199,7 @@ async def trial_series(
     t1: float | None = None,
     max_points: Annotated[int, Query(ge=10, le=20000)] = 2000,
 ) -> dict[str, list[Any]]:
-    from sessions.recording import read_series
+    from sessions.mcap_io import read_series
 
     _, path = _trial(c, trial_id)
     return await asyncio.to_thread(read_series, path, t0, t1, max_points)
@@ -350,7 +350,7 @@ def viewer_focus(body: ViewerFocus, c: Ctx) -> dict[str, int | None]:
 @router.post("/viewer/show")
 async def viewer_show(body: ViewerShow, c: Ctx) -> dict[str, float]:
     """Pose the leg view at time ``t`` of a trial (the review page's cursor)."""
-    from sessions.recording import read_series
+    from sessions.mcap_io import read_series
 
     trial, path = _trial(c, body.trial_id)
     series = await asyncio.to_thread(read_series, path, body.t - 0.02, body.t + 0.02, 10)

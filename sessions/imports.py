@@ -21,7 +21,8 @@ from sessions import schema
 from sessions.errors import DataFormatError
 from sessions.estimation import estimate
 from sessions.locohub import read_table
-from sessions.recording import Recorder, check_mcap, read_messages, read_sensor_frames
+from sessions.mcap_io import check_mcap, read_messages, read_sensor_frames
+from sessions.recording import Recorder
 from sessions.replay_io import read_replay_csv
 from sessions.sources import frames_from_table
 from sessions.store import Store

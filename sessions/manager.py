@@ -8,8 +8,8 @@ from pathlib import Path
 
 from estimators.pipeline import TrainedModel
 from sessions import schema
+from sessions.mcap_io import read_messages, recover
 from sessions.models import default_model_path, load_model
-from sessions.recording import read_messages, recover
 from sessions.runtime import SessionRuntime
 from sessions.sources import FrameSource, LiveDevice, ReplayDevice, SimulatedDevice
 from sessions.store import Store

@@ -25,41 +25,12 @@ from mcap.writer import Writer
 from pydantic import BaseModel
 
 from sessions import schema
-from sessions.mcap_io import (
-    CHUNK_SIZE,
-    RecoveryResult,
-    SeriesBuilder,
-    check_mcap,
-    count_messages,
-    decimate,
-    iter_sensor_frames,
-    read_events,
-    read_messages,
-    read_sensor_frames,
-    read_series,
-    recover,
-    series_window,
-)
+from sessions.mcap_io import CHUNK_SIZE
 
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
 
-__all__ = [
-    "METADATA_NAME",
-    "Recorder",
-    "RecoveryResult",
-    "SeriesBuilder",
-    "check_mcap",
-    "count_messages",
-    "decimate",
-    "iter_sensor_frames",
-    "read_events",
-    "read_messages",
-    "read_sensor_frames",
-    "read_series",
-    "recover",
-    "series_window",
-]
+__all__ = ["METADATA_NAME", "Recorder"]
 
 #: Name of the MCAP metadata record holding the trial's key/values (subject code, session id, ...).
 METADATA_NAME: Final = "gaitscope"

@@ -14,7 +14,7 @@ from typing import Any
 
 from estimators.pipeline import TrainedModel
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
-from sessions.recording import SeriesBuilder, count_messages, iter_sensor_frames, series_window
+from sessions.mcap_io import SeriesBuilder, count_messages, iter_sensor_frames, series_window
 from sessions.schema import SessionSettings
 
 

@@ -136,7 +136,7 @@ class ReplayDevice:
         self.rate_hz: float | None = None
 
     async def _read(self) -> AsyncIterator[SensorFrame]:
-        from sessions.recording import iter_sensor_frames
+        from sessions.mcap_io import iter_sensor_frames
 
         frames = iter_sensor_frames(self.path)
         while True:

@@ -23,8 +23,7 @@ from pydantic import BaseModel
 
 from sessions import mcap_io, schema
 from sessions.errors import DataFormatError
-from sessions.recording import (
-    Recorder,
+from sessions.mcap_io import (
     check_mcap,
     decimate,
     read_events,
@@ -33,6 +32,7 @@ from sessions.recording import (
     read_series,
     recover,
 )
+from sessions.recording import Recorder
 
 START_NS = 1_700_000_000_123_456_789
 RATE_HZ = 200.0

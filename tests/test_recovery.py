@@ -17,7 +17,7 @@ from fastapi.testclient import TestClient
 from server.app import create_app
 from server.settings import Settings
 from sessions.errors import DataFormatError
-from sessions.recording import check_mcap, read_messages
+from sessions.mcap_io import check_mcap, read_messages
 
 
 def _free_port() -> int:
