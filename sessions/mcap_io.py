@@ -136,8 +136,14 @@ def _iter_raw(
     topics: Sequence[str] | None,
     starting_at: int | None = None,
     ending_at: int | None = None,
+    file_order: bool = False,
 ) -> Iterator[tuple[Channel, Message]]:
-    """Messages of a finished file in log-time order; bounds are integer ns, both inclusive."""
+    """Messages of a finished file in log-time order; bounds are integer ns, both inclusive.
+
+    ``file_order`` skips the reader's merge of overlapping chunks (a heap over every message, most of
+    the cost of a long read): gaitscope writes its recordings in time order, so for them file order is
+    log-time order.
+    """
     name = str(path)
     with open(path, "rb") as f:
         reader, _ = _indexed_summary(f, name)
@@ -146,6 +152,7 @@ def _iter_raw(
                 topics=list(topics) if topics is not None else None,
                 starting_at=starting_at,
                 ending_at=ending_at,
+                log_time_order=not file_order,
             ):
                 yield channel, message
         except Exception as exc:
@@ -226,8 +233,16 @@ def series_window(path: str | Path, t0: float | None, t1: float | None) -> tuple
 
 
 def count_messages(path: str | Path, topic: str, starting_at: int | None, ending_at: int | None) -> int:
-    """Number of messages on ``topic`` within the log-time bounds (no JSON is decoded)."""
-    return sum(1 for _ in _iter_raw(path, [topic], starting_at, ending_at))
+    """Number of messages on ``topic`` within the log-time bounds (no JSON is decoded; without bounds,
+    read from the file's statistics record when it has one)."""
+    if starting_at is None and ending_at is None:
+        with open(path, "rb") as f:
+            _, summary = _indexed_summary(f, str(path))
+        stats = summary.statistics
+        if stats is not None and stats.channel_message_counts:
+            ids = [c.id for c in summary.channels.values() if c.topic == topic]
+            return sum(stats.channel_message_counts.get(i, 0) for i in ids)
+    return sum(1 for _ in _iter_raw(path, [topic], starting_at, ending_at, file_order=True))
 
 
 class SeriesBuilder:
@@ -285,7 +300,7 @@ def read_series(path: str | Path, t0: float | None, t1: float | None, max_points
         return {c: [] for c in SERIES_COLUMNS}
     starting_at, ending_at = window
     builder = SeriesBuilder(count_messages(path, "/gait_state", starting_at, ending_at), max_points)
-    for channel, message in _iter_raw(path, ["/gait_state"], starting_at, ending_at):
+    for channel, message in _iter_raw(path, ["/gait_state"], starting_at, ending_at, file_order=True):
         row = _decode(str(path), channel, message)
         if not isinstance(row, dict) or not isinstance(row.get("t"), int | float):
             raise DataFormatError(f"/gait_state message without t at {message.log_time} ns", file=str(path))
