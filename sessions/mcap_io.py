@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import IO, Any, Final
 
 import numpy as np
+from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.reader import McapReader, make_reader
 from mcap.records import Attachment, Channel, Chunk, Header, Message, Metadata, Schema
@@ -140,25 +141,50 @@ def _iter_raw(
 ) -> Iterator[tuple[Channel, Message]]:
     """Messages of a finished file in log-time order; bounds are integer ns, both inclusive.
 
-    ``file_order`` skips the reader's merge of overlapping chunks (a heap over every message, most of
-    the cost of a long read): gaitscope writes its recordings in time order, so for them file order is
-    log-time order.
+    ``file_order`` reads the matching chunks one at a time in file order instead of through the
+    reader's merge of overlapping chunks (a heap over every message, most of the cost of a long read;
+    the reader's own unordered mode reads every chunk before it yields a message, so it is not used).
+    gaitscope writes its recordings in time order, so for them file order is log-time order.
     """
     name = str(path)
     with open(path, "rb") as f:
-        reader, _ = _indexed_summary(f, name)
+        reader, summary = _indexed_summary(f, name)
         try:
+            if file_order:
+                yield from _iter_chunks(f, summary, topics, starting_at, ending_at)
+                return
             for _, channel, message in reader.iter_messages(
                 topics=list(topics) if topics is not None else None,
                 starting_at=starting_at,
                 ending_at=ending_at,
-                log_time_order=not file_order,
             ):
                 yield channel, message
         except Exception as exc:
             if not _is_damage(exc) or isinstance(exc, DataFormatError):
                 raise
             raise DataFormatError(f"damaged MCAP data ({exc})", file=name) from exc
+
+
+def _iter_chunks(
+    f: IO[bytes], summary: Summary, topics: Sequence[str] | None, starting_at: int | None, ending_at: int | None
+) -> Iterator[tuple[Channel, Message]]:
+    """Messages chunk by chunk in file order (one chunk in memory at a time), bounds inclusive."""
+    wanted = None if topics is None else {c.id for c in summary.channels.values() if c.topic in topics}
+    for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+        if starting_at is not None and index.message_end_time < starting_at:
+            continue
+        if ending_at is not None and index.message_start_time > ending_at:
+            continue
+        if wanted is not None and index.message_index_offsets and not wanted & set(index.message_index_offsets):
+            continue
+        f.seek(index.chunk_start_offset + 1 + 8)  # past the record's opcode and length
+        for record in breakup_chunk(Chunk.read(ReadDataStream(f)), validate_crc=True):
+            if not isinstance(record, Message) or (wanted is not None and record.channel_id not in wanted):
+                continue
+            if (starting_at is None or record.log_time >= starting_at) and (
+                ending_at is None or record.log_time <= ending_at
+            ):
+                yield summary.channels[record.channel_id], record
 
 
 def _decode(name: str, channel: Channel, message: Message) -> Any:
