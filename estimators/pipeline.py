@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from estimators.basis import Array
 from estimators.gait_model import N_CHANNELS, NoiseModel
@@ -35,11 +36,20 @@ class TrainedModel:
         coef: gait-model coefficients ``(4, 2, 2, 2N+1)``.
         noise: ``Sigma_R(p)``.
         torque: the torque profile.
+        outputs: which of foot, shank, heel forward and heel up the training data held; channels of
+            an output not trained are ignored at run time (a LocoHub table without heel positions).
     """
 
     coef: Array
     noise: NoiseModel
     torque: TorqueProfile
+    outputs: tuple[bool, bool, bool, bool] = (True, True, True, True)
+
+    @property
+    def channel_mask(self) -> NDArray[np.bool_]:
+        """``(6,)`` True for the measurement channels the model can predict (from ``outputs``)."""
+        foot, shank, fwd, up = self.outputs
+        return np.array([foot, foot, shank, shank, fwd, up])
 
 
 @dataclass(frozen=True)
@@ -101,6 +111,7 @@ class GaitStatePipeline:
         self.highpass = HighPassFilter(sample_period)
         self._t: float | None = None
         self._z = np.full(N_CHANNELS, np.nan)
+        self._unmodelled = ~model.channel_mask
         self._hs = np.ones(1)
 
     def retune(
@@ -151,6 +162,7 @@ class GaitStatePipeline:
         heel = z[HEEL_FORWARD : HEEL_UP + 1]
         if not heel_filtered and np.all(np.isfinite(heel)):
             z[HEEL_FORWARD : HEEL_UP + 1] = self.highpass.step(heel)
+        z[self._unmodelled] = np.nan
         if heel_strike is None:
             heel_strike = bool(
                 np.isfinite(z[FOOT_ANGLE])

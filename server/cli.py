@@ -131,10 +131,13 @@ def cmd_train(a: argparse.Namespace) -> int:
         fourier_order=a.order,
         torque_fourier_order=a.order,
         cohort_seed=seed,
+        outputs=data.outputs,
     )
     save_model(a.out, model, prov)
     fit_rms = np.sqrt(np.mean(model.noise.residual_cov[:, [0, 2], [0, 2]], axis=0))
     print(f"trained on {source}: {len(data.subjects)} subjects, {data.z.shape[0]} strides")
+    if not all(data.outputs):
+        print("no heel positions in the table: the model ignores heel measurements")
     print(f"cross-validated fit RMS: foot {fit_rms[0]:.2f} deg, shank {fit_rms[1]:.2f} deg")
     print(f"wrote {a.out} in {time.perf_counter() - start:.1f} s")
     return 0

@@ -70,6 +70,7 @@ def save_model(path: str | Path, model: TrainedModel, prov: ModelProvenance) -> 
             torque_coef=model.torque.coef,
             torque_scale=np.float64(model.torque.scale),
             torque_cutoff=np.float64(model.torque.cutoff_phase),
+            outputs=np.array(model.outputs, dtype=bool),
             provenance=np.array(prov.model_dump_json()),
         )
 
@@ -119,5 +120,16 @@ def load_model(path: str | Path) -> tuple[TrainedModel, ModelProvenance]:
         coef=coef.astype(np.float64),
         noise=NoiseModel(cov.astype(np.float64), var.astype(np.float64)),
         torque=TorqueProfile(tcoef.astype(np.float64), float(arrays["torque_scale"]), float(arrays["torque_cutoff"])),
+        outputs=_outputs(arrays.get("outputs"), name),
     )
     return model, prov
+
+
+def _outputs(value: np.ndarray | None, name: str) -> tuple[bool, bool, bool, bool]:
+    """The trained-outputs flags; files written before they existed trained all four."""
+    if value is None:
+        return (True, True, True, True)
+    if value.shape != (4,):
+        raise DataFormatError(f"array 'outputs' has the wrong shape {value.shape}", file=name)
+    foot, shank, fwd, up = (bool(v) for v in value)
+    return (foot, shank, fwd, up)

@@ -64,10 +64,11 @@ TRAINING_COLUMNS: Final = (
     TIME_S,
     FOOT_ANGLE,
     SHANK_ANGLE,
-    HEEL_FORWARD,
-    HEEL_UP,
     ANKLE_MOMENT,
 )
+#: Used for training when present (LocoHub has no heel-position standard; a model trained without
+#: them ignores heel measurements).
+OPTIONAL_TRAINING_COLUMNS: Final = (HEEL_FORWARD, HEEL_UP)
 
 # --- Replay CSV (gaitscope replay) ---------------------------------------------------------------
 REPLAY_TIME: Final = "time_s"
@@ -109,6 +110,9 @@ class ModelProvenance(BaseModel):
     speeds_m_s: tuple[float, ...]
     inclines_deg: tuple[float, ...]
     fourier_order: int = Field(ge=1)
+    outputs: tuple[bool, bool, bool, bool] = Field(
+        default=(True, True, True, True), description="which of foot, shank, heel forward, heel up were trained"
+    )
     torque_fourier_order: int = Field(ge=1)
     cohort_seed: int | None = None
 

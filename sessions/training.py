@@ -57,7 +57,8 @@ class StrideData:
         pdot, l, r: phase rate (1/s), stride length (leg lengths) and incline (deg) per stride, ``(S,)``.
         leg_length, mass: per stride (m, kg), ``(S,)``.
         z: measured channels ``(S, 150, 6)``: foot, foot velocity, shank, shank velocity (deg, deg/s),
-            high-passed heel forward and heel up (m).
+            high-passed heel forward and heel up (m; zero when the table has no heel positions).
+        outputs: which model outputs the table could train (foot, shank, heel forward, heel up).
         moment: plantarflexor moment per kg (N m/kg), ``(S, 150)``.
     """
 
@@ -73,6 +74,7 @@ class StrideData:
     moment: Array
     speeds: tuple[float, ...]
     inclines: tuple[float, ...]
+    outputs: tuple[bool, bool, bool, bool] = (True, True, True, True)
 
     def rows(self, subject: int) -> tuple[Array, Array, Array, Array, Array]:
         """Flattened ``(p, l, r, z, moment)`` samples of one subject."""
@@ -142,8 +144,12 @@ def stride_data(frame: pd.DataFrame) -> StrideData:
     z[..., 0], z[..., 2] = foot, shank
     z[..., 1] = np.gradient(foot, axis=1) / np.gradient(t, axis=1)
     z[..., 3] = np.gradient(shank, axis=1) / np.gradient(t, axis=1)
-    heel = np.stack([f[schema.HEEL_FORWARD].to_numpy(np.float64), f[schema.HEEL_UP].to_numpy(np.float64)], axis=1)
-    z[..., 4:6] = _highpass_trials(f, heel).reshape(S, SAMPLES_PER_STRIDE, 2)
+    has_heel = all(c in f.columns for c in schema.OPTIONAL_TRAINING_COLUMNS)
+    if has_heel:
+        heel = np.stack([f[schema.HEEL_FORWARD].to_numpy(np.float64), f[schema.HEEL_UP].to_numpy(np.float64)], axis=1)
+        z[..., 4:6] = _highpass_trials(f, heel).reshape(S, SAMPLES_PER_STRIDE, 2)
+    else:
+        z[..., 4:6] = 0.0  # not measured: those outputs are fitted to zero and masked at run time
     moment = -f[schema.ANKLE_MOMENT].to_numpy(np.float64).reshape(shape) / mass[:, None]
     return StrideData(
         subjects=subjects,
@@ -158,6 +164,7 @@ def stride_data(frame: pd.DataFrame) -> StrideData:
         moment=moment,
         speeds=tuple(sorted(set(speed.tolist()))),
         inclines=tuple(sorted(set(incline.tolist()))),
+        outputs=(True, True, has_heel, has_heel),
     )
 
 
@@ -243,7 +250,7 @@ def fit_models(
     cov = residual_covariance(np.concatenate(phases), np.concatenate(res), n_bins=SAMPLES_PER_STRIDE - 1)
     noise = NoiseModel(cov, np.asarray(sensor_variance))
     torque = TorqueProfile(fit_torque(_sum(g_torque, train), torque_order))
-    return TrainedModel(coef=coef, noise=noise, torque=torque)
+    return TrainedModel(coef=coef, noise=noise, torque=torque, outputs=data.outputs)
 
 
 def _sum(grams: Sequence[Gram], idx: Sequence[int]) -> Gram:

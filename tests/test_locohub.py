@@ -169,8 +169,8 @@ def test_unreadable_parquet(tmp_path: Path) -> None:
 
 
 def test_missing_required_columns_are_all_named(tmp_path: Path) -> None:
-    path = _write_csv(tmp_path / "t.csv", _table().drop(columns=[schema.STEP, schema.HEEL_UP]))
-    assert _error(path) == f"file {path}: missing required column(s) 'step', 'heel_vertical_position_ipsi_m'"
+    path = _write_csv(tmp_path / "t.csv", _table().drop(columns=[schema.STEP, schema.ANKLE_MOMENT]))
+    assert _error(path) == f"file {path}: missing required column(s) 'step', 'ankle_dorsiflexion_moment_ipsi_Nm'"
 
 
 def test_no_rows(tmp_path: Path) -> None:

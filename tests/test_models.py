@@ -77,3 +77,13 @@ def test_the_shipped_model_loads_and_says_what_it_was_trained_on() -> None:
     assert prov.source == "default-cohort" and len(prov.subjects) == 10
     assert prov.fourier_order == 20 and model.coef.shape == (4, 2, 2, 41)
     assert set(prov.speeds_m_s) == {0.8, 1.0, 1.2} and len(prov.inclines_deg) == 9
+
+
+def test_trained_outputs_round_trip(tmp_path: Path, small_model: TrainedModel) -> None:
+    from dataclasses import replace
+
+    path = tmp_path / "m.npz"
+    save_model(path, replace(small_model, outputs=(True, True, False, False)), _prov())
+    model, _ = load_model(path)
+    assert model.outputs == (True, True, False, False)
+    assert model.channel_mask.tolist() == [True, True, True, True, False, False]

@@ -48,3 +48,16 @@ def test_fitted_model_reproduces_its_training_data(small_data: StrideData, small
     foot = evaluate(small_model.coef, P, L, R)[:, 0]
     rms = np.sqrt(np.mean((foot - small_data.z[s][..., 0].reshape(-1)) ** 2))
     assert rms < 6.0  # deg: the population model fits a training subject to a few degrees
+
+
+def test_a_table_without_heel_positions_trains_a_model_that_ignores_them(small_cohort: pd.DataFrame) -> None:
+    from estimators.pipeline import GaitStatePipeline
+
+    data = stride_data(small_cohort.drop(columns=list(schema.OPTIONAL_TRAINING_COLUMNS)))
+    assert data.outputs == (True, True, False, False)
+    model = fit_models(data)
+    assert model.outputs == (True, True, False, False)
+    pipe = GaitStatePipeline(model)
+    pipe.step(0.0, np.array([10.0, -50.0, 15.0, -20.0, 0.2, 0.05]), heel_strike=False)
+    pipe.step(0.01, np.array([9.5, -50.0, 14.8, -20.0, 0.2, 0.05]), heel_strike=False)
+    assert np.all(np.isfinite(pipe.ekf.y[:4])) and np.all(np.isnan(pipe.ekf.y[4:]))  # heel channels unused
