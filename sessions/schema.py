@@ -60,7 +60,6 @@ TRAINING_COLUMNS: Final = (
     SUBJECT,
     TASK_INFO,
     STEP,
-    PHASE_IPSI,
     TIME_S,
     FOOT_ANGLE,
     SHANK_ANGLE,

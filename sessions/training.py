@@ -114,12 +114,17 @@ def stride_data(frame: pd.DataFrame) -> StrideData:
     if schema.SUBJECT_METADATA not in frame.columns:
         raise ValueError("the table has no subject_metadata column (leg length and mass are needed)")
     meta = _metadata(frame)
-    f = frame.sort_values([schema.SUBJECT, schema.TASK_INFO, schema.STEP, schema.PHASE_IPSI], kind="stable")
     keys = [schema.SUBJECT, schema.TASK_INFO, schema.STEP]
+    if schema.PHASE_IPSI not in frame.columns:
+        frame = to_phase_grid(frame)
+    f = frame.sort_values([*keys, schema.PHASE_IPSI], kind="stable")
     sizes = f.groupby(keys, sort=False).size()
     if not (sizes == SAMPLES_PER_STRIDE).all():
         bad = sizes[sizes != SAMPLES_PER_STRIDE].index[0]
-        raise ValueError(f"stride {bad} has {sizes[bad]} samples; phase-indexed tables have 150 per stride")
+        raise ValueError(
+            f"stride {bad} has {sizes[bad]} samples; phase-indexed tables have 150 per stride "
+            "(leave out phase_ipsi to have time-indexed strides resampled)"
+        )
     S = len(sizes)
     shape = (S, SAMPLES_PER_STRIDE)
     t = f[schema.TIME_S].to_numpy(np.float64).reshape(shape)
@@ -166,6 +171,43 @@ def stride_data(frame: pd.DataFrame) -> StrideData:
         inclines=tuple(sorted(set(incline.tolist()))),
         outputs=(True, True, has_heel, has_heel),
     )
+
+
+def to_phase_grid(frame: pd.DataFrame) -> pd.DataFrame:
+    """A time-indexed LocoHub table (``time_s`` and ``step``, no ``phase_ipsi``) resampled to 150 samples
+    per stride at phases ``i / 149``, as the phase-indexed format has them.
+
+    Each step runs from its heel strike to the next one: its phase is linear in time from its first
+    sample to the first sample of the next step of the same trial (or, for a trial's last step, one
+    median sample period after its own last sample). Every numeric column is interpolated linearly in
+    phase; text columns are carried. Steps with fewer than 10 samples are refused.
+    """
+    keys = [schema.SUBJECT, schema.TASK_INFO, schema.STEP]
+    f = frame.sort_values([schema.SUBJECT, schema.TASK_INFO, schema.TIME_S], kind="stable")
+    numeric = [c for c in f.columns if c not in keys and pd.api.types.is_numeric_dtype(f[c])]
+    text = [c for c in f.columns if c not in keys and c not in numeric]
+    grid = np.arange(SAMPLES_PER_STRIDE) / (SAMPLES_PER_STRIDE - 1)
+    parts = []
+    for _, trial in f.groupby([schema.SUBJECT, schema.TASK_INFO], sort=False):
+        t_all = trial[schema.TIME_S].to_numpy(np.float64)
+        period = float(np.median(np.diff(t_all))) if len(t_all) > 1 else 0.01
+        steps = list(trial.groupby(schema.STEP, sort=False))
+        for k, (step, rows) in enumerate(steps):
+            if len(rows) < 10:
+                raise ValueError(f"step {step} of {rows[schema.SUBJECT].iloc[0]} has {len(rows)} samples (10 needed)")
+            t = rows[schema.TIME_S].to_numpy(np.float64)
+            end = steps[k + 1][1][schema.TIME_S].iloc[0] if k + 1 < len(steps) else t[-1] + period
+            phase = (t - t[0]) / (end - t[0])
+            out = {c: np.interp(grid, phase, rows[c].to_numpy(np.float64)) for c in numeric}
+            out[schema.TIME_S] = t[0] + grid * (end - t[0])
+            out[schema.PHASE_IPSI] = grid * 100.0
+            block = pd.DataFrame(out)
+            for c in (*keys, *text):
+                block[c] = rows[c].iloc[0]
+            parts.append(block)
+    if not parts:
+        raise ValueError("the table has no strides")
+    return pd.concat(parts, ignore_index=True)
 
 
 def _highpass_trials(f: pd.DataFrame, heel: Array) -> Array:

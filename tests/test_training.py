@@ -61,3 +61,24 @@ def test_a_table_without_heel_positions_trains_a_model_that_ignores_them(small_c
     pipe.step(0.0, np.array([10.0, -50.0, 15.0, -20.0, 0.2, 0.05]), heel_strike=False)
     pipe.step(0.01, np.array([9.5, -50.0, 14.8, -20.0, 0.2, 0.05]), heel_strike=False)
     assert np.all(np.isfinite(pipe.ekf.y[:4])) and np.all(np.isnan(pipe.ekf.y[4:]))  # heel channels unused
+
+
+def test_time_indexed_tables_are_resampled_to_the_phase_grid() -> None:
+    from sessions.cohort import CohortSpec, generate_cohort, resample_walk
+
+    phase_table = generate_cohort(CohortSpec(n_subjects=2, strides_per_condition=3, inclines_deg=(0.0, 5.0)))
+    groups = phase_table.groupby([schema.SUBJECT, schema.TASK_ID], sort=False)
+    time_table = pd.concat([resample_walk(g, 100.0) for _, g in groups], ignore_index=True)
+    a = stride_data(phase_table)
+    b = stride_data(time_table.drop(columns=[schema.PHASE_IPSI]))  # LocoHub's time-indexed layout
+    assert b.z.shape == a.z.shape
+    np.testing.assert_allclose(b.pdot, a.pdot, rtol=0.01)  # stride durations from the heel strikes
+    np.testing.assert_allclose(b.l, a.l, rtol=0.01)
+    foot_rms = np.sqrt(np.mean((b.z[..., 0] - a.z[..., 0]) ** 2))
+    assert foot_rms < 1.0  # deg: 100 Hz samples interpolated onto 150 phases
+
+
+def test_short_steps_are_refused(small_cohort: pd.DataFrame) -> None:
+    few = small_cohort.groupby([schema.SUBJECT, schema.TASK_INFO, schema.STEP]).head(5)
+    with pytest.raises(ValueError, match=r"has 5 samples \(10 needed\)"):
+        stride_data(few.drop(columns=[schema.PHASE_IPSI]))
