@@ -37,7 +37,8 @@ export function bandPlot(container, title, yLabel, color, fill) {
   return new Plot(container, {
     title, yLabel, xLabel: "% of gait cycle", xRange: [0, 100], height: 190,
     series: [{ label: "mean", color, width: 3 }, { label: "−1 SD", color: fill.line, width: 1 },
-      { label: "+1 SD", color: fill.line, width: 1 }, { label: "newest stride", color: COLORS.grey, dash: [4, 4], width: 1.5 }],
+      { label: "+1 SD", color: fill.line, width: 1 }, { label: "newest stride", color: COLORS.grey, dash: [4, 4], width: 1.5 },
+      { label: "baseline", color: "#111827", dash: [10, 5], width: 2 }],
     bands: [{ series: [3, 2], fill: fill.band }],
   });
 }
@@ -117,9 +118,35 @@ export function mountLive(root, sessionId) {
   const strideCount = h("span", { class: "hint", "data-testid": "stride-count", text: "waiting for heel strikes…" });
   const bandTorque = h("div", { class: "plot", "data-testid": "overlay-torque" });
   const bandFoot = h("div", { class: "plot", "data-testid": "overlay-foot" });
+  // The subject's baseline: the mean stride kept in this browser (per subject code) to compare against.
+  const baselineKey = () => `gaitscope.baseline.${subjectCode}`;
+  const baselineNote = h("span", { class: "hint", "data-testid": "baseline-note", text: "" });
+  const setBaselineBtn = h("button", { type: "button", "data-testid": "set-baseline", text: "Set as baseline" });
+  const clearBaselineBtn = h("button", { type: "button", "data-testid": "clear-baseline", text: "Clear baseline" });
+  function showBaseline(saved) {
+    overlay.setBaseline(saved ? saved.means : null);
+    baselineNote.textContent = saved ? `baseline: ${saved.strides} stride${saved.strides === 1 ? "" : "s"} of ${saved.when}` : "no baseline";
+    clearBaselineBtn.disabled = !saved;
+    strideDirty = true;
+  }
+  setBaselineBtn.addEventListener("click", () => {
+    const means = overlay.snapshot();
+    if (!means) {
+      baselineNote.textContent = "no complete stride yet";
+      return;
+    }
+    const saved = { means, strides: overlay.count, when: new Date().toLocaleString() };
+    localStorage.setItem(baselineKey(), JSON.stringify(saved));
+    showBaseline(saved);
+  });
+  clearBaselineBtn.addEventListener("click", () => {
+    localStorage.removeItem(baselineKey());
+    showBaseline(null);
+  });
   const overlayCard = h("section", { class: "card overlay" },
     h("div", { class: "card-head" }, h("h2", { text: "Per stride: mean ± SD of the last 20" }), strideCount),
-    h("div", { class: "overlay-plots" }, bandTorque, bandFoot));
+    h("div", { class: "overlay-plots" }, bandTorque, bandFoot),
+    h("div", { class: "baseline-row" }, setBaselineBtn, clearBaselineBtn, baselineNote));
 
   // --- controls, events, leg view ------------------------------------------------------------------
   let subjectCode = "";
@@ -195,6 +222,11 @@ export function mountLive(root, sessionId) {
         case "hello":
           showError(streamError, null);
           subjectCode = msg.subject.code;
+          try {
+            showBaseline(JSON.parse(localStorage.getItem(baselineKey()) || "null"));
+          } catch (err) {
+            showBaseline(null); // an unreadable stored baseline is dropped, not fatal
+          }
           controls.setSession(msg.session);
           break;
         case "states":

@@ -214,6 +214,18 @@ export class StrideOverlay {
     this.mean = Object.fromEntries(channels.map((c) => [c, new Float64Array(points)]));
     this.sd = Object.fromEntries(channels.map((c) => [c, new Float64Array(points)]));
     this.lastStride = null; // {t0, t1, duration, mean: {c}, peak: {c}}
+    this.baseline = null; // {c: Float64Array(points)}: a reference mean to compare with, or null
+  }
+
+  /** The current mean of every channel as a plain object (to keep as a baseline), or null if empty. */
+  snapshot() {
+    if (!this.count) return null;
+    return Object.fromEntries(this.channels.map((c) => [c, Array.from(this.mean[c])]));
+  }
+
+  /** Show `means` (from `snapshot()`) as the baseline curve; null removes it. */
+  setBaseline(means) {
+    this.baseline = means ? Object.fromEntries(Object.entries(means).map(([c, a]) => [c, Float64Array.from(a)])) : null;
   }
 
   _append(t, row) {
@@ -302,7 +314,7 @@ export class StrideOverlay {
     return Math.min(this.stored, this.n);
   }
 
-  /** uPlot data for one channel: [pct, mean, mean - sd, mean + sd, newest stride]. */
+  /** uPlot data for one channel: [pct, mean, mean - sd, mean + sd, newest stride, baseline]. */
   bandData(c) {
     const p = this.points;
     const lo = new Float64Array(p);
@@ -314,7 +326,8 @@ export class StrideOverlay {
     const slot = ((this.stored - 1) % this.n) * p;
     const newest = this.stored ? this.store[c].slice(slot, slot + p) : new Float64Array(p).fill(NaN);
     const nulls = (a) => Array.from(a, (v) => (Number.isNaN(v) ? null : v));
-    return [this.pct, nulls(this.mean[c]), nulls(lo), nulls(hi), nulls(newest)];
+    const base = this.baseline && this.baseline[c] ? this.baseline[c] : new Float64Array(p).fill(NaN);
+    return [this.pct, nulls(this.mean[c]), nulls(lo), nulls(hi), nulls(newest), nulls(base)];
   }
 }
 

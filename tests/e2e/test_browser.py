@@ -256,6 +256,13 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(page.get_by_test_id("stride-count")).to_contain_text("stride", timeout=20_000)
     assert _number(page.get_by_test_id("summary-cadence").text_content()) > 20  # strides/min while walking
 
+    # --- the subject's baseline: kept per subject in this browser, survives a reload ---------------------
+    expect(page.get_by_test_id("baseline-note")).to_have_text("no baseline")
+    page.get_by_test_id("set-baseline").click()
+    expect(page.get_by_test_id("baseline-note")).to_contain_text("baseline: ")
+    page.reload()
+    expect(page.get_by_test_id("baseline-note")).to_contain_text("baseline: ", timeout=15_000)
+
     # The leg view (viser, WebGL) loads lazily and keeps the renderer busy while it starts; load it
     # first so that the timing of the next steps is the UI's own.
     page.get_by_title("3D leg view").scroll_into_view_if_needed()
