@@ -16,9 +16,6 @@ import asyncio
 import json
 import multiprocessing
 import os
-import socket
-import subprocess
-import sys
 import tempfile
 import time
 import urllib.request
@@ -28,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from server.launch import start_server
 from sessions.trials import replay_input, sensor_trial
 
 TARGET_P95_MS = 50.0
@@ -49,12 +47,6 @@ class Stream:
         if self.first is None or self.last is None or self.last <= self.first:
             return 0.0
         return self.received / (self.last - self.first)
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _post(base: str, path: str, body: dict[str, object]) -> dict[str, object]:
@@ -219,25 +211,10 @@ def run_loadbench(
     sessions: int = 10, clients: int = 2, rate: float = 200.0, seconds: float = 20.0, batch_ms: float = 33.0
 ) -> dict[str, dict[str, float]]:
     """Start a server, measure the single-stream baseline, then the full load; print and return both."""
-    port = _free_port()
-    base = f"http://127.0.0.1:{port}"
-    exe = str(Path(sys.executable).with_name("gaitscope"))
     with tempfile.TemporaryDirectory() as d:
-        proc = subprocess.Popen(
-            [exe, "serve", "--no-demo", "--no-leg-view", "--port", str(port), "--data-dir", d],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-        )
+        server = start_server(d, "--no-demo", "--no-leg-view", timeout=60)
+        proc, base = server.proc, server.base
         try:
-            deadline = time.monotonic() + 60
-            while True:
-                try:
-                    urllib.request.urlopen(base + "/api/health", timeout=1)
-                    break
-                except OSError:
-                    if time.monotonic() > deadline or proc.poll() is not None:
-                        raise RuntimeError("server did not start") from None
-                    time.sleep(0.2)
             print(f"server pid {proc.pid} on {base}; {os.cpu_count()} cores; batch_ms={batch_ms}; {seconds:.0f} s each")
             results = {}
             for label, n, m in (
@@ -256,5 +233,4 @@ def run_loadbench(
             )
             return results
         finally:
-            proc.terminate()
-            proc.wait(timeout=20)
+            server.stop()

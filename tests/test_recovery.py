@@ -4,51 +4,27 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
-import subprocess
-import sys
 import time
-import urllib.request
 from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
 
 from server.app import create_app
+from server.launch import start_server
 from server.settings import Settings
 from sessions.errors import DataFormatError
 from sessions.mcap_io import check_mcap, read_messages
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def test_killed_server_leaves_a_recording_that_restart_recovers(tmp_path: Path) -> None:
     data = tmp_path / "data"
-    port = _free_port()
-    exe = str(Path(sys.executable).with_name("gaitscope"))
-    proc = subprocess.Popen(
-        [exe, "serve", "--data-dir", str(data), "--port", str(port), "--no-leg-view"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    server = start_server(data, "--no-leg-view", timeout=60)
     try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            try:
-                urllib.request.urlopen(f"http://127.0.0.1:{port}/api/health", timeout=1)
-                break
-            except OSError:
-                time.sleep(0.2)
-        else:
-            pytest.fail("server did not start")
         time.sleep(4.0)  # the demo session records at 200 Hz: several chunks on disk
     finally:
-        os.kill(proc.pid, signal.SIGKILL)
-        proc.wait(timeout=10)
+        os.kill(server.proc.pid, signal.SIGKILL)
+        server.proc.wait(timeout=10)
     files = list((data / "recordings").glob("*.mcap"))
     assert len(files) == 1
     with pytest.raises(DataFormatError, match="not finished"):

@@ -10,19 +10,13 @@ import asyncio
 import json
 import os
 import socket
-import subprocess
-import sys
 import time
 import urllib.request
 from pathlib import Path
 
 import websockets
 
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+from server.launch import start_server
 
 
 def _post(url: str, body: dict) -> dict:
@@ -50,22 +44,10 @@ async def _watch(port: int, sid: int, seconds: float) -> list[dict]:
 
 
 def test_slow_client_is_dropped_without_slowing_anyone(tmp_path: Path) -> None:
-    port = _free_port()
     env = {**os.environ, "GAITSCOPE_SLOW_CLIENT_S": "2"}
-    exe = str(Path(sys.executable).with_name("gaitscope"))
-    proc = subprocess.Popen(
-        [exe, "serve", "--port", str(port), "--no-leg-view", "--no-demo", "--data-dir", str(tmp_path)],
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    server = start_server(tmp_path, "--no-leg-view", "--no-demo", env=env)
+    port = server.port
     try:
-        for _ in range(300):
-            try:
-                urllib.request.urlopen(f"http://127.0.0.1:{port}/api/health", timeout=1)
-                break
-            except OSError:
-                time.sleep(0.2)
         base = f"http://127.0.0.1:{port}/api"
         subject = _post(f"{base}/subjects", {"code": "S1", "leg_length_m": 0.9, "mass_kg": 70})
         # 1 kHz so that the socket buffers (up to 4 MiB here) fill in seconds rather than a minute
@@ -78,8 +60,7 @@ def test_slow_client_is_dropped_without_slowing_anyone(tmp_path: Path) -> None:
         time.sleep(2.0)
         health = asyncio.run(_watch(port, sid, 25.0))
     finally:
-        proc.terminate()
-        proc.wait(timeout=20)
+        server.stop()
     assert [h["clients"] for h in health][:2] == [2, 2]
     assert health[-1]["clients"] == 1  # the slow one was disconnected by the server
     rates = [h["rate_hz"] for h in health[1:]]

@@ -11,9 +11,6 @@ from __future__ import annotations
 
 import json
 import re
-import socket
-import subprocess
-import sys
 import time
 import urllib.request
 from collections.abc import Iterator
@@ -22,6 +19,8 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 import pytest
+
+from server.launch import LOOPBACK, free_port, start_server
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 
@@ -36,7 +35,6 @@ LAUNCH_ARGS = [
     "--disable-sync",
     "--no-first-run",
 ]
-LOOPBACK = "127.0.0.1"
 
 pytestmark = [
     pytest.mark.e2e,
@@ -44,52 +42,20 @@ pytestmark = [
 ]
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind((LOOPBACK, 0))
-        return int(s.getsockname()[1])
-
-
-def _get_json(url: str) -> object:
-    with urllib.request.urlopen(url, timeout=2) as resp:
-        return json.loads(resp.read())
-
-
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """``gaitscope serve`` on free ports with a fresh data folder; yields its base URL."""
-    exe = Path(sys.executable).with_name("gaitscope")
     data = tmp_path_factory.mktemp("gaitscope-data")
-    port, viser_port = _free_port(), _free_port()
     log_path = data / "server.log"
     with log_path.open("wb") as log:
-        proc = subprocess.Popen(
-            [str(exe), "serve", "--port", str(port), "--viser-port", str(viser_port), "--data-dir", str(data)],
-            stdout=log,
-            stderr=subprocess.STDOUT,
-        )
-    base = f"http://{LOOPBACK}:{port}"
-    try:
-        deadline = time.monotonic() + 90
-        while True:
-            if proc.poll() is not None:
-                pytest.fail(f"gaitscope serve exited with {proc.returncode}:\n{log_path.read_text()[-3000:]}")
-            try:
-                if _get_json(f"{base}/api/health") is not None:
-                    break
-            except OSError:
-                pass
-            if time.monotonic() > deadline:
-                pytest.fail(f"gaitscope serve did not answer /api/health in 90 s:\n{log_path.read_text()[-3000:]}")
-            time.sleep(0.25)
-        yield base
-    finally:
-        proc.terminate()
         try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
+            server = start_server(data, "--viser-port", str(free_port()), output=log)
+        except RuntimeError as e:
+            pytest.fail(f"{e}:\n{log_path.read_text()[-3000:]}")
+    try:
+        yield server.base
+    finally:
+        server.stop()
 
 
 @pytest.fixture(scope="module")
