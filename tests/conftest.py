@@ -1,11 +1,18 @@
-"""Shared fixtures: a small virtual cohort and models trained on it (built once per test run)."""
+"""Shared fixtures: a small virtual cohort and models trained on it (built once per test run), and the
+real app with a real SQLite file in a temporary folder."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from pathlib import Path
+
 import pandas as pd
 import pytest
+from fastapi.testclient import TestClient
 
 from estimators.pipeline import TrainedModel
+from server.app import create_app
+from server.settings import Settings
 from sessions.cohort import CohortSpec, generate_cohort
 from sessions.training import StrideData, fit_models, stride_data
 
@@ -25,3 +32,11 @@ def small_data(small_cohort: pd.DataFrame) -> StrideData:
 @pytest.fixture(scope="session")
 def small_model(small_data: StrideData) -> TrainedModel:
     return fit_models(small_data)
+
+
+@pytest.fixture
+def client(tmp_path: Path) -> Iterator[TestClient]:
+    """The app (lifespan included) on a fresh data folder: no demo, no leg view, small upload limits."""
+    settings = Settings(data_dir=tmp_path / "data", demo=False, leg_view=False, max_upload_mb=5, upload_chunk_kb=64)
+    with TestClient(create_app(settings)) as c:
+        yield c

@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
 
-from server.app import create_app
-from server.settings import Settings
 from sessions.trials import replay_columns, sensor_trial
 
 SHORT = {
@@ -18,13 +15,6 @@ SHORT = {
     "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 200}],
     "rate_hz": 200,
 }
-
-
-@pytest.fixture
-def client(tmp_path: Path) -> Iterator[TestClient]:
-    settings = Settings(data_dir=tmp_path / "data", demo=False, leg_view=False, max_upload_mb=5, upload_chunk_kb=64)
-    with TestClient(create_app(settings)) as c:
-        yield c
 
 
 def _subject(client: TestClient, code: str = "P01") -> int:

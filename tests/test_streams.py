@@ -5,15 +5,11 @@ from __future__ import annotations
 import itertools
 import json
 import time
-from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
-from server.app import create_app
-from server.settings import Settings
 from sessions.runtime import SUBSCRIBER_CAPACITY, Subscriber
 from sessions.schema import GaitState
 from sessions.trials import replay_input, sensor_trial
@@ -23,13 +19,6 @@ SIM = {
     "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 200}],
     "rate_hz": 200,
 }
-
-
-@pytest.fixture
-def client(tmp_path: Path) -> Iterator[TestClient]:
-    settings = Settings(data_dir=tmp_path / "data", demo=False, leg_view=False)
-    with TestClient(create_app(settings)) as c:
-        yield c
 
 
 def _session(client: TestClient, source: dict) -> int:
