@@ -1,12 +1,27 @@
-"""The seed-000 estimator stack as one streaming object: what replay and (later) the server run.
+"""The seed-000 estimator stack as one streaming object: what replay and the server run.
 
-Per sample: heel positions through the high-pass filter, heel strike given or detected, main EKF
-predict and update, heel-strike backup, timing-based baseline, and the torque command. Pure numpy:
-no I/O, no clocks; the caller passes time stamps.
+Per sample: implausible sensor values screened out, heel positions through the high-pass filter, heel
+strike given or detected, main EKF predict and update, heel-strike backup, timing-based baseline, a
+health check of the filter, and the torque command. Pure numpy: no I/O, no clocks; the caller passes
+time stamps.
+
+Safety (none of this is in the paper, which assumes clean data; each bound is a
+:class:`PipelineConfig` parameter):
+
+- a channel value outside :data:`CHANNEL_LIMITS` (or non-finite) is treated as missing for that
+  sample and counted in :attr:`GaitStatePipeline.implausible`;
+- a gap between samples longer than ``max_gap_s`` restarts the filters (the walker may have stopped,
+  and one predict over the gap would blow the covariance up); the estimate says ``fault="gap"``;
+- a filter whose state or covariance is non-finite or outside :class:`HealthLimits` is reset from the
+  heel-strike backup, else from the timing-based estimate, else from its initial state
+  (``fault="diverged"``); the torque of that sample is 0;
+- the torque is always a finite number in ``[0, max_torque]``: anything else becomes 0 with
+  ``fault="torque"``.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -26,6 +41,35 @@ from estimators.phase_ekf import EKFConfig, PhaseEKF
 from estimators.torque import TorqueProfile
 
 FOOT_ANGLE, FOOT_VEL, SHANK_ANGLE, SHANK_VEL, HEEL_FORWARD, HEEL_UP = range(N_CHANNELS)
+
+#: Physically plausible range of each measurement channel, in channel order: segment angles within
+#: +/-180 deg, angular velocities within +/-4000 deg/s (the largest full scale of common MEMS gyros,
+#: e.g. ICM-42688 and BMI088 reach +/-2000, ADIS16 parts +/-4000) and raw heel positions within
+#: +/-3 m of the hip. ``sessions.schema.SENSOR_LIMITS`` states the same bounds on the wire.
+CHANNEL_LIMITS: tuple[tuple[float, float], ...] = (
+    (-180.0, 180.0),
+    (-4000.0, 4000.0),
+    (-180.0, 180.0),
+    (-4000.0, 4000.0),
+    (-3.0, 3.0),
+    (-3.0, 3.0),
+)
+
+
+@dataclass(frozen=True)
+class HealthLimits:
+    """When the phase EKF counts as diverged (beyond non-finite values), and is reset.
+
+    Attributes:
+        min_phase_rate, max_phase_rate: 1/s; walking spans about 0.3-1.5 strides/s, running up to 1.8.
+        max_abs_incline: deg; ramps steeper than this are not walked with a device.
+        max_variance: largest allowed diagonal entry of ``P`` (the initial one is 1e-3).
+    """
+
+    min_phase_rate: float = -0.5
+    max_phase_rate: float = 4.0
+    max_abs_incline: float = 45.0
+    max_variance: float = 1e3
 
 
 @dataclass(frozen=True)
@@ -63,6 +107,9 @@ class PipelineConfig:
         max_torque: hard bound on the command (N m); the command is always in [0, max_torque].
         use_backup: run the heel-strike backup filter.
         ekf, backup, detector: their own tuning.
+        channel_limits: plausible range per measurement channel; values outside are missing.
+        max_gap_s: a longer gap between two samples restarts the filters.
+        health: when the EKF counts as diverged.
     """
 
     leg_length: float = 0.88
@@ -73,11 +120,18 @@ class PipelineConfig:
     ekf: EKFConfig = field(default_factory=EKFConfig)
     backup: BackupConfig = field(default_factory=BackupConfig)
     detector: DetectorConfig = field(default_factory=DetectorConfig)
+    channel_limits: tuple[tuple[float, float], ...] = CHANNEL_LIMITS
+    max_gap_s: float = 1.0
+    health: HealthLimits = field(default_factory=HealthLimits)
 
 
 @dataclass(frozen=True)
 class GaitEstimate:
-    """Output of one pipeline step."""
+    """Output of one pipeline step.
+
+    ``fault`` is empty normally; else why the filters were restarted or reset at this sample
+    (``"gap"``, ``"diverged"``) or why the torque was forced to 0 (``"torque"``).
+    """
 
     phase: float
     phase_rate: float
@@ -87,6 +141,8 @@ class GaitEstimate:
     heel_strike: bool
     tbe_phase: float
     backup_reset: bool
+    fault: str = ""
+    implausible: int = 0
 
 
 class GaitStatePipeline:
@@ -104,15 +160,32 @@ class GaitStatePipeline:
         cfg = self.config
         if not 0 <= cfg.max_torque <= 200:
             raise ValueError(f"max_torque must be within [0, 200] N m, got {cfg.max_torque}")
-        self.ekf = PhaseEKF(model.coef, model.noise, cfg.leg_length, cfg.ekf)
-        self.backup = HeelStrikeBackup(self.ekf, model.noise, cfg.backup) if cfg.use_backup else None
-        self.tbe = TimingBasedEstimator()
-        self.detector = HeelStrikeDetector(cfg.detector)
-        self.highpass = HighPassFilter(sample_period)
+        if not (math.isfinite(sample_period) and sample_period > 0):
+            raise ValueError(f"sample_period must be a positive number of seconds, got {sample_period}")
+        if len(cfg.channel_limits) != N_CHANNELS:
+            raise ValueError(f"channel_limits needs {N_CHANNELS} (low, high) pairs, got {len(cfg.channel_limits)}")
+        self._sample_period = sample_period
+        self._lo = np.array([lo for lo, _ in cfg.channel_limits])
+        self._hi = np.array([hi for _, hi in cfg.channel_limits])
         self._t: float | None = None
         self._z = np.full(N_CHANNELS, np.nan)
         self._unmodelled = ~model.channel_mask
         self._hs = np.ones(1)
+        #: Channel values refused as implausible since the start.
+        self.implausible = 0
+        #: Times the filters were restarted after a gap or reset after diverging.
+        self.restarts = 0
+        self.resets = 0
+        self._start_filters()
+
+    def _start_filters(self) -> None:
+        """(Re)create every filter in its initial state, keeping the tuning."""
+        cfg = self.config
+        self.ekf = PhaseEKF(self.model.coef, self.model.noise, cfg.leg_length, cfg.ekf)
+        self.backup = HeelStrikeBackup(self.ekf, self.model.noise, cfg.backup) if cfg.use_backup else None
+        self.tbe = TimingBasedEstimator()
+        self.detector = HeelStrikeDetector(cfg.detector)
+        self.highpass = HighPassFilter(self._sample_period)
 
     def retune(
         self,
@@ -135,6 +208,7 @@ class GaitStatePipeline:
                 ekf_cfg.measurement_noise_scale if measurement_noise_scale is None else measurement_noise_scale,
                 ekf_cfg.process_noise_scale if process_noise_scale is None else process_noise_scale,
             )
+            self.config = replace(self.config, ekf=self.ekf.config)  # a restart keeps the tuning
             if self.backup is not None:
                 self.backup.retune()
 
@@ -153,15 +227,32 @@ class GaitStatePipeline:
             heel_strike: True/False if known; None to detect it from the foot signals.
             heel_filtered: the heel positions were already high-passed (batch replay does this).
         """
+        if not math.isfinite(t):
+            raise ValueError(f"time must be finite, got {t}")
         dt = 0.0 if self._t is None else t - self._t
         if self._t is not None and not dt > 0:
             raise ValueError(f"time must increase: {t} after {self._t}")
+        cfg = self.config
+        fault = ""
+        if dt > cfg.max_gap_s:
+            self._start_filters()
+            self.restarts += 1
+            fault, dt = "gap", 0.0
         self._t = t
         z = self._z
         z[:] = raw
+        bad = ~((z >= self._lo) & (z <= self._hi))  # NaN compares False: missing or implausible
+        implausible = int(np.count_nonzero(bad & ~np.isnan(z)))
+        if implausible:
+            z[bad] = np.nan
+            self.implausible += implausible
         heel = z[HEEL_FORWARD : HEEL_UP + 1]
         if not heel_filtered and np.all(np.isfinite(heel)):
-            z[HEEL_FORWARD : HEEL_UP + 1] = self.highpass.step(heel)
+            filtered = self.highpass.step(heel)
+            if not np.all(np.isfinite(filtered)):  # cannot happen with bounded input; never stick on NaN
+                self.highpass = HighPassFilter(self._sample_period)
+                filtered = self.highpass.step(heel)
+            z[HEEL_FORWARD : HEEL_UP + 1] = filtered
         z[self._unmodelled] = np.nan
         if heel_strike is None:
             heel_strike = bool(
@@ -176,12 +267,18 @@ class GaitStatePipeline:
         reset = self.backup.step(t, dt, z, heel_strike) if self.backup is not None else False
         if heel_strike:
             self.tbe.update(self._hs)
+        if not self._healthy():
+            self._reset_diverged()
+            fault = "diverged"
         ekf = self.ekf
         l_norm = ekf.stride_length_norm
-        cfg = self.config
-        torque = self.model.torque.torque_at(
-            ekf.phase, l_norm, ekf.incline, cfg.body_mass_kg * cfg.torque_gain, cfg.max_torque
-        )
+        torque = 0.0
+        if fault != "diverged":
+            torque = self.model.torque.torque_at(
+                ekf.phase, l_norm, ekf.incline, cfg.body_mass_kg * cfg.torque_gain, cfg.max_torque
+            )
+            if not 0.0 <= torque <= cfg.max_torque:  # NaN fails too
+                torque, fault = 0.0, fault or "torque"
         return GaitEstimate(
             phase=ekf.phase,
             phase_rate=ekf.phase_rate,
@@ -191,4 +288,38 @@ class GaitStatePipeline:
             heel_strike=heel_strike,
             tbe_phase=self.tbe.phase,
             backup_reset=reset,
+            fault=fault,
+            implausible=implausible,
         )
+
+    def _healthy(self) -> bool:
+        """The EKF's state and covariance are finite and within :class:`HealthLimits`."""
+        x, P, lim = self.ekf.x, self.ekf.P, self.config.health
+        if not math.isfinite(float(x.sum()) + float(P.sum())):
+            return False
+        pdot, r = float(x[1]), float(x[3])
+        if not (lim.min_phase_rate <= pdot <= lim.max_phase_rate and abs(r) <= lim.max_abs_incline):
+            return False
+        diag = P.diagonal()
+        return bool(diag.max() <= lim.max_variance and diag.min() >= 0.0)
+
+    def _reset_diverged(self) -> None:
+        """Reset a diverged EKF from the backup, else the timing-based estimate, else its start."""
+        self.resets += 1
+        cfg = self.config.ekf
+        start = cfg.initial_state()
+        candidates = []
+        if self.backup is not None:
+            b = self.backup
+            candidates.append(np.array([b.phase, b.phase_rate, b.x[0], b.x[1]]))
+        candidates.append(np.array([self.tbe.phase, self.tbe.x[1], start[2], start[3]]))
+        lim = self.config.health
+        for x in candidates:
+            if np.all(np.isfinite(x)) and lim.min_phase_rate <= x[1] <= lim.max_phase_rate:
+                if abs(x[3]) <= lim.max_abs_incline:
+                    self.ekf.reset(x, cfg.initial_covariance())
+                    break
+        else:
+            self.ekf.reset(start, cfg.initial_covariance())
+        if self.backup is not None and not (np.all(np.isfinite(self.backup.x)) and np.all(np.isfinite(self.backup.P))):
+            self.backup = HeelStrikeBackup(self.ekf, self.model.noise, self.config.backup)

@@ -7,7 +7,7 @@ follows the paper's text: the same Kronecker regressor as the gait model (Fourie
 ``l = 0`` constraint (no assistance when standing still). At run time::
 
     tau = clip(scale * mass * model(p, l, r), 0, max_torque)   if p <= cutoff_phase
-    tau = 0                                                    otherwise
+    tau = 0                                                    otherwise (and for a NaN state)
 
 with ``scale = 1/5`` and ``cutoff_phase = 0.65`` (the code's runtime rule). Positive is plantarflexion.
 """
@@ -15,6 +15,7 @@ with ``scale = 1/5`` and ``cutoff_phase = 0.65`` (the code's runtime rule). Posi
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,16 +52,19 @@ class TorqueProfile:
     def torque(self, p: Array, l: Array, r: Array, mass_kg: float, max_torque: float = np.inf) -> Array:
         """Commanded plantarflexion torque (N m) at arrays of states, vectorised."""
         tau = self.scale * mass_kg * self.biological(p, l, r)
-        tau = np.where(np.asarray(p) % 1.0 <= self.cutoff_phase, tau, 0.0)
+        tau = np.where((np.asarray(p) % 1.0 <= self.cutoff_phase) & np.isfinite(tau), tau, 0.0)
         return np.clip(tau, 0.0, max_torque)
 
     def torque_at(self, p: float, l: float, r: float, mass_kg: float, max_torque: float = np.inf) -> float:
-        """Scalar :meth:`torque` for the streaming path."""
-        if p % 1.0 > self.cutoff_phase:
+        """Scalar :meth:`torque` for the streaming path; 0 for a non-finite state or result."""
+        if not p % 1.0 <= self.cutoff_phase:  # NaN phase fails too
             return 0.0
         coef4, terms = self._workspace
         _kernels.model_terms(coef4, p, l, r, terms)
-        return float(min(max(self.scale * mass_kg * terms[0, 0], 0.0), max_torque))
+        tau = self.scale * mass_kg * float(terms[0, 0])
+        if not math.isfinite(tau):
+            return 0.0
+        return float(min(max(tau, 0.0), max_torque))
 
     @functools.cached_property
     def _workspace(self) -> tuple[Array, Array]:

@@ -9,7 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
-from fastapi import APIRouter, Depends, FastAPI, HTTPException, Query, Request, Response, status
+from fastapi import APIRouter, Body, Depends, FastAPI, HTTPException, Query, Request, Response, status
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
 from pydantic import BaseModel, Field
 
@@ -18,7 +19,7 @@ from sessions import schema
 from sessions.errors import DataFormatError
 from sessions.manager import SessionStateError
 from sessions.models import gaitscope_version
-from sessions.runtime import SettingRejected
+from sessions.runtime import ChangeNotSaved, DiskFull, SettingRejected
 from sessions.store import Conflict, NotFound
 
 if TYPE_CHECKING:
@@ -41,6 +42,8 @@ ERROR_STATUS: dict[type[Exception], int] = {
     SessionStateError: status.HTTP_409_CONFLICT,
     SettingRejected: status.HTTP_409_CONFLICT,
     DataFormatError: status.HTTP_422_UNPROCESSABLE_CONTENT,
+    ChangeNotSaved: status.HTTP_503_SERVICE_UNAVAILABLE,
+    DiskFull: status.HTTP_507_INSUFFICIENT_STORAGE,
 }
 
 
@@ -55,6 +58,23 @@ def install_error_handlers(app: FastAPI) -> None:
 
     for exc_type, code in ERROR_STATUS.items():
         app.add_exception_handler(exc_type, handler(code))
+    app.add_exception_handler(RequestValidationError, _validation_error)
+
+
+async def _validation_error(_: Request, exc: Exception) -> JSONResponse:
+    """422 with pydantic's errors, made JSON-safe: the offending input (which may hold NaN or
+    Infinity, which JSON cannot carry) is left out, and context values become strings."""
+    assert isinstance(exc, RequestValidationError)
+    errors = [
+        {
+            "type": e.get("type"),
+            "loc": list(e.get("loc", ())),
+            "msg": e.get("msg"),
+            **({"ctx": {k: str(v) for k, v in e["ctx"].items()}} if e.get("ctx") else {}),
+        }
+        for e in exc.errors()
+    ]
+    return JSONResponse({"detail": errors}, status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
 
 
 @router.get("/health")
@@ -67,7 +87,7 @@ _WIRE = (
     schema.SettingsChange, schema.Trial, schema.Event, schema.AnnotationCreate, schema.RecordingControl,
     schema.UploadCreate, schema.Upload, schema.RerunRequest, schema.SensorFrame, schema.GaitState,
     schema.TorqueCommand, schema.StreamBatch, schema.Health, schema.EventMessage, schema.SettingsMessage,
-    schema.Hello, schema.FoxgloveEvent, schema.ModelProvenance,
+    schema.Hello, schema.FoxgloveEvent, schema.ModelProvenance, schema.DeviceNotice,
 )  # fmt: skip
 
 
@@ -191,12 +211,19 @@ def trial_events(trial_id: int, c: Ctx) -> list[schema.Event]:
     return c.store.trial_events(trial_id)
 
 
+#: Session time bounds of a series (s): finite (FastAPI reads "nan", "inf" and "1e400" as floats) and
+#: within about 30 years, so that ``t * 1e9`` is an integer nanosecond time.
+_SeriesTime = Annotated[
+    float | None, Query(allow_inf_nan=False, ge=-1e9, le=1e9, description="session time (s); none: unbounded")
+]
+
+
 @router.get("/trials/{trial_id}/series")
 async def trial_series(
     trial_id: int,
     c: Ctx,
-    t0: float | None = None,
-    t1: float | None = None,
+    t0: _SeriesTime = None,
+    t1: _SeriesTime = None,
     max_points: Annotated[int, Query(ge=10, le=20000)] = 2000,
 ) -> dict[str, list[Any]]:
     from sessions.mcap_io import read_series
@@ -211,23 +238,37 @@ def download(trial_id: int, c: Ctx) -> FileResponse:
     return FileResponse(path, media_type="application/octet-stream", filename=f"gaitscope_trial{trial.id}.mcap")
 
 
+@router.get("/trials/{trial_id}/settings")
+async def trial_settings(trial_id: int, c: Ctx) -> schema.SessionSettings:
+    """The settings in force at the trial's first frame, as recorded (its changes are on ``/events``)."""
+    from sessions.review import recorded_settings
+
+    _, path = _trial(c, trial_id)
+    return await asyncio.to_thread(recorded_settings, path)
+
+
 @router.post("/trials/{trial_id}/rerun")
 async def rerun(
     trial_id: int,
-    body: schema.RerunRequest,
     c: Ctx,
-    t0: float | None = None,
-    t1: float | None = None,
+    body: Annotated[schema.RerunRequest | None, Body()] = None,
+    t0: _SeriesTime = None,
+    t1: _SeriesTime = None,
     max_points: Annotated[int, Query(ge=10, le=20000)] = 2000,
 ) -> dict[str, list[Any]]:
-    """The trial's raw frames through the estimators with other settings (series like ``/series``)."""
+    """The trial's raw frames through the estimators again (series like ``/series``): as recorded by
+    default, or with the body's settings over the whole trial (what if); see ``RerunRequest``."""
     from sessions.review import rerun_series
 
     trial, path = _trial(c, trial_id)
     subject = c.store.get_subject(c.store.get_session(trial.session_id).subject_id)
-    model = _model(c, body.settings.model)
+    settings = None if body is None else body.settings
+
+    def model(name: str) -> TrainedModel:
+        return _model(c, name)
+
     return await asyncio.to_thread(
-        rerun_series, path, model, subject.leg_length_m, subject.mass_kg, body.settings, t0, t1, max_points
+        rerun_series, path, model, subject.leg_length_m, subject.mass_kg, settings, t0, t1, max_points
     )
 
 

@@ -20,7 +20,7 @@ from fastapi.staticfiles import StaticFiles
 from server.api import UploadState, install_error_handlers
 from server.api import router as api_router
 from server.leg_view import LegView
-from server.origin import SameOriginMiddleware
+from server.origin import AllowedHostsMiddleware, SameOriginMiddleware
 from server.settings import Settings
 from server.streams import router as stream_router
 from sessions import schema
@@ -87,7 +87,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         for trial in ctx.manager.recover_after_crash():
             log.warning("recording of trial %d was unfinished and has been recovered", trial.id)
         if settings.leg_view:
-            ctx.leg_view = LegView(settings.host, settings.viser_port, models.get("default")[0])
+            model = models.get("default")[0]
+            ctx.leg_view = LegView(settings.host, settings.viser_port, model, allowed_hosts=settings.allowed_hosts)
         app.state.ctx = ctx
         if settings.demo:
             _demo(ctx)
@@ -106,6 +107,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
     )
     app.add_middleware(SameOriginMiddleware)
+    app.add_middleware(AllowedHostsMiddleware, allowed_hosts=settings.allowed_hosts)  # outermost: runs first
     install_error_handlers(app)
     app.include_router(api_router)
     app.include_router(stream_router)

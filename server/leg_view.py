@@ -4,6 +4,13 @@ viser is not an ASGI app: :class:`LegView` runs a ``viser.ViserServer`` on its o
 and the dashboard embeds :attr:`LegView.url` in an iframe. ``show()`` may be called from any thread
 (the server calls it from its asyncio loop at up to ~30 Hz); it never waits for another update.
 
+The viser port streams the session too, so it applies the dashboard's rules (:mod:`server.origin`):
+a ``Host`` outside the allowlist is refused (DNS rebinding), and so is a websocket from another origin.
+viser 1.1 has no hook for that; it serves with ``websockets.asyncio.server.serve`` and its own
+``process_request``, so while the ``ViserServer`` starts, ``serve`` is wrapped to put the guard in
+front of viser's hook (:func:`_guarded_serve`). If viser ever starts without going through it, the
+view refuses to start rather than run unguarded.
+
 Scene, in the sagittal plane x (forward) / z (up), y = 0, seen by default from the subject's right::
 
     /world/ground                      thin wide box tilted by the estimated incline
@@ -32,17 +39,21 @@ the ghost's shank and foot differ from the measured ones exactly where the model
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import threading
-from typing import Final
+from collections.abc import Iterable, Iterator
+from typing import Any, Final
 
 import numpy as np
 import viser
+import websockets.asyncio.server
 from scipy.interpolate import CubicSpline
 
 from estimators.gait_model import FOOT, SHANK, evaluate
 from estimators.pipeline import TrainedModel
+from server.origin import LOOPBACK_HOSTS, ProcessRequest, allowed_hosts_for, websockets_guard
 from sessions import schema
 from sessions.cohort import (
     ANKLE_HEIGHT_FRAC,
@@ -190,6 +201,32 @@ class _Leg:
         self.boxes[2].visible = foot is not None
 
 
+_serve_lock = threading.Lock()  # one guarded start at a time: the wrapper is process-wide while it lasts
+
+
+@contextlib.contextmanager
+def _guarded_serve(allowed_hosts: Iterable[str]) -> Iterator[list[int]]:
+    """While open, ``websockets.asyncio.server.serve`` runs :func:`server.origin.websockets_guard`
+    before the caller's own ``process_request``.
+
+    Yields a list that gets an entry per guarded ``serve`` call, to check that the guard is in place.
+    """
+    original = websockets.asyncio.server.serve
+    allowed = list(allowed_hosts)
+    installed: list[int] = []
+
+    def serve(*args: Any, process_request: ProcessRequest | None = None, **kwargs: Any) -> Any:
+        installed.append(1)
+        return original(*args, process_request=websockets_guard(allowed, then=process_request), **kwargs)
+
+    with _serve_lock:
+        websockets.asyncio.server.serve = serve  # type: ignore[misc, assignment]
+        try:
+            yield installed
+        finally:
+            websockets.asyncio.server.serve = original  # type: ignore[misc]
+
+
 class LegView:
     """A viser server showing the measured leg against the gait model's prediction.
 
@@ -198,16 +235,31 @@ class LegView:
         port: port to ask for; viser takes the next free one if it is busy (0: any free port).
             :attr:`port` is the one it got.
         model: the gait model that poses the ghost; None uses the states' ``*_pred_deg``.
+        allowed_hosts: the names the view may be reached at (``Settings.allowed_hosts``); default
+            the loopback names and ``host``.
+
+    Raises:
+        RuntimeError: viser started without the host guard (a viser version that serves otherwise).
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 8081, model: TrainedModel | None = None) -> None:
+    def __init__(
+        self,
+        host: str = "127.0.0.1",
+        port: int = 8081,
+        model: TrainedModel | None = None,
+        allowed_hosts: Iterable[str] | None = None,
+    ) -> None:
         self._host = host
         self._model = model
         self._lock = threading.Lock()  # held by one update (or close) at a time
         self._closed = False
         self._leg_length = _DEFAULT_LEG_LENGTH
-        self.server = viser.ViserServer(host=host, port=port, label="gaitscope leg", verbose=False)
+        self.allowed_hosts = allowed_hosts_for(host, LOOPBACK_HOSTS if allowed_hosts is None else allowed_hosts)
+        with _guarded_serve(self.allowed_hosts) as installed:
+            self.server = viser.ViserServer(host=host, port=port, label="gaitscope leg", verbose=False)
         try:
+            if not installed:
+                raise RuntimeError("viser did not start through websockets.asyncio.server.serve: no host guard")
             self._build()
         except BaseException:
             self.server.stop()

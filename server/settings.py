@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import ipaddress
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, model_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import Field, field_validator, model_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
+
+from server.origin import LOOPBACK_HOSTS, allowed_host, allowed_hosts_for
 
 
 class Settings(BaseSettings):
@@ -24,6 +26,11 @@ class Settings(BaseSettings):
         max_upload_mb: largest accepted upload.
         upload_chunk_kb: size of one upload chunk.
         slow_client_s: a browser that cannot take its stream for this long is disconnected (1013).
+        allowed_hosts: the names (and addresses) the dashboard and the leg view may be reached at;
+            any other ``Host`` is refused, which defeats DNS rebinding (:mod:`server.origin`). Names
+            without ports; the environment gives them comma-separated
+            (``GAITSCOPE_ALLOWED_HOSTS=127.0.0.1,localhost,::1,gaitlab.local``). Default the loopback
+            names; ``host`` is always added unless it is a wildcard (``0.0.0.0``, ``::``).
     """
 
     model_config = SettingsConfigDict(env_prefix="GAITSCOPE_", extra="ignore")
@@ -39,11 +46,24 @@ class Settings(BaseSettings):
     max_upload_mb: int = Field(default=512, ge=1, le=16384)
     upload_chunk_kb: int = Field(default=4096, ge=64, le=65536)
     slow_client_s: float = Field(default=10.0, gt=0.0, le=300.0)
+    allowed_hosts: Annotated[list[str], NoDecode] = Field(default_factory=lambda: list(LOOPBACK_HOSTS))
+
+    @field_validator("allowed_hosts", mode="before")
+    @classmethod
+    def _split_hosts(cls, value: Any) -> Any:
+        # Comma-separated rather than JSON in the environment: "[::1]" would read as a JSON list.
+        return [h.strip() for h in value.split(",") if h.strip()] if isinstance(value, str) else value
+
+    @field_validator("allowed_hosts")
+    @classmethod
+    def _canonical_hosts(cls, value: list[str]) -> list[str]:
+        return [allowed_host(h) for h in value]
 
     @model_validator(mode="after")
     def _defaults_and_safety(self) -> Settings:
         if not self.database_url:
             self.database_url = f"sqlite:///{(self.data_dir / 'gaitscope.db').as_posix()}"
+        self.allowed_hosts = allowed_hosts_for(self.host, self.allowed_hosts)
         if self.environment == "production" and not self.is_loopback:
             raise ValueError(
                 f"refusing to listen on {self.host} in production: gaitscope has no login yet; "

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
+import math
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
 
 from sessions import schema
+from sessions.estimation import FrameRefused
 from sessions.runtime import SessionRuntime, Subscriber
 from sessions.sources import LiveDevice
 from sessions.store import NotFound
@@ -18,6 +21,7 @@ from sessions.store import NotFound
 if TYPE_CHECKING:
     from server.app import AppContext
 
+log = logging.getLogger("gaitscope")
 router = APIRouter()
 
 #: Close codes.
@@ -133,7 +137,14 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
 
 @router.websocket("/ws/devices/{session_id}")
 async def device_ingest(ws: WebSocket, session_id: int) -> None:
-    """A live device: ``SensorFrame`` in, ``TorqueCommand`` out, one for one."""
+    """A live device: ``SensorFrame`` in, ``TorqueCommand`` out, one for one.
+
+    A frame that is refused gets a :class:`~sessions.schema.DeviceNotice` instead of a torque:
+    malformed, binary, reordered, or over the session's declared rate (those are dropped before they
+    are parsed, and reported at most once a second). A device that reconnects (after a reboot, its
+    clock restarted) is resynchronised. An error while processing a frame fails the session, with an
+    event, and closes the socket with 1011.
+    """
     await ws.accept()
     runtime = await _runtime(ws, session_id)
     if runtime is None:
@@ -148,35 +159,77 @@ async def device_ingest(ws: WebSocket, session_id: int) -> None:
         await ws.close(code=POLICY, reason=f"session {session_id} already has a device connected")
         return
     source.connected = True
+    runtime.device_connected()
     bad = 0
+    over_rate = 0
+    last_rate_notice = -math.inf
     try:
         while True:
-            text = await ws.receive_text()
+            message = await ws.receive()
+            if message["type"] == "websocket.disconnect":
+                return
+            if source.closed or runtime.ended is not None:
+                await ws.close(code=1000, reason=f"session {session_id} {runtime.ended or 'stopped'}"[:120])
+                return
             recv = time.time_ns()
+            now = time.monotonic()
+            if not source.admit(now):
+                over_rate += 1
+                if now - last_rate_notice >= 1.0:
+                    last_rate_notice = now
+                    detail = f"over the declared rate of {source.rate_hz:g} Hz: {over_rate} frames dropped"
+                    notice = schema.DeviceNotice(kind="rate", detail=detail, dropped=over_rate)
+                    await ws.send_text(notice.model_dump_json())
+                    over_rate = 0
+                if source.dropped % 32 == 0:
+                    await asyncio.sleep(0)  # a flood must not hold the loop
+                continue
+            text = message.get("text")
             try:
+                if text is None:
+                    raise _Binary
                 frame = schema.SensorFrame.model_validate_json(text)
-            except ValidationError as e:
+            except (ValidationError, _Binary) as e:
                 bad += 1
                 runtime.dropped_input += 1
-                await ws.send_json({"type": "error", "detail": e.errors(include_url=False, include_input=False)})
+                notice = (
+                    schema.DeviceNotice(kind="binary", detail="binary message: frames are JSON text")
+                    if isinstance(e, _Binary)
+                    else schema.DeviceNotice(kind="invalid", detail=_errors(e))
+                )
+                await ws.send_text(notice.model_dump_json())
                 if bad >= MAX_BAD_FRAMES:
                     await ws.close(code=POLICY, reason=f"{bad} malformed frames in a row")
                     return
                 continue
             bad = 0
-            if not runtime.accepts(frame):
+            try:
+                state = runtime.process(frame, recv)
+            except FrameRefused as e:
                 runtime.dropped_input += 1
-                await ws.send_json(
-                    {"type": "error", "detail": f"frame seq {frame.seq}: time {frame.t} does not increase"}
-                )
+                await ws.send_text(schema.DeviceNotice(kind="order", detail=str(e), seq=frame.seq).model_dump_json())
                 continue
-            state = runtime.process(frame, recv)
+            except Exception as e:
+                log.exception("session %d: processing a device frame failed", session_id)
+                await runtime.end("failed", f"processing a device frame failed: {e}")
+                await ws.close(code=1011, reason=f"session {session_id} failed"[:120])
+                return
             await ws.send_text(
                 schema.TorqueCommand(seq=frame.seq, t=state.t, torque_Nm=state.torque_Nm).model_dump_json()
             )
-    except WebSocketDisconnect:
+    except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
         source.connected = False
         with contextlib.suppress(Exception):
             await ws.close()
+
+
+class _Binary(Exception):
+    pass
+
+
+def _errors(e: Exception) -> list[dict[str, Any]]:
+    """Pydantic's errors without the input (which may hold NaN, which JSON cannot carry)."""
+    assert isinstance(e, ValidationError)
+    return [{"loc": list(err["loc"]), "msg": err["msg"], "type": err["type"]} for err in e.errors()]

@@ -7,23 +7,60 @@ raw logs (:func:`estimate`).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
 from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from sessions import schema
 from sessions.schema import GaitState, SensorFrame, SessionSettings
 
 #: Assumed sample period until the source's rate is known (s).
 DEFAULT_PERIOD = 0.005
+#: A device clock that goes back by less than this is a reordered frame (dropped); by more, a restart.
+REORDER_WINDOW_S = 0.5
+#: A device clock that jumps ahead by more than this in one frame is resynchronised.
+MAX_JUMP_S = 2.0
+
+
+class FrameRefused(ValueError):
+    """A frame the estimator did not take (its time does not follow the last one); nothing changed."""
+
+
+@dataclass(frozen=True)
+class Admission:
+    """Where a frame goes in session time, decided before anything changes.
+
+    ``verdict``: ``ok``; ``resync`` (the device clock restarted or jumped: session time continues one
+    sample period after the last one); ``order`` (a reordered or repeated frame: refused).
+    """
+
+    verdict: Literal["ok", "resync", "order"]
+    t: float
+    reason: str = ""
 
 
 class FrameEstimator:
     """Sensor frames in, gait states out: the pipeline plus what a device stream needs around it.
 
-    Session time starts at 0 on the first frame (or is ``frame.t - time_origin`` when given);
-    angular velocities a device does not send are derived by backward difference; ``foot_pred_deg``
-    and ``shank_pred_deg`` are the gait model at the prior estimate (what the filter expected to
-    measure). Used live and for offline re-runs.
+    Session time starts at 0 on the first frame (or is ``frame.t - time_origin`` when given) and always
+    increases: a device whose clock restarts (a reboot) or jumps by more than ``max_jump_s`` is
+    resynchronised, and :meth:`resync` moves session time to a wall clock's (a reconnect after a
+    pause). Angular velocities a device does not send are derived by backward difference;
+    ``foot_pred_deg`` and ``shank_pred_deg`` are the gait model at the prior estimate.
+
+    Soft start (``soft_start``): the torque gain and bound ramp from 0 to the session's values at the
+    rate limits of :data:`~sessions.schema.SETTING_LIMITS` (0.5 gain/s, 10 N m/s), from the first frame
+    and again after every restart or reset of the filters, so that assistance never starts as a step.
+    Deterministic in session time, so a re-run reproduces it.
+
+    Attributes:
+        last_t: session time of the last frame stepped.
+        notes: what happened that deserves an event (resynchronisations, filter faults); the caller
+            drains it after each step.
+        implausible: channel values treated as missing (outside ``SENSOR_LIMITS``) since the start.
+        faults: samples whose state has ``fault`` set.
     """
 
     def __init__(
@@ -34,7 +71,14 @@ class FrameEstimator:
         settings: SessionSettings,
         sample_period: float = DEFAULT_PERIOD,
         time_origin: float | None = None,
+        *,
+        soft_start: bool = True,
+        max_jump_s: float = MAX_JUMP_S,
+        reorder_window_s: float = REORDER_WINDOW_S,
     ):
+        if not (math.isfinite(sample_period) and 1e-5 <= sample_period <= 1.0):
+            sample_period = DEFAULT_PERIOD
+        self.sample_period = sample_period
         self.pipeline = GaitStatePipeline(
             model,
             PipelineConfig(
@@ -45,29 +89,89 @@ class FrameEstimator:
             ),
             sample_period=sample_period,
         )
-        self.retune(settings)
+        self.settings = settings
+        self.soft_start = soft_start
+        self.max_jump_s = max_jump_s
+        self.reorder_window_s = reorder_window_s
         self.last_t = 0.0
+        self.notes: list[str] = []
+        self.implausible = 0
+        self.faults = 0
         self._t_offset = time_origin
         self._prev: SensorFrame | None = None
+        self._ramp_t0 = 0.0
+        self._ramping = soft_start
+        self._min_next_t = -math.inf
+        self._last_recv_ns = 0
+        self.retune(settings)
 
     def retune(self, s: SessionSettings) -> None:
+        """Take new settings from the next frame on (the soft start, if running, still caps the torque)."""
+        self.settings = s
         self.pipeline.retune(
             torque_gain=s.torque_gain,
             max_torque=s.max_torque_Nm,
             measurement_noise_scale=s.measurement_noise_scale,
             process_noise_scale=s.process_noise_scale,
         )
+        if self._ramping:
+            self._apply_ramp(self.last_t)
+
+    def resync(self, elapsed_s: float) -> None:
+        """The device reconnected ``elapsed_s`` seconds (wall clock) into the session: its next frame
+        starts a new clock mapping at session time ``max(last_t + period, elapsed_s)``."""
+        if self._prev is None:
+            return
+        self._t_offset = None
+        self._min_next_t = max(self.last_t + self.sample_period, elapsed_s if math.isfinite(elapsed_s) else 0.0)
+
+    def admit(self, frame: SensorFrame, recv_ns: int = 0) -> Admission:
+        """Where ``frame`` would go; changes nothing.
+
+        ``recv_ns`` (the server's wall clock at arrival, 0 when unknown) tells a real pause of the
+        device from a glitch of its clock: on a resynchronisation session time advances by the wall
+        time since the last frame (at least one sample period).
+        """
+        if self._prev is None:
+            origin = frame.t if self._t_offset is None else self._t_offset
+            return Admission("ok", frame.t - origin)
+        next_t = self.last_t + self.sample_period
+        if recv_ns and self._last_recv_ns and recv_ns > self._last_recv_ns:
+            next_t = max(next_t, self.last_t + (recv_ns - self._last_recv_ns) / 1e9)
+        if self._t_offset is None:  # after resync(): a new clock mapping
+            return Admission("resync", max(next_t, self._min_next_t), "the device reconnected")
+        t = frame.t - self._t_offset
+        if not math.isfinite(t):
+            return Admission("resync", next_t, f"device time {frame.t:g} s cannot be placed")
+        if t > self.last_t:
+            if t - self.last_t <= self.max_jump_s or abs(t - next_t) <= 0.5:
+                return Admission("ok", t)
+            return Admission("resync", next_t, f"device clock jumped ahead by {t - self.last_t:.3g} s")
+        if self.last_t - t <= self.reorder_window_s:
+            return Admission("order", t, f"frame seq {frame.seq}: time {frame.t:g} does not follow the last frame")
+        return Admission("resync", next_t, f"device clock went back by {self.last_t - t:.3g} s (a restart?)")
 
     def accepts(self, frame: SensorFrame) -> bool:
-        """True if ``frame`` comes after the last frame stepped (or is the first)."""
-        return self._prev is None or self._t_offset is None or frame.t - self._t_offset > self.last_t
+        """True unless ``frame`` would be refused as reordered or repeated."""
+        return self.admit(frame).verdict != "order"
 
     def step(self, frame: SensorFrame, recv_ns: int) -> GaitState:
-        if self._t_offset is None:
-            self._t_offset = frame.t
-        t = frame.t - self._t_offset
-        if self._prev is not None and not t > self.last_t:
-            raise ValueError(f"frame time {frame.t} does not increase")
+        """Estimate one frame.
+
+        Raises:
+            FrameRefused: a reordered or repeated frame; the estimator is unchanged.
+        """
+        adm = self.admit(frame, recv_ns)
+        if adm.verdict == "order":
+            raise FrameRefused(adm.reason)
+        t = adm.t
+        if adm.verdict == "resync":
+            self._t_offset = frame.t - t if math.isfinite(frame.t - t) else 0.0
+            self.notes.append(f"session time resynchronised at {t:.3f} s: {adm.reason}")
+        elif self._t_offset is None:
+            self._t_offset = frame.t - t
+        frame, implausible = frame.plausible()
+        self.implausible += implausible
         raw = np.array(
             [
                 _or_nan(frame.foot_angle_deg),
@@ -79,9 +183,23 @@ class FrameEstimator:
             ]
         )
         self._derive_velocities(raw, t)
+        if self._ramping:
+            self._apply_ramp(t)
         e = self.pipeline.step(t, raw, frame.heel_strike)
+        if e.fault:
+            self.faults += 1
+            if e.fault in ("gap", "diverged"):
+                what = "a gap of over" if e.fault == "gap" else "the phase filter diverged; reset,"
+                limit = f" {self.pipeline.config.max_gap_s:g} s" if e.fault == "gap" else ""
+                self.notes.append(f"estimator restarted at {t:.3f} s ({what}{limit}); assistance ramps up again")
+                if self.soft_start:
+                    self._ramp_t0, self._ramping = t, True
+                    self._apply_ramp(t)
+            else:
+                self.notes.append(f"torque forced to 0 at {t:.3f} s: the torque model gave no finite value")
         pred = self.pipeline.predicted
         self.last_t = t
+        self._last_recv_ns = recv_ns
         self._prev = frame.model_copy(update={"t": t})
         return GaitState(
             seq=frame.seq,
@@ -94,14 +212,27 @@ class FrameEstimator:
             tbe_phase=e.tbe_phase,
             heel_strike=e.heel_strike,
             backup_reset=e.backup_reset,
+            fault=bool(e.fault),
             foot_angle_deg=frame.foot_angle_deg,
             shank_angle_deg=frame.shank_angle_deg,
             thigh_angle_deg=frame.thigh_angle_deg,
-            foot_pred_deg=float(pred[0]),
-            shank_pred_deg=float(pred[2]),
+            foot_pred_deg=_finite(pred[0]),
+            shank_pred_deg=_finite(pred[2]),
             sent_ns=frame.sent_ns,
             recv_ns=recv_ns,
         )
+
+    def _apply_ramp(self, t: float) -> None:
+        """Cap gain and bound at their rate limits times the time since the ramp started."""
+        s = self.settings
+        elapsed = max(0.0, t - self._ramp_t0)
+        gain_rate = schema.SETTING_LIMITS["torque_gain"][2]
+        bound_rate = schema.SETTING_LIMITS["max_torque_Nm"][2]
+        gain = min(s.torque_gain, gain_rate * elapsed)
+        bound = min(s.max_torque_Nm, bound_rate * elapsed)
+        self.pipeline.retune(torque_gain=gain, max_torque=bound)
+        if gain >= s.torque_gain and bound >= s.max_torque_Nm:
+            self._ramping = False
 
     def _derive_velocities(self, raw: np.ndarray, t: float) -> None:
         """Backward-difference velocities for a device without gyroscopes."""
@@ -124,11 +255,21 @@ def estimate(
     """Run recorded frames through a fresh estimator (review re-runs, imports of raw logs).
 
     Recorded ``/sensor`` frames carry session time, so a re-run passes ``time_origin=0`` to keep it.
+    Reordered frames are skipped, as live.
     """
     period = (frames[-1].t - frames[0].t) / (len(frames) - 1) if len(frames) > 1 else DEFAULT_PERIOD
     est = FrameEstimator(model, leg_length, mass_kg, settings, period, time_origin)
-    return [est.step(f, 0) for f in frames]
+    out = []
+    for f in frames:
+        if est.accepts(f):
+            out.append(est.step(f, 0))
+    return out
 
 
 def _or_nan(v: float | None) -> float:
     return math.nan if v is None else v
+
+
+def _finite(v: float) -> float:
+    v = float(v)
+    return v if math.isfinite(v) else 0.0

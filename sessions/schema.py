@@ -15,7 +15,7 @@ toes up). With these signs ``foot = shank + ankle_dorsiflexion`` (seed 000: shan
 
 from __future__ import annotations
 
-from typing import Annotated, Final, Literal
+from typing import Annotated, Any, Final, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -213,9 +213,15 @@ class ReplaySource(_Strict):
 
 
 class DeviceSource(_Strict):
-    """A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames."""
+    """A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames.
+
+    ``rate_hz`` is the device's declared sample rate: the server takes up to ``1.25 x rate_hz``
+    frames per second (with a burst of half a second) and drops the rest, counted and reported to
+    the device, so that a flooding device cannot starve the other sessions.
+    """
 
     kind: Literal["device"] = "device"
+    rate_hz: float = Field(default=200.0, ge=1.0, le=2000.0, description="declared sample rate (Hz)")
 
 
 class UploadSource(_Strict):
@@ -235,7 +241,8 @@ class SessionCreate(_Strict):
     start: bool = True
 
 
-SessionState = Literal["created", "running", "stopped"]
+#: ``failed``: the session's task stopped on an error (its event says which); it was recorded up to there.
+SessionState = Literal["created", "running", "stopped", "failed"]
 
 
 class Session(BaseModel):
@@ -249,7 +256,10 @@ class Session(BaseModel):
     stopped_utc: str | None = None
 
 
-TrialStatus = Literal["recording", "finished", "recovered", "uploaded"]
+#: ``recovered``: a crash left the recording unfinished and start-up recovery re-indexed it (the last
+#: half second or so may be missing). ``damaged``: it was left unfinished and its file is missing or
+#: could not be repaired; a system event of its session says why.
+TrialStatus = Literal["recording", "finished", "recovered", "uploaded", "damaged"]
 
 
 class Trial(BaseModel):
@@ -307,22 +317,55 @@ class Upload(BaseModel):
 
 
 class RerunRequest(_Strict):
-    settings: SessionSettings
+    """A re-run of a recorded trial's sensor frames through the estimators (``POST /api/trials/{id}/rerun``).
+
+    Two modes, by ``settings``:
+
+    * left out or null (the default): **as recorded**. The trial's recorded settings are replayed: those
+      in force at its first frame, then each recorded change (``/settings``) from the frame after the one
+      it followed, as it applied live; the model is the recorded one. The result reproduces the recorded
+      gait states to floating-point round-off: the baseline of "what ran".
+    * given: **what if**. These settings, model included, held constant over the whole trial (recorded
+      changes are not applied).
+    """
+
+    settings: SessionSettings | None = Field(
+        default=None, description="null: as recorded (the default); else these settings over the whole trial"
+    )
 
 
 # --- per-sample messages (websocket and MCAP) ----------------------------------------------------
 
+#: Physically plausible range of each sensor channel (units in the name). A value outside it, or a
+#: JSON ``NaN`` / ``Infinity``, is treated as missing for that sample, counted and shown in data
+#: health (``Health.implausible``); the rest of the frame is used. Angles within +/-180 deg, angular
+#: velocities within +/-4000 deg/s (the largest full scale of common MEMS gyros), raw heel positions
+#: within +/-3 m of the hip. The estimators state the same bounds (``estimators.pipeline.CHANNEL_LIMITS``).
+SENSOR_LIMITS: Final[dict[str, tuple[float, float]]] = {
+    "foot_angle_deg": (-180.0, 180.0),
+    "foot_vel_dps": (-4000.0, 4000.0),
+    "shank_angle_deg": (-180.0, 180.0),
+    "shank_vel_dps": (-4000.0, 4000.0),
+    "heel_forward_m": (-3.0, 3.0),
+    "heel_up_m": (-3.0, 3.0),
+    "thigh_angle_deg": (-180.0, 180.0),
+}
+#: Largest integer a frame may carry (``seq``, ``sent_ns``): a signed 64-bit integer, as MCAP and SQLite.
+INT64_MAX: Final = 2**63 - 1
+
 
 class SensorFrame(_Strict):
-    """One sample from a device (``/ws/devices/{id}``) or a source; NaN-free, absent = None.
+    """One sample from a device (``/ws/devices/{id}``) or a source; absent channel = None.
 
-    ``t`` is the device's own clock (s); ``sent_ns`` its wall clock at send time (ns since the epoch,
-    optional) for end-to-end latency.
+    ``t`` is the device's own clock (s) and must be a finite number: a frame without a usable time is
+    refused. Channel values outside :data:`SENSOR_LIMITS` (or NaN / Infinity) are accepted here and
+    treated as missing by :meth:`plausible`, which the estimators run on every frame. ``sent_ns`` is
+    the device's wall clock at send time (ns since the epoch, optional) for end-to-end latency.
     """
 
     type: Literal["frame"] = "frame"
-    seq: int = Field(ge=0)
-    t: float
+    seq: int = Field(ge=0, le=INT64_MAX)
+    t: float = Field(allow_inf_nan=False)
     foot_angle_deg: float | None = None
     foot_vel_dps: float | None = None
     shank_angle_deg: float | None = None
@@ -331,7 +374,16 @@ class SensorFrame(_Strict):
     heel_up_m: float | None = None
     thigh_angle_deg: float | None = Field(default=None, description="for the leg view only")
     heel_strike: bool | None = None
-    sent_ns: int | None = None
+    sent_ns: int | None = Field(default=None, ge=0, le=INT64_MAX)
+
+    def plausible(self) -> tuple[SensorFrame, int]:
+        """This frame with implausible channel values set to None, and how many were."""
+        bad = {
+            name: None
+            for name, (lo, hi) in SENSOR_LIMITS.items()
+            if (v := getattr(self, name)) is not None and not lo <= v <= hi
+        }
+        return (self.model_copy(update=bad), len(bad)) if bad else (self, 0)
 
 
 class GaitState(BaseModel):
@@ -347,6 +399,7 @@ class GaitState(BaseModel):
     tbe_phase: float
     heel_strike: bool
     backup_reset: bool
+    fault: bool = Field(default=False, description="the filters were reset or the torque forced to 0 here")
     foot_angle_deg: float | None
     shank_angle_deg: float | None
     thigh_angle_deg: float | None
@@ -383,9 +436,27 @@ class Health(BaseModel):
     latency_ms_p50: float | None
     latency_ms_p95: float | None
     samples: int
-    dropped_input: int = Field(description="device frames lost or out of order")
+    dropped_input: int = Field(description="device frames lost, out of order or over the declared rate")
     dropped_client: int = Field(description="batches this client missed because it was slow")
     clients: int
+    implausible: int = Field(default=0, description="sensor values outside SENSOR_LIMITS, treated as missing")
+    faults: int = Field(default=0, description="filter restarts and resets, and torques forced to 0")
+    disk: Literal["ok", "low", "critical"] = Field(default="ok", description="free space for the recording")
+
+
+class DeviceNotice(BaseModel):
+    """Server -> device, instead of a torque command: why a frame was refused or dropped.
+
+    ``kind``: ``invalid`` (the frame failed validation; ``detail`` lists the errors), ``order`` (its
+    time does not follow the last frame's), ``rate`` (frames over the declared rate were dropped;
+    ``dropped`` counts them since the last notice), ``binary`` (a binary message; frames are JSON text).
+    """
+
+    type: Literal["error"] = "error"
+    kind: Literal["invalid", "order", "rate", "binary"]
+    detail: str | list[dict[str, Any]]
+    seq: int | None = None
+    dropped: int = 0
 
 
 class EventMessage(BaseModel):

@@ -154,42 +154,52 @@ class ReplayDevice:
 
 
 class LiveDevice:
-    """Frames pushed by a device; bounded queue so a flood cannot exhaust memory.
+    """Frames pushed by a device over its websocket, limited to its declared rate.
+
+    The websocket handler processes each frame it admits at once (the torque reply goes back on the
+    same socket); :meth:`admit` is a token bucket that lets through ``headroom x rate_hz`` frames per
+    second with a burst of ``burst_s`` seconds' worth, so that a device flooding the server costs it a
+    counter increment per excess frame rather than a filter step, and cannot starve other sessions.
 
     Attributes:
-        dropped: frames refused because the queue was full or their time did not increase.
+        rate_hz: the declared rate (Hz).
+        dropped: frames dropped over the rate.
+        connected: a device is connected now (one at a time).
     """
 
-    def __init__(self, capacity: int = 2000):
-        self.rate_hz: float | None = None
-        self._queue: asyncio.Queue[SensorFrame | None] = asyncio.Queue(maxsize=capacity)
-        self._last_t = -math.inf
+    def __init__(self, rate_hz: float = 200.0, headroom: float = 1.25, burst_s: float = 0.5):
+        if not (math.isfinite(rate_hz) and rate_hz > 0):
+            raise ValueError(f"rate_hz must be a positive number, got {rate_hz}")
+        self.rate_hz: float | None = rate_hz
+        self._fill = rate_hz * headroom
+        self._capacity = max(1.0, self._fill * burst_s)
+        self._tokens = self._capacity
+        self._last = time.monotonic()
+        self._closed = asyncio.Event()
         self.dropped = 0
         self.connected = False
 
-    def push(self, frame: SensorFrame) -> bool:
-        """Offer a frame from the device; False (and counted) if out of order or the queue is full."""
-        if not frame.t > self._last_t:
-            self.dropped += 1
-            return False
-        try:
-            self._queue.put_nowait(frame)
-        except asyncio.QueueFull:
-            self.dropped += 1
-            return False
-        self._last_t = frame.t
-        return True
+    def admit(self, now: float | None = None) -> bool:
+        """Take one frame's token at monotonic time ``now``; False (and counted) when over the rate."""
+        now = time.monotonic() if now is None else now
+        self._tokens = min(self._capacity, self._tokens + (now - self._last) * self._fill)
+        self._last = now
+        if self._tokens >= 1.0:
+            self._tokens -= 1.0
+            return True
+        self.dropped += 1
+        return False
 
     def close(self) -> None:
         """End the stream (the session is stopping)."""
-        try:
-            self._queue.put_nowait(None)
-        except asyncio.QueueFull:
-            pass
+        self._closed.set()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed.is_set()
 
     async def frames(self) -> AsyncIterator[SensorFrame]:
-        while True:
-            f = await self._queue.get()
-            if f is None:
-                return
-            yield f
+        """Yields nothing: frames arrive through the websocket handler; ends when closed."""
+        await self._closed.wait()
+        return
+        yield  # an async generator

@@ -352,6 +352,26 @@ class Store:
             row.settings = settings.model_dump_json()
             return _session(row)
 
+    def change_settings(
+        self,
+        session_id: int,
+        settings: schema.SessionSettings,
+        events: list[dict[str, Any]],
+        *,
+        trial_id: int | None = None,
+    ) -> tuple[schema.Session, list[schema.Event]]:
+        """Store new settings and their events (``add_event`` keyword arguments) in ONE transaction.
+
+        The caller applies the change only after this returns: if it raises, nothing was stored and
+        nothing must change.
+        """
+        with self._write() as session:
+            row = self._get(session, _SessionRow, session_id, for_update=True)
+            row.settings = settings.model_dump_json()
+            rows = [self._event_row(session, session_id, trial_id, **e) for e in events]
+            session.flush()
+            return _session(row), [_event(r) for r in rows]
+
     def running_sessions(self) -> list[schema.Session]:
         """Sessions in state ``running``, oldest first (at start-up: those a crash left running)."""
         query = select(_SessionRow).where(_SessionRow.state == "running").order_by(_SessionRow.id)
@@ -428,26 +448,47 @@ class Store:
         given, must be a trial of this session (:class:`Conflict` otherwise).
         """
         with self._write() as session:
-            self._get(session, _SessionRow, session_id)
-            if trial_id is not None:
-                trial = self._get(session, _TrialRow, trial_id)
-                if trial.session_id != session_id:
-                    raise Conflict(f"trial {trial_id} belongs to session {trial.session_id}, not {session_id}")
-            row = _EventRow(
-                session_id=session_id,
-                trial_id=trial_id,
-                t=float(t),
-                wall_utc=_now().isoformat(timespec="milliseconds"),
-                kind=kind,
-                text=text,
-                field=field,
-                before=_encode_value(before),
-                after=_encode_value(after),
+            row = self._event_row(
+                session, session_id, trial_id, t=t, kind=kind, text=text, field=field, before=before, after=after,
                 actor=actor,
-            )
-            session.add(row)
+            )  # fmt: skip
             session.flush()
             return _event(row)
+
+    def _event_row(
+        self,
+        session: orm.Session,
+        session_id: int,
+        trial_id: int | None,
+        *,
+        t: float,
+        kind: schema.EventKind,
+        text: str,
+        field: str | None = None,
+        before: float | str | None = None,
+        after: float | str | None = None,
+        actor: str = "system",
+    ) -> _EventRow:
+        """Add an event row inside an open write transaction (checks session and trial)."""
+        self._get(session, _SessionRow, session_id)
+        if trial_id is not None:
+            trial = self._get(session, _TrialRow, trial_id)
+            if trial.session_id != session_id:
+                raise Conflict(f"trial {trial_id} belongs to session {trial.session_id}, not {session_id}")
+        row = _EventRow(
+            session_id=session_id,
+            trial_id=trial_id,
+            t=float(t),
+            wall_utc=_now().isoformat(timespec="milliseconds"),
+            kind=kind,
+            text=text,
+            field=field,
+            before=_encode_value(before),
+            after=_encode_value(after),
+            actor=actor,
+        )
+        session.add(row)
+        return row
 
     def list_events(self, session_id: int) -> list[schema.Event]:
         """A session's events, oldest first (by ``t``, then by insertion)."""

@@ -36,7 +36,12 @@ def small_model(small_data: StrideData) -> TrainedModel:
 
 @pytest.fixture
 def client(tmp_path: Path) -> Iterator[TestClient]:
-    """The app (lifespan included) on a fresh data folder: no demo, no leg view, small upload limits."""
-    settings = Settings(data_dir=tmp_path / "data", demo=False, leg_view=False, max_upload_mb=5, upload_chunk_kb=64)
+    """The app (lifespan included) on a fresh data folder: no demo, no leg view, small upload limits.
+
+    TestClient sends ``Host: testserver``: allowed here, and only here (never by default)."""
+    settings = Settings(
+        data_dir=tmp_path / "data", demo=False, leg_view=False, max_upload_mb=5, upload_chunk_kb=64,
+        allowed_hosts=["testserver"],
+    )  # fmt: skip
     with TestClient(create_app(settings)) as c:
         yield c

@@ -32,7 +32,7 @@ from sessions.mcap_io import (
     read_series,
     recover,
 )
-from sessions.recording import Recorder
+from sessions.recording import FLUSH_INTERVAL_S, Recorder
 
 START_NS = 1_700_000_000_123_456_789
 RATE_HZ = 200.0
@@ -227,10 +227,11 @@ def test_summary_names_encodings_and_metadata(recorded: Path) -> None:
         [meta] = list(reader.iter_metadata())
         assert meta.name == "gaitscope"
         assert meta.metadata == {**META, "start_ns": str(START_NS)}
-        # ~1 s per chunk at 200 Hz: a crash loses at most about a second.
+        # A chunk closes once it spans FLUSH_INTERVAL_S (0.5 s) of session time: what kill -9 can lose.
+        # The last one also holds the three events, written after the samples at earlier times.
         spans = [(c.message_end_time - c.message_start_time) / 1e9 for c in summary.chunk_indexes]
-        assert len(spans) == 3
-        assert all(0.8 < s < 1.5 for s in spans[:-1])
+        assert spans[:-1] == [FLUSH_INTERVAL_S] * 5
+        assert spans[-1] == pytest.approx(2.995 - 0.5)
 
 
 def test_recorder_refuses_misuse(tmp_path: Path) -> None:

@@ -30,7 +30,8 @@ def test_killed_server_leaves_a_recording_that_restart_recovers(tmp_path: Path) 
     with pytest.raises(DataFormatError, match="not finished"):
         check_mcap(files[0])
 
-    with TestClient(create_app(Settings(data_dir=data, demo=False, leg_view=False))) as client:
+    settings = Settings(data_dir=data, demo=False, leg_view=False, allowed_hosts=["testserver"])  # TestClient's Host
+    with TestClient(create_app(settings)) as client:
         trial = client.get("/api/trials").json()[0]
         assert trial["status"] == "recovered" and trial["samples"] > 200  # > 1 s of the ~4 s kept
         check_mcap(files[0])

@@ -88,7 +88,7 @@ def test_unknown_session_is_refused(client: TestClient) -> None:
 
 
 def test_live_device_gets_torque_back_and_browsers_see_it(client: TestClient) -> None:
-    sid = _session(client, {"kind": "device"})
+    sid = _session(client, {"kind": "device", "rate_hz": 2000.0})
     sensors, _, _ = sensor_trial([(1.2, 0.0, 6)], rate_hz=100.0)
     frames = replay_input(sensors)
     with (
@@ -110,8 +110,10 @@ def test_live_device_gets_torque_back_and_browsers_see_it(client: TestClient) ->
             assert reply["type"] == "torque" and reply["seq"] == k
             torques.append(reply["torque_Nm"])
         assert max(torques) > 5.0 and min(torques) == 0.0  # push-off assistance, none in swing
-        device.send_text(json.dumps({"type": "frame", "seq": 300, "t": 100.0}))  # time goes back
-        assert "does not increase" in json.loads(device.receive_text())["detail"]
+        last_t = 100.0 + float(frames.time_s[299])
+        device.send_text(json.dumps({"type": "frame", "seq": 300, "t": last_t - 0.1}))  # a reordered frame
+        notice = json.loads(device.receive_text())
+        assert notice["kind"] == "order" and "does not follow" in notice["detail"]
         device.send_text('{"type": "frame", "seq": "x"}')
         assert json.loads(device.receive_text())["type"] == "error"
         states, _ = _states(browser, 300)

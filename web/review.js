@@ -1,6 +1,7 @@
 // Review (`#/trials/{id}`): a timeline of the whole trial (decimated by the server) with its events,
-// zoom (server fetch of the range), a scrubbed cursor the leg view follows, the live view's plots, and
-// "re-run with settings" overlaid on the original.
+// zoom (server fetch of the range), a scrubbed cursor the leg view follows, the live view's plots, and a
+// re-run overlaid on the original: with the recorded settings (the default: what ran, setting changes
+// replayed where they happened) or "what if" (the editor's settings held over the whole trial).
 
 import { api, errorText, query } from "./api.js";
 import { EVENT_COLORS, EventList } from "./events.js";
@@ -64,16 +65,42 @@ export function mountReview(root, trialId) {
     h("div", { class: "overlay-plots" }, bandT, bandF));
 
   // --- re-run -----------------------------------------------------------------------------------------
+  // Two modes (RerunRequest): "recorded" sends no settings, and the server replays the recorded ones
+  // and their changes, so the overlay lies on the recording; "whatif" holds the editor's settings over
+  // the whole trial. Editing a setting chooses "what if".
   const editor = new SettingsEditor("rerun");
-  // SessionSettings' defaults until the trial's session is loaded.
+  // SessionSettings' defaults until the trial's recorded settings are loaded.
   editor.setBaseline({ torque_gain: 1.0, max_torque_Nm: 30.0, measurement_noise_scale: 1.0, process_noise_scale: 1.0 });
-  const rerunBtn = h("button", { type: "button", class: "primary", "data-testid": "rerun-submit", text: "Re-run with these settings" });
+  const modeChoice = (mode, text) => h("label", { class: "choice" },
+    h("input", { type: "radio", name: "rerun-mode", value: mode, "data-testid": `rerun-mode-${mode}`, checked: mode === "recorded" }),
+    h("span", { text }));
+  const modeRecorded = modeChoice("recorded", "Re-run with the recorded settings (default)");
+  const modeWhatIf = modeChoice("whatif", "What if: these settings over the whole trial");
+  const modeNote = h("p", { class: "hint", "data-testid": "rerun-mode-note" });
+  const rerunBtn = h("button", { type: "button", class: "primary", "data-testid": "rerun-submit" });
   const rerunClear = h("button", { type: "button", "data-testid": "rerun-clear", text: "Remove overlay", disabled: true });
   const rerunError = errorBox("rerun-error");
   const rerunOk = h("p", { class: "ok", role: "status", "data-testid": "rerun-ok" });
-  const rerunCard = h("section", { class: "card", "data-testid": "rerun-card" }, h("h2", { text: "Re-run with settings" }),
+  const rerunCard = h("section", { class: "card", "data-testid": "rerun-card" }, h("h2", { text: "Re-run" }),
     h("p", { class: "hint", text: "The trial's raw sensor frames through the estimators again; phase, torque and incline are overlaid (purple)." }),
+    h("fieldset", { class: "choices" }, h("legend", { text: "Settings" }), modeRecorded, modeWhatIf), modeNote,
     editor.el, h("div", { class: "buttons" }, rerunBtn, rerunClear), rerunError, rerunOk);
+  const radio = (label) => label.querySelector("input");
+  const whatIf = () => radio(modeWhatIf).checked;
+  function showMode() {
+    rerunBtn.textContent = whatIf() ? "Re-run: what if" : "Re-run with the recorded settings";
+    modeNote.textContent = whatIf()
+      ? "These settings held from the first frame to the last; the recorded changes are not applied."
+      : "The settings in force when the trial began (shown below), and every recorded change where it happened: the re-run reproduces what ran.";
+  }
+  rerunCard.addEventListener("change", (ev) => {
+    if (ev.target.name === "rerun-mode") showMode();
+  });
+  editor.el.addEventListener("input", () => {
+    radio(modeWhatIf).checked = true;
+    showMode();
+  });
+  showMode();
 
   const events = new EventList("review-events", { onSelect: (ev) => setCursor(ev.t, true) });
   root.append(h("div", { class: "page review-page" },
@@ -212,17 +239,21 @@ export function mountReview(root, trialId) {
   rerunBtn.addEventListener("click", () => {
     rerunOk.textContent = "";
     runAction(rerunBtn, rerunError, async () => {
-      const settings = editor.values();
+      const asWhatIf = whatIf();
+      const settings = asWhatIf ? editor.values() : null;
       rerunOk.textContent = "re-running…";
-      const res = await api("POST", `/api/trials/${trialId}/rerun${query({ max_points: RERUN_POINTS })}`, { settings: { ...st.baseSettings, ...settings } });
+      // The model and anything the editor does not show come from the recorded settings.
+      const body = asWhatIf ? { settings: { ...st.baseSettings, ...settings } } : {};
+      const res = await api("POST", `/api/trials/${trialId}/rerun${query({ max_points: RERUN_POINTS })}`, body);
       const r = derive(res);
       if (!r.t || !r.t.length) throw new ValidationError("The re-run produced no samples (the trial has no raw sensor frames).");
-      // Both start at the trial's first frame; if their clocks differ (a re-run counts from 0), align
-      // the re-run on the recording by that shared first sample (same seq).
-      const shift = r.seq && st.full.seq && r.seq[0] === st.full.seq[0] ? st.full.t[0] - r.t[0] : 0;
-      st.rerun = { t: r.t.map((t) => t + shift), ...Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c]])) };
+      // The server puts the re-run on the recording's session times: no alignment here.
+      st.rerun = { t: r.t, ...Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c]])) };
       rerunClear.disabled = false;
-      rerunOk.textContent = `Overlaid: ${Object.entries(settings).map(([k, v]) => `${k} ${v}`).join(", ")}.`;
+      const changes = st.events.filter((e) => e.kind === "setting").length;
+      rerunOk.textContent = asWhatIf
+        ? `Overlaid: ${Object.entries(settings).map(([k, v]) => `${k} ${v}`).join(", ")} (what if, over the whole trial).`
+        : `Overlaid: the recorded settings, ${changes} recorded change${changes === 1 ? "" : "s"} replayed (what ran).`;
       drawView();
     }).then(() => {
       if (rerunOk.textContent === "re-running…") rerunOk.textContent = "";
@@ -260,9 +291,19 @@ export function mountReview(root, trialId) {
       setCursor(T0, true);
       await loadLimits();
       editor.applyLimits();
-      const session = await api("GET", `/api/sessions/${trial.session_id}`);
-      st.baseSettings = session.settings;
-      editor.setBaseline(session.settings);
+      // The what-if starts from the settings the trial began with (not the session's final ones).
+      try {
+        st.baseSettings = await api("GET", `/api/trials/${trialId}/settings`);
+      } catch (err) {
+        // Not recorded (a log from another tool): only a what-if can run, from the session's settings.
+        st.baseSettings = (await api("GET", `/api/sessions/${trial.session_id}`)).settings;
+        radio(modeRecorded).disabled = true;
+        radio(modeWhatIf).checked = true;
+        showMode();
+        modeNote.textContent = `${errorText(err)}.`;
+      }
+      if (!st.alive) return;
+      editor.setBaseline(st.baseSettings);
     } catch (err) {
       showError(error, err);
     }

@@ -1,0 +1,468 @@
+"""Uploads (``server/uploads.py``, ``sessions/imports.py``) against the real app and a real SQLite file.
+
+What is checked: the format is decided by the file's name and content; every bad file is refused with
+422 and a reason that names the user's file and no server path; nothing is stored by a refused or
+failed upload and nothing stored before is lost; the rows and the recording of an import appear
+together; one chunk at a time per upload; quotas on open uploads and disk space; file names without
+control characters; the import runs in a worker process and streams (memory does not grow with the
+file).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import functools
+import hashlib
+import io
+import json
+import math
+import shutil
+import time
+import tracemalloc
+from collections.abc import AsyncIterator, Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx2
+import numpy as np
+import pandas as pd
+import pytest
+from fastapi.testclient import TestClient
+from mcap.writer import Writer
+
+from server.app import create_app
+from server.settings import Settings
+from sessions import schema
+from sessions.cohort import CohortSpec, generate_cohort
+from sessions.locohub import write_table
+from sessions.mcap_io import read_messages
+from sessions.models import default_model_path, load_model
+from sessions.sources import frames_from_table
+from sessions.trials import replay_columns, sensor_trial
+
+SUBJECT = {"code": "P01", "leg_length_m": 0.9, "mass_kg": 70.0}
+
+# --- helpers -------------------------------------------------------------------------------------
+
+
+def _settings(tmp_path: Path, **overrides: Any) -> Settings:
+    """The test settings (as the ``client`` fixture's) plus ``overrides``."""
+    return Settings(
+        data_dir=tmp_path / "data", demo=False, leg_view=False, max_upload_mb=5, upload_chunk_kb=64,
+        allowed_hosts=["testserver"], **overrides,
+    )  # fmt: skip
+
+
+@pytest.fixture
+def make_client(tmp_path: Path) -> Iterator[Callable[..., TestClient]]:
+    """Start the app (lifespan included) with the test settings plus ``overrides``."""
+    with contextlib.ExitStack() as stack:
+
+        def make(**overrides: Any) -> TestClient:
+            return stack.enter_context(TestClient(create_app(_settings(tmp_path, **overrides))))
+
+        yield make
+
+
+def _subject(client: TestClient) -> int:
+    r = client.post("/api/subjects", json=SUBJECT)
+    assert r.status_code == 201, r.text
+    return int(r.json()["id"])
+
+
+def _upload(client: TestClient, data: bytes, name: str, subject_id: int) -> tuple[int, Any]:
+    """Create, send in chunks, finish: (status, body) of the first refusal or of the finish."""
+    r = client.post("/api/uploads", json={"filename": name, "size": len(data), "subject_id": subject_id})
+    if r.status_code != 201:
+        return r.status_code, r.json()
+    up = r.json()
+    for off in range(0, len(data), up["chunk_size"]):
+        r = client.put(f"/api/uploads/{up['id']}?offset={off}", content=data[off : off + up["chunk_size"]])
+        assert r.status_code == 200, r.text
+    r = client.post(f"/api/uploads/{up['id']}/finish")
+    return r.status_code, r.json()
+
+
+def _files(root: Path) -> dict[str, str]:
+    """Every file under ``root`` but the database, with its sha256."""
+    return {
+        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(root.rglob("*"))
+        if p.is_file() and not p.name.startswith("gaitscope.db")
+    }
+
+
+@functools.cache
+def _frames() -> list[dict[str, Any]]:
+    """About 10 s of simulated sensor frames (100 Hz) as JSON-ready dicts."""
+    sensors, _, _ = sensor_trial([(1.0, 0.0, 8)])
+    return [f.model_dump(exclude_none=True) for f in frames_from_table(replay_columns(sensors))]
+
+
+@functools.cache
+def _replay_csv() -> bytes:
+    sensors, _, _ = sensor_trial([(1.0, 0.0, 8)])
+    return replay_columns(sensors).to_csv(index=False, float_format="%.5f").encode()
+
+
+def _mcap(frames: list[dict[str, Any]], topic: str = "/sensor", states: list[dict[str, Any]] | None = None) -> bytes:
+    """A finished MCAP with ``frames`` as JSON on ``topic`` (written with ``json.dumps``, so a float NaN
+    becomes the token ``NaN``), 5 ms apart, and ``states`` on ``/gait_state``."""
+    buf = io.BytesIO()
+    writer = Writer(buf)
+    writer.start(profile="", library="test")
+    channel = writer.register_channel(topic=topic, message_encoding="json", schema_id=0)
+    for i, frame in enumerate(frames):
+        writer.add_message(channel, log_time=i * 5_000_000, data=json.dumps(frame).encode(), publish_time=0)
+    if states is not None:
+        gait = writer.register_channel(topic="/gait_state", message_encoding="json", schema_id=0)
+        for i, state in enumerate(states):
+            writer.add_message(gait, log_time=i * 5_000_000, data=json.dumps(state).encode(), publish_time=0)
+    writer.finish()
+    return buf.getvalue()
+
+
+def _edit(frames: list[dict[str, Any]], index: int, **fields: Any) -> list[dict[str, Any]]:
+    out = [dict(f) for f in frames]
+    out[index].update(fields)
+    return out
+
+
+@functools.cache
+def _locohub() -> pd.DataFrame:
+    return generate_cohort(CohortSpec(n_subjects=1, speeds_m_s=(1.0,), inclines_deg=(0.0, 5.0), strides_per_condition=2))
+
+
+def _locohub_bytes(suffix: str, tmp_path: Path, frame: pd.DataFrame | None = None) -> bytes:
+    path = tmp_path / f"table{suffix}"
+    write_table(_locohub() if frame is None else frame, path)
+    return path.read_bytes()
+
+
+def _parquet(frame: pd.DataFrame) -> bytes:
+    buf = io.BytesIO()
+    frame.to_parquet(buf, index=False)
+    return buf.getvalue()
+
+
+def _recording(tmp_path: Path) -> bytes:
+    """A gaitscope recording (``/sensor``, ``/gait_state``, ...) made by importing the replay CSV."""
+    from sessions.imports import ImportJob, import_log
+
+    csv_path, target = tmp_path / "walk.csv", tmp_path / "walk.mcap"
+    csv_path.write_bytes(_replay_csv())
+    subject = schema.Subject(id=1, created_utc="2024-01-01T00:00:00+00:00", **SUBJECT)
+    import_log(ImportJob(csv_path, "walk.csv", target, subject, load_model(default_model_path())[0]))
+    return target.read_bytes()
+
+
+# --- the format: name and content ----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("suffix", [".parquet", ".csv"])
+def test_locohub_tables_import(make_client: Callable[..., TestClient], tmp_path: Path, suffix: str) -> None:
+    client = make_client()
+    code, trial = _upload(client, _locohub_bytes(suffix, tmp_path), f"cohort{suffix}", _subject(client))
+    assert code == 201, trial
+    # one frame per distinct time of each (subject, task)
+    expected = sum(g["time_s"].nunique() for _, g in _locohub().groupby(["subject", "task_id"]))
+    assert (trial["status"], trial["name"], trial["samples"]) == ("uploaded", f"cohort{suffix}", expected)
+    series = client.get(f"/api/trials/{trial['id']}/series?max_points=20000").json()
+    assert len(series["t"]) == expected
+    session = client.get(f"/api/sessions/{trial['session_id']}").json()
+    assert session["state"] == "stopped" and session["source"] == {"kind": "upload", "filename": f"cohort{suffix}"}
+
+
+def test_replay_csv_and_mcap_import(make_client: Callable[..., TestClient], tmp_path: Path) -> None:
+    client = make_client()
+    sid = _subject(client)
+    code, raw = _upload(client, _mcap(_frames()), "raw.mcap", sid)  # sensor frames only: estimated
+    assert code == 201 and raw["samples"] == len(_frames()), raw
+    code, csv_trial = _upload(client, _replay_csv(), "walk.csv", sid)
+    assert code == 201 and csv_trial["samples"] == len(_frames()), csv_trial
+    recording = _recording(tmp_path)
+    code, kept = _upload(client, recording, "recorded.mcap", sid)  # has gait states: kept as recorded
+    assert code == 201 and kept["samples"] == len(_frames()), kept
+    stored = client.get(f"/api/trials/{kept['id']}/download").content
+    assert stored == recording
+    assert [t["name"] for t in client.get("/api/trials").json()] == ["raw.mcap", "walk.csv", "recorded.mcap"]
+
+
+# --- bad files: 422 in the user's terms, nothing stored ------------------------------------------
+
+_GOOD_STATES = [
+    {"seq": i, "t": i * 0.005, "phase": 0.1, "phase_rate": 1.0, "stride_length_m": 1.2, "incline_deg": 0.0,
+     "torque_Nm": 0.0, "tbe_phase": 0.1, "heel_strike": False, "backup_reset": False, "foot_angle_deg": None,
+     "shank_angle_deg": None, "thigh_angle_deg": None, "foot_pred_deg": 0.0, "shank_pred_deg": 0.0, "recv_ns": 0}
+    for i in range(3)
+]  # fmt: skip
+
+#: (name, content builder, words the reason must hold)
+BAD_FILES: list[tuple[str, Callable[[Path], bytes], str]] = [
+    ("blank.csv", lambda _: b"\n\n", "the file is empty"),
+    ("bom.csv", lambda _: b"\xef\xbb\xbf", "the file is empty"),
+    ("cut.mcap", lambda _: _mcap(_frames())[: len(_mcap(_frames())) // 2], "the MCAP file is incomplete"),
+    ("text.mcap", lambda _: b"time_s,foot_angle_deg\n0,1\n", "not an MCAP file: the content is CSV text"),
+    ("magic.mcap", lambda _: b"\x89MCAP9\r\n" + bytes(64), "not an MCAP file: the content is binary data"),
+    ("table.mcap", lambda _: _parquet(pd.DataFrame({"x": [1.0]})), "not an MCAP file: the content is a parquet file"),
+    ("wrong.csv", lambda _: b"a,b\n1,2\n3,4\n", "neither the replay columns"),
+    ("garbage.csv", lambda _: bytes(range(256)) * 16, "not a CSV file: the content is binary data"),
+    ("recording.csv", lambda _: _mcap(_frames()), "not a CSV file: the content is an MCAP file"),
+    ("table.csv", lambda _: _parquet(pd.DataFrame({"x": [1.0]})), "not a CSV file: the content is a parquet file"),
+    ("text.parquet", lambda _: b"time_s,foot_angle_deg\n0,1\n", "not a parquet file: the content is CSV text"),
+    ("other.parquet", lambda _: _parquet(pd.DataFrame({"x": [1.0, 2.0]})), "missing required column(s)"),
+    ("cut.parquet", lambda p: _locohub_bytes(".parquet", p)[:2000], "not a readable parquet file"),
+    ("nosensor.mcap", lambda _: _mcap(_frames(), topic="/other"), "no /sensor channel"),
+    ("one.mcap", lambda _: _mcap(_frames()[:1]), "fewer than 2 sensor frames"),
+    ("nan_t.mcap", lambda _: _mcap(_edit(_frames(), 5, t=math.nan)), "/sensor message 6: t is NaN"),
+    ("inf_t.mcap", lambda _: _mcap(_edit(_frames(), 5, t=math.inf)), "/sensor message 6: t is infinite"),
+    ("huge_t.mcap", lambda _: _mcap(_edit(_frames(), 5, t=1e300)), "/sensor message 6: t = 1e+300 s is out of range"),
+    ("back_t.mcap", lambda _: _mcap(_edit(_frames(), 5, t=0.0)), "/sensor message 6: time goes backwards"),
+    ("same_t.mcap", lambda _: _mcap(_edit(_frames(), 5, t=_frames()[4]["t"])), "/sensor message 6: time repeats"),
+    ("long.mcap", lambda _: _mcap([*_frames()[:3], {"seq": 3, "t": 5e6}]), "the log spans 5e+06 s"),
+    ("nan_value.mcap", lambda _: _mcap(_edit(_frames(), 5, foot_angle_deg=math.nan)), "foot_angle_deg is NaN"),
+    ("inf_value.mcap", lambda _: _mcap(_edit(_frames(), 5, shank_vel_dps=-math.inf)), "shank_vel_dps is infinite"),
+    ("text_value.mcap", lambda _: _mcap(_edit(_frames(), 5, heel_up_m="high")), "/sensor message 6: heel_up_m"),
+    ("nan_state.mcap", lambda _: _mcap(_frames(), states=[*_GOOD_STATES[:2], {**_GOOD_STATES[2], "phase": math.nan}]),
+     "/gait_state message 3: phase is NaN"),
+    ("huge_state.mcap", lambda _: _mcap(_frames(), states=[*_GOOD_STATES[:2], {**_GOOD_STATES[2], "t": 1e300}]),
+     "/gait_state message 3: t = 1e+300 s is out of range"),
+    ("nan.csv", lambda _: b"time_s,foot_angle_deg\n0,1\n0.01,nan\n", "column 'foot_angle_deg', row 3: NaN"),
+    ("huge_t.csv", lambda _: b"time_s,foot_angle_deg\n0,1\n1e300,2\n", "column 'time_s', row 3: t = 1e+300 s is out of range"),
+    ("back_t.csv", lambda _: b"time_s,foot_angle_deg\n0,1\n0.02,2\n0.01,3\n", "row 4: time goes backwards"),
+    ("short.csv", lambda _: b"time_s,foot_angle_deg\n0,1\n", "need at least 2 data rows"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("name", "content", "reason"), BAD_FILES, ids=[b[0] for b in BAD_FILES])
+def test_bad_files_are_refused_in_the_users_terms(
+    make_client: Callable[..., TestClient], tmp_path: Path, name: str, content: Callable[[Path], bytes], reason: str
+) -> None:
+    client = make_client()
+    sid = _subject(client)
+    code, good = _upload(client, _replay_csv(), "kept.csv", sid)
+    assert code == 201
+    data_dir = tmp_path / "data"
+    before = _files(data_dir)
+    code, body = _upload(client, content(tmp_path), name, sid)
+    assert code == 422, body
+    detail = body["detail"]
+    assert detail.startswith(f"file {name}") and reason in detail, detail
+    assert str(tmp_path) not in detail and ".part" not in detail and "uploads/" not in detail
+    assert _files(data_dir) == before  # nothing stored, nothing lost
+    assert [t["id"] for t in client.get("/api/trials").json()] == [good["id"]]
+    assert len(client.get("/api/sessions").json()) == 1
+    assert len(client.get(f"/api/trials/{good['id']}/series?max_points=20000").json()["t"]) == len(_frames())
+
+
+def test_empty_file_is_refused_at_creation(make_client: Callable[..., TestClient]) -> None:
+    client = make_client()
+    r = client.post("/api/uploads", json={"filename": "empty.csv", "size": 0, "subject_id": _subject(client)})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "size"]
+
+
+@pytest.mark.parametrize(
+    "name",
+    ["nul\x00.csv", "line\nbreak.csv", "tab\t.csv", "bell\x07.mcap", "del\x7f.csv", "c1\x85.csv",
+     "rtl\u202egpj.parquet", "isolate\u2066.csv", "sep\u2028.csv"],
+)  # fmt: skip
+def test_control_characters_in_the_name_are_refused(make_client: Callable[..., TestClient], name: str) -> None:
+    client = make_client()
+    r = client.post("/api/uploads", json={"filename": name, "size": 10, "subject_id": _subject(client)})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "filename"]
+
+
+def test_ordinary_names_are_kept(make_client: Callable[..., TestClient]) -> None:
+    client = make_client()
+    code, trial = _upload(client, _replay_csv(), "Gang 2 (Müller) – 5°.csv", _subject(client))
+    assert code == 201 and trial["name"] == "Gang 2 (Müller) – 5°.csv"
+
+
+# --- atomic storage -----------------------------------------------------------------------------
+
+
+def test_rows_and_recording_are_stored_together(
+    make_client: Callable[..., TestClient], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    client = make_client()
+    sid = _subject(client)
+    store = client.app.state.ctx.store  # type: ignore[attr-defined]
+    real = store.create_upload_trial
+    moved: list[Path] = []
+
+    def failing_commit(*args: Any, before_commit: Callable[[], None], **kwargs: Any) -> schema.Trial:
+        def move_then_fail() -> None:
+            before_commit()  # the recording is moved into place ...
+            moved.extend((tmp_path / "data" / "recordings").glob("*.mcap"))
+            raise OSError(5, "simulated I/O error at commit")  # ... and the commit fails
+
+        return real(*args, before_commit=move_then_fail, **kwargs)
+
+    before = _files(tmp_path / "data")
+    monkeypatch.setattr(store, "create_upload_trial", failing_commit)
+    with pytest.raises(OSError, match="simulated"):
+        _upload(client, _replay_csv(), "walk.csv", sid)
+    assert len(moved) == 1 and not moved[0].exists()
+    assert _files(tmp_path / "data") == before
+    assert client.get("/api/trials").json() == [] and client.get("/api/sessions").json() == []
+    monkeypatch.undo()
+    code, trial = _upload(client, _replay_csv(), "walk.csv", sid)
+    assert code == 201 and (tmp_path / "data" / trial["path"]).is_file()
+
+
+def test_store_creates_upload_session_and_trial_in_one_transaction(make_client: Callable[..., TestClient]) -> None:
+    client = make_client()
+    sid = _subject(client)
+    store = client.app.state.ctx.store  # type: ignore[attr-defined]
+
+    def fail() -> None:
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(OSError, match="No space"):
+        store.create_upload_trial(sid, "a.csv", "recordings/a.mcap", 10, 0.5, before_commit=fail)
+    assert store.list_sessions() == [] and store.list_trials() == []
+    trial = store.create_upload_trial(sid, "a.csv", "recordings/a.mcap", 10, 0.5)
+    assert (trial.name, trial.path, trial.status, trial.samples, trial.duration_s) == (
+        "a.csv", "recordings/a.mcap", "uploaded", 10, 0.5,
+    )  # fmt: skip
+    session = store.get_session(trial.session_id)
+    assert session.state == "stopped" and session.source == schema.UploadSource(filename="a.csv")
+    assert session.stopped_utc is not None and trial.stopped_utc is not None
+
+
+# --- one chunk at a time -------------------------------------------------------------------------
+
+
+async def _blocked_body(first: bytes, rest: bytes, started: asyncio.Event, release: asyncio.Event) -> AsyncIterator[bytes]:
+    yield first
+    started.set()
+    await release.wait()
+    yield rest
+
+
+def test_concurrent_chunks_at_one_offset(make_client: Callable[..., TestClient], tmp_path: Path) -> None:
+    client = make_client()
+    data = b"time_s,foot_angle_deg\n0,1\n0.01,2\n"
+    up = client.post("/api/uploads", json={"filename": "a.csv", "size": len(data), "subject_id": _subject(client)}).json()
+    url = f"http://testserver/api/uploads/{up['id']}"
+
+    async def race() -> tuple[int, int, int, bool]:
+        started, release = asyncio.Event(), asyncio.Event()
+        async with httpx2.AsyncClient(transport=httpx2.ASGITransport(app=client.app)) as http:
+            first = asyncio.create_task(http.put(f"{url}?offset=0", content=_blocked_body(data[:5], data[5:], started, release)))
+            await started.wait()
+            second = await http.put(f"{url}?offset=0", content=data)
+            finish = await http.post(f"{url}/finish")
+            release.set()
+            return (await first).status_code, second.status_code, finish.status_code, "being received" in finish.text
+
+    assert asyncio.run(race()) == (200, 409, 409, True)
+    assert (tmp_path / "data" / "uploads" / f"{up['id']}.part").read_bytes() == data  # written once
+    assert client.post(f"/api/uploads/{up['id']}/finish").status_code == 201
+
+
+def test_cancel_during_a_chunk(make_client: Callable[..., TestClient], tmp_path: Path) -> None:
+    client = make_client()
+    data = b"time_s,foot_angle_deg\n0,1\n0.01,2\n"
+    up = client.post("/api/uploads", json={"filename": "a.csv", "size": len(data), "subject_id": _subject(client)}).json()
+    url = f"http://testserver/api/uploads/{up['id']}"
+
+    async def race() -> tuple[int, int]:
+        started, release = asyncio.Event(), asyncio.Event()
+        async with httpx2.AsyncClient(transport=httpx2.ASGITransport(app=client.app)) as http:
+            put = asyncio.create_task(http.put(f"{url}?offset=0", content=_blocked_body(data[:5], data[5:], started, release)))
+            await started.wait()
+            cancel = await http.delete(url)
+            release.set()
+            return cancel.status_code, (await put).status_code
+
+    assert asyncio.run(race()) == (204, 404)
+    assert list((tmp_path / "data" / "uploads").iterdir()) == []
+
+
+# --- quotas --------------------------------------------------------------------------------------
+
+
+def test_open_uploads_are_limited(make_client: Callable[..., TestClient]) -> None:
+    client = make_client(max_open_uploads=2)
+    body = {"filename": "a.csv", "size": 10, "subject_id": _subject(client)}
+    first, second = (client.post("/api/uploads", json=body).json() for _ in range(2))
+    r = client.post("/api/uploads", json=body)
+    assert r.status_code == 429 and "2 uploads are open" in r.json()["detail"]
+    assert client.delete(f"/api/uploads/{first['id']}").status_code == 204
+    assert client.post("/api/uploads", json=body).status_code == 201
+    assert client.put(f"/api/uploads/{second['id']}?offset=0", content=b"0123456789").status_code == 200
+
+
+def test_idle_uploads_expire(make_client: Callable[..., TestClient], tmp_path: Path) -> None:
+    client = make_client(max_open_uploads=1, upload_idle_s=0.05)
+    body = {"filename": "a.csv", "size": 10, "subject_id": _subject(client)}
+    stale = client.post("/api/uploads", json=body).json()
+    time.sleep(0.1)
+    fresh = client.post("/api/uploads", json=body)
+    assert fresh.status_code == 201
+    assert client.put(f"/api/uploads/{stale['id']}?offset=0", content=b"0123456789").status_code == 404
+    assert [p.name for p in (tmp_path / "data" / "uploads").iterdir()] == [f"{fresh.json()['id']}.part"]
+
+
+def test_disk_space_is_checked(make_client: Callable[..., TestClient], monkeypatch: pytest.MonkeyPatch) -> None:
+    client = make_client(min_free_disk_mb=100)
+    sid = _subject(client)
+    real = shutil.disk_usage
+    free = 100 * 2**20 + 3 * 2**20  # 3 MiB above the margin
+
+    def usage(path: Any) -> Any:
+        return real(path)._replace(free=free)
+
+    monkeypatch.setattr(shutil, "disk_usage", usage)
+    r = client.post("/api/uploads", json={"filename": "a.csv", "size": 2 * 2**20, "subject_id": sid})
+    assert r.status_code == 201
+    r = client.post("/api/uploads", json={"filename": "b.csv", "size": 2 * 2**20, "subject_id": sid})
+    assert r.status_code == 507 and r.json()["detail"].startswith("not enough free disk space on the server for b.csv")
+    assert client.post("/api/uploads", json={"filename": "c.csv", "size": 2**20 - 1, "subject_id": sid}).status_code == 201
+
+
+# --- the worker process and memory ---------------------------------------------------------------
+
+
+def test_imports_run_in_a_worker_process(tmp_path: Path) -> None:
+    with TestClient(create_app(_settings(tmp_path))) as client:
+        uploads = client.app.state.ctx.uploads  # type: ignore[attr-defined]
+        assert not uploads.worker_started  # created lazily
+        code, _ = _upload(client, _replay_csv(), "walk.csv", _subject(client))
+        assert code == 201 and uploads.worker_started and uploads.start_method in ("forkserver", "spawn")
+    assert not uploads.worker_started  # the lifespan shut it down
+
+
+def _synthetic_csv(path: Path, rows: int) -> int:
+    t = np.arange(rows) * 0.01
+    columns = {"time_s": t, **{name: 20 * np.sin(2 * np.pi * t + k) for k, name in enumerate(schema.REPLAY_SIGNALS)}}
+    pd.DataFrame(columns).to_csv(path, index=False, float_format="%.6f")
+    return path.stat().st_size
+
+
+def test_import_memory_does_not_grow_with_the_file(tmp_path: Path) -> None:
+    from sessions.imports import ImportJob, import_log
+
+    subject = schema.Subject(id=1, created_utc="2024-01-01T00:00:00+00:00", **SUBJECT)
+    model = load_model(default_model_path())[0]
+
+    def peak(rows: int) -> tuple[int, int, int]:
+        source, target = tmp_path / f"walk{rows}.csv", tmp_path / f"walk{rows}.mcap"
+        size = _synthetic_csv(source, rows)
+        tracemalloc.start()
+        try:
+            result = import_log(ImportJob(source, "walk.csv", target, subject, model))
+            return tracemalloc.get_traced_memory()[1], size, result.samples
+        finally:
+            tracemalloc.stop()
+
+    peak(300)  # warm up: one-time allocations (schemas, caches)
+    small, small_size, small_samples = peak(1_000)
+    large, large_size, large_samples = peak(10_000)
+    assert (small_samples, large_samples) == (1_000, 10_000)
+    assert large_size - small_size > 1_000_000
+    # the old import held every row as text, frame and state: about 26 bytes per byte of the file
+    assert large - small < (large_size - small_size) / 4, (small, large)
+    assert sum(1 for _ in read_messages(tmp_path / "walk10000.mcap", ["/gait_state"])) == 10_000
