@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import asyncio
-import uuid
 from collections.abc import Awaitable, Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
-from fastapi import APIRouter, Body, Depends, FastAPI, HTTPException, Query, Request, Response, status
+from fastapi import APIRouter, Body, Depends, FastAPI, HTTPException, Query, Request, status
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
 from pydantic import BaseModel, Field
@@ -33,6 +31,8 @@ def ctx(request: Request) -> AppContext:
 
 
 Ctx = Annotated["AppContext", Depends(ctx)]
+#: An id in a query filter: a positive signed 64-bit integer (what SQLite can hold).
+OptionalId = Annotated[int | None, Query(ge=1, le=schema.INT64_MAX)]
 
 
 #: Domain errors and the HTTP status each becomes (the message is the ``detail``).
@@ -122,7 +122,7 @@ def _model(c: AppContext, name: str) -> TrainedModel:
 
 # --- sessions ----------------------------------------------------------------------------------
 @router.get("/sessions")
-def list_sessions(c: Ctx, subject_id: int | None = None) -> list[schema.Session]:
+def list_sessions(c: Ctx, subject_id: OptionalId = None) -> list[schema.Session]:
     return c.store.list_sessions(subject_id)
 
 
@@ -196,7 +196,7 @@ def _trial(c: AppContext, trial_id: int) -> tuple[schema.Trial, Path]:
 
 
 @router.get("/trials")
-def list_trials(c: Ctx, session_id: int | None = None) -> list[schema.Trial]:
+def list_trials(c: Ctx, session_id: OptionalId = None) -> list[schema.Trial]:
     return c.store.list_trials(session_id)
 
 
@@ -270,90 +270,6 @@ async def rerun(
     return await asyncio.to_thread(
         rerun_series, path, model, subject.leg_length_m, subject.mass_kg, settings, t0, t1, max_points
     )
-
-
-# --- uploads -----------------------------------------------------------------------------------
-@dataclass
-class UploadState:
-    info: schema.Upload
-    subject_id: int
-    path: Path
-
-
-@router.post("/uploads", status_code=201)
-def create_upload(body: schema.UploadCreate, c: Ctx) -> schema.Upload:
-    limit = c.settings.max_upload_mb * 1024 * 1024
-    if body.size > limit:
-        raise HTTPException(
-            413,
-            f"{body.filename} is {body.size / 2**20:.1f} MiB; the limit is {c.settings.max_upload_mb} MiB",
-        )
-    c.store.get_subject(body.subject_id)
-    upload_id = uuid.uuid4().hex
-    folder = c.settings.data_dir / "uploads"
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{upload_id}.part"
-    path.touch()
-    info = schema.Upload(
-        id=upload_id,
-        filename=body.filename,
-        size=body.size,
-        received=0,
-        chunk_size=c.settings.upload_chunk_kb * 1024,
-    )
-    c.uploads[upload_id] = UploadState(info, body.subject_id, path)
-    return info
-
-
-def _upload(c: AppContext, upload_id: str) -> UploadState:
-    state = c.uploads.get(upload_id)
-    if state is None:
-        raise HTTPException(404, f"upload {upload_id} does not exist (finished, cancelled or never started)")
-    return state
-
-
-@router.put("/uploads/{upload_id}")
-async def upload_chunk(upload_id: str, request: Request, c: Ctx, offset: Annotated[int, Query(ge=0)]) -> schema.Upload:
-    state = _upload(c, upload_id)
-    info = state.info
-    if offset != info.received:
-        raise HTTPException(409, f"expected the chunk at offset {info.received}, got {offset}")
-    data = bytearray()
-    async for part in request.stream():
-        data += part
-        if len(data) > info.chunk_size:
-            raise HTTPException(413, f"a chunk may hold at most {info.chunk_size} bytes")
-    if info.received + len(data) > info.size:
-        raise HTTPException(413, f"{info.filename}: more bytes than the {info.size} announced")
-    with state.path.open("ab") as f:
-        f.write(data)
-    state.info = info.model_copy(update={"received": info.received + len(data)})
-    return state.info
-
-
-@router.post("/uploads/{upload_id}/finish", status_code=201)
-async def finish_upload(upload_id: str, c: Ctx) -> schema.Trial:
-    from sessions.imports import import_log
-
-    state = _upload(c, upload_id)
-    if state.info.received != state.info.size:
-        raise HTTPException(409, f"received {state.info.received} of {state.info.size} bytes; send the rest first")
-    del c.uploads[upload_id]
-    try:
-        subject = c.store.get_subject(state.subject_id)
-        model = _model(c, "default")
-        data_dir = c.settings.data_dir
-        return await asyncio.to_thread(import_log, state.path, state.info.filename, subject, c.store, data_dir, model)
-    finally:
-        state.path.unlink(missing_ok=True)
-
-
-@router.delete("/uploads/{upload_id}", status_code=204)
-def cancel_upload(upload_id: str, c: Ctx) -> Response:
-    state = _upload(c, upload_id)
-    del c.uploads[upload_id]
-    state.path.unlink(missing_ok=True)
-    return Response(status_code=204)
 
 
 # --- models and the leg view -------------------------------------------------------------------

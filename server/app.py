@@ -11,18 +11,20 @@ import logging
 import time
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
-from server.api import UploadState, install_error_handlers
+from server.api import install_error_handlers
 from server.api import router as api_router
 from server.leg_view import LegView
 from server.origin import AllowedHostsMiddleware, SameOriginMiddleware
 from server.settings import Settings
 from server.streams import router as stream_router
+from server.uploads import Uploads
+from server.uploads import router as upload_router
 from sessions import schema
 from sessions.manager import ModelStore, SessionManager
 from sessions.models import gaitscope_version
@@ -42,9 +44,9 @@ class AppContext:
     store: Store
     models: ModelStore
     manager: SessionManager
+    uploads: Uploads
     leg_view: LegView | None = None
     focus: int | None = None
-    uploads: dict[str, UploadState] = field(default_factory=dict)
     _last_view: float = 0.0
 
     def on_state(self, session_id: int, state: schema.GaitState, leg_length: float) -> None:
@@ -81,9 +83,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         store = Store(settings.database_url)
         models = ModelStore(settings.data_dir / "models")
         manager = SessionManager(store, settings.data_dir, models, on_state=lambda *a: ctx.on_state(*a))
-        ctx = AppContext(settings=settings, store=store, models=models, manager=manager)
-        for stale in (settings.data_dir / "uploads").glob("*.part"):  # uploads live in memory: a restart ends them
-            stale.unlink(missing_ok=True)
+        ctx = AppContext(settings=settings, store=store, models=models, manager=manager, uploads=Uploads(settings))
+        ctx.uploads.clear_leftovers()  # uploads live in memory: a restart ends them
         for trial in ctx.manager.recover_after_crash():
             log.warning("recording of trial %d was unfinished and has been recovered", trial.id)
         if settings.leg_view:
@@ -96,6 +97,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             await ctx.manager.stop_all()
+            ctx.uploads.shutdown()
             if ctx.leg_view is not None:
                 ctx.leg_view.close()
             store.close()
@@ -110,6 +112,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(AllowedHostsMiddleware, allowed_hosts=settings.allowed_hosts)  # outermost: runs first
     install_error_handlers(app)
     app.include_router(api_router)
+    app.include_router(upload_router)
     app.include_router(stream_router)
     if WEB_DIR.is_dir():
         app.mount("/", StaticFiles(directory=WEB_DIR, html=True), name="web")

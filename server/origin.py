@@ -37,7 +37,7 @@ import ipaddress
 import json
 import logging
 import re
-from collections.abc import Awaitable, Callable, Iterable, Sequence
+from collections.abc import Awaitable, Callable, Collection, Iterable, Sequence
 from http import HTTPStatus
 from urllib.parse import urlsplit
 
@@ -87,9 +87,7 @@ def allowed_host(entry: str) -> str:
         ValueError: not a bare host name or address (a scheme, a port, a path or a wildcard).
     """
     text = entry.strip().lower()
-    if text.startswith("[") and text.endswith("]"):
-        text = text[1:-1]
-    v6 = _ipv6(text)
+    v6 = _ipv6(text[1:-1] if text.startswith("[") and text.endswith("]") else text)
     if v6 is not None:
         return v6
     if not _NAME.fullmatch(text):
@@ -120,7 +118,7 @@ def host_name(header: str) -> str | None:
     return name
 
 
-def refused_host(hosts: Sequence[str], allowed: Iterable[str]) -> str | None:
+def refused_host(hosts: Sequence[str], allowed: Collection[str]) -> str | None:
     """Why a request with these ``Host`` header values is refused, or None when its host is allowed.
 
     Args:

@@ -25,7 +25,18 @@ class Settings(BaseSettings):
         demo: on an empty database, create a demo subject and start a simulated session.
         max_upload_mb: largest accepted upload.
         upload_chunk_kb: size of one upload chunk.
+        max_open_uploads: uploads open at once (created, not yet finished or cancelled); one more is
+            refused (429).
+        upload_idle_s: an open upload without a request for this long is dropped with its bytes.
+        upload_min_free_mb: a new upload is refused (507) when the data folder's disk would have less
+            than this many MiB free once every open upload and running import is written; at least
+            ``disk_warn_mb`` by default, so that an upload never makes a live session warn.
         slow_client_s: a browser that cannot take its stream for this long is disconnected (1013).
+        disk_warn_mb: below this many MiB free on the data folder's disk a running session warns
+            (:class:`~sessions.disk.DiskGuard`); 1024 MiB is about ten hours of one 200 Hz session.
+        disk_stop_mb: below this many MiB free the recording is finished and the session stopped;
+            at most ``disk_warn_mb``. 256 MiB leaves room to finish the file's index and for crash
+            recovery's copy of a recording of about two hours.
         allowed_hosts: the names (and addresses) the dashboard and the leg view may be reached at;
             any other ``Host`` is refused, which defeats DNS rebinding (:mod:`server.origin`). Names
             without ports; the environment gives them comma-separated
@@ -45,7 +56,12 @@ class Settings(BaseSettings):
     demo: bool = True
     max_upload_mb: int = Field(default=512, ge=1, le=16384)
     upload_chunk_kb: int = Field(default=4096, ge=64, le=65536)
+    max_open_uploads: int = Field(default=8, ge=1, le=256)
+    upload_idle_s: float = Field(default=900.0, gt=0.0, le=86400.0)
+    upload_min_free_mb: int = Field(default=1024, ge=0)
     slow_client_s: float = Field(default=10.0, gt=0.0, le=300.0)
+    disk_warn_mb: int = Field(default=1024, ge=1)
+    disk_stop_mb: int = Field(default=256, ge=1)
     allowed_hosts: Annotated[list[str], NoDecode] = Field(default_factory=lambda: list(LOOPBACK_HOSTS))
 
     @field_validator("allowed_hosts", mode="before")
@@ -69,6 +85,12 @@ class Settings(BaseSettings):
                 f"refusing to listen on {self.host} in production: gaitscope has no login yet; "
                 "bind 127.0.0.1 and put an authenticating proxy in front"
             )
+        return self
+
+    @model_validator(mode="after")
+    def _disk_thresholds(self) -> Settings:
+        if self.disk_stop_mb > self.disk_warn_mb:
+            raise ValueError(f"disk_stop_mb ({self.disk_stop_mb}) must not be above disk_warn_mb ({self.disk_warn_mb})")
         return self
 
     @property

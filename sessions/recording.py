@@ -53,10 +53,13 @@ from sessions.mcap_io import CHUNK_SIZE
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
 
-__all__ = ["FLUSH_INTERVAL_S", "FSYNC_INTERVAL_S", "METADATA_NAME", "Recorder", "RecordingError"]
+__all__ = ["FLUSH_INTERVAL_S", "FSYNC_INTERVAL_S", "METADATA_NAME", "SAMPLE_PERIOD_KEY", "Recorder", "RecordingError"]
 
 #: Name of the MCAP metadata record holding the trial's key/values (subject code, session id, ...).
 METADATA_NAME: Final = "gaitscope"
+#: Key in that record of the sample period (s, a float's ``repr``) the live estimator was built with, so
+#: that a review re-run (:mod:`sessions.review`) builds the same one.
+SAMPLE_PERIOD_KEY: Final = "sample_period_s"
 #: Default longest time (s, session or wall) a chunk stays open: what ``kill -9`` can lose.
 FLUSH_INTERVAL_S: Final = 0.5
 #: Default longest wall time (s) between two fsyncs of a recording: what a power cut adds to that.
@@ -219,8 +222,7 @@ class Recorder:
         channel_id, cls = self._channels[topic]
         if not isinstance(message, cls):
             raise TypeError(f"{topic} carries {cls.__name__}, not {type(message).__name__}")
-        if self.error is not None:
-            raise RecordingError(self.error.errno, self.error.strerror, self.error.filename) from self.error
+        self._raise_if_failed()
         log_time = self.log_time_ns(t)
         self._writer.add_message(
             channel_id=channel_id,
@@ -327,16 +329,27 @@ class Recorder:
                 os.fsync(self._file.fileno())
             except OSError as exc:
                 self._sync_error = exc
-        elif data and time.monotonic() - self._synced_at >= self.fsync_interval_s:
+        # Before a new worker starts: only the worker that finished may have set the error.
+        self._raise_sync_error()
+        if not sync and data and time.monotonic() - self._synced_at >= self.fsync_interval_s:
             if self._syncer is None or not self._syncer.is_alive():
                 self._synced_at = time.monotonic()
                 self._syncer = threading.Thread(
                     target=self._fsync, args=(self._file.fileno(),), name=f"fsync {self.path.name}", daemon=True
                 )
                 self._syncer.start()
+
+    def _raise_sync_error(self) -> None:
+        """Raise a failed fsync (of the worker thread, or of :meth:`finish`) as the recording's error."""
         if self._sync_error is not None:
             failed, self._sync_error = self._sync_error, None
             raise self._fail(failed, uncertain=True) from failed
+
+    def _raise_if_failed(self) -> None:
+        """Raise the error that stopped the recording: a failed write or fsync, now or earlier."""
+        self._raise_sync_error()
+        if self.error is not None:
+            raise RecordingError(self.error.errno, self.error.strerror, self.error.filename) from self.error
 
     def _fsync(self, fd: int) -> None:
         """The worker thread's body; :meth:`finish` joins it before it closes ``fd``."""
@@ -359,9 +372,12 @@ class Recorder:
             why = "the disk is full"
         else:
             why = f"the disk could not be written ({exc.strerror or exc})"
-        kept = "no data is kept" if self.saved_t is None else f"data up to {self.saved_t:.1f} s is kept"
         if uncertain:
-            kept = f"data up to {self.saved_t or 0.0:.1f} s was written but may not all be on the disk"
+            kept = "what was written may not all be on the disk"
+        elif self.saved_t is None:
+            kept = "no data is kept"
+        else:
+            kept = f"data up to {self.saved_t:.1f} s is kept"
         self.error = RecordingError(exc.errno, f"recording stopped: {why}; {kept}", str(self.path))
         return self.error
 

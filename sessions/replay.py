@@ -56,20 +56,35 @@ class ReplaySummary:
 def measurements(data: ReplayInput) -> Array:
     """``(n, 6)`` measurement matrix in the EKF's channel order; NaN for absent channels.
 
-    Velocities absent from the input are derived from their angles; heel positions are high-passed.
+    Values outside :data:`~sessions.schema.SENSOR_LIMITS` are missing (as live). Velocities absent
+    from the input are derived from their angles; heel positions are high-passed, with a missing
+    sample holding the filter's input at the last good value (its output there stays missing).
     """
     n = data.time_s.size
     z = np.full((n, len(schema.REPLAY_SIGNALS)), np.nan)
     for i, name in enumerate(schema.REPLAY_SIGNALS):
+        lo, hi = schema.SENSOR_LIMITS[name]
         if name in data.signals:
-            z[:, i] = data.signals[name]
+            v = data.signals[name]
+            z[:, i] = np.where((v >= lo) & (v <= hi), v, np.nan)
         elif name in _VELOCITY_OF and _VELOCITY_OF[name] in data.signals:
-            z[:, i] = np.gradient(data.signals[_VELOCITY_OF[name]], data.time_s)
+            a_lo, a_hi = schema.SENSOR_LIMITS[_VELOCITY_OF[name]]
+            a = data.signals[_VELOCITY_OF[name]]
+            with np.errstate(invalid="ignore", over="ignore"):
+                v = np.gradient(np.where((a >= a_lo) & (a <= a_hi), a, np.nan), data.time_s)
+            z[:, i] = np.where((v >= lo) & (v <= hi), v, np.nan)
     heel = z[:, 4:6]
+    dt = float(np.median(np.diff(data.time_s)))
     for j in range(2):
-        if np.all(np.isfinite(heel[:, j])):
-            dt = float(np.median(np.diff(data.time_s)))
-            heel[:, j] = HighPassFilter(dt).filter(heel[:, j])
+        good = np.isfinite(heel[:, j])
+        if not good.any():
+            continue
+        held = heel[:, j].copy()
+        idx = np.where(good, np.arange(n), 0)
+        np.maximum.accumulate(idx, out=idx)
+        held = held[idx]
+        held[: int(np.argmax(good))] = held[int(np.argmax(good))]  # before the first good sample
+        heel[:, j] = np.where(good, HighPassFilter(dt).filter(held), np.nan)
     return z
 
 

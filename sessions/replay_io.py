@@ -28,6 +28,10 @@ from sessions.files import atomic_output
 __all__ = ["ReplayInput", "read_replay_csv", "write_replay_output"]
 
 _MIN_ROWS: Final = 2
+#: Median sample periods accepted (s): 10 kHz to 1 Hz. Outside, the times are not in seconds, or
+#: not a gait recording (and the heel filter's discretisation would be meaningless).
+MIN_PERIOD_S = 1e-4
+MAX_PERIOD_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -53,7 +57,8 @@ def read_replay_csv(path: str | Path) -> ReplayInput:
         DataFormatError: empty file; missing ``time_s``; no angle column; a repeated column name; a
             row with the wrong number of fields; an empty, non-numeric, NaN or infinite cell in a
             used column; ``heel_strike`` other than 0/1; fewer than 2 data rows; time not strictly
-            increasing. When several cells are bad, the earliest line is reported.
+            increasing; a median time step outside [MIN_PERIOD_S, MAX_PERIOD_S]. When several cells are
+            bad, the earliest line is reported.
     """
     name = str(path)
     header, rows, lines = _read_rows(Path(path), name)
@@ -108,6 +113,15 @@ def read_replay_csv(path: str | Path) -> ReplayInput:
             file=name,
             column=schema.REPLAY_TIME,
             row=lines[i],
+        )
+
+    period = float(np.median(step))
+    if not MIN_PERIOD_S <= period <= MAX_PERIOD_S:
+        raise DataFormatError(
+            f"the median time step is {period:.3g} s; gaitscope takes sample periods from {MIN_PERIOD_S:g} s "
+            f"to {MAX_PERIOD_S:g} s (10 kHz to 1 Hz): is the column in seconds?",
+            file=name,
+            column=schema.REPLAY_TIME,
         )
 
     heel_strike = values.get(schema.REPLAY_HEEL_STRIKE)

@@ -10,8 +10,9 @@ Two modes (:class:`~sessions.schema.RerunRequest`):
 
 The estimator is built as the live one was (:class:`~sessions.runtime.SessionRuntime`): the model named
 in the settings, the subject's leg length and mass, the sample period in the recording's metadata record
-(:data:`SAMPLE_PERIOD_KEY`) and the recording's session clock, so the states come out on the times of
-the recorded ones and overlay them.
+(:data:`~sessions.recording.SAMPLE_PERIOD_KEY`) and the recording's session clock, so the states come
+out on the times of the recorded ones and overlay them; its torque passes the live loop's last guard
+(:func:`~sessions.runtime.safe_torque`).
 
 Frames are read lazily and the result is decimated on the fly (:class:`~sessions.mcap_io.SeriesBuilder`),
 so a re-run of an hour-long trial needs memory for ``max_points`` rows, not for the hour. The estimator
@@ -36,14 +37,11 @@ from estimators.pipeline import TrainedModel
 from sessions.errors import DataFormatError
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
 from sessions.mcap_io import SeriesBuilder, count_messages, read_messages, series_window
-from sessions.recording import METADATA_NAME
+from sessions.recording import METADATA_NAME, SAMPLE_PERIOD_KEY
+from sessions.runtime import safe_torque
 from sessions.schema import SensorFrame, SessionSettings
 
-__all__ = ["SAMPLE_PERIOD_KEY", "recorded_settings", "rerun_series"]
-
-#: Key of the recording's metadata record (:data:`~sessions.recording.METADATA_NAME`) holding the sample
-#: period (s, a float's ``repr``) the live estimator was built with; the re-run builds its own with it.
-SAMPLE_PERIOD_KEY: Final = "sample_period_s"
+__all__ = ["recorded_settings", "rerun_series"]
 
 _NO_SETTINGS: Final = (
     "the settings in force at the trial's first frame are not recorded (no /settings message before it), "
@@ -112,9 +110,9 @@ def rerun_series(
             current = recorded
             continue
         frame = _frame(path, log_time, msg)
+        if current is None:
+            raise DataFormatError(_NO_SETTINGS, file=str(path))
         if estimator is None:
-            if current is None:
-                raise DataFormatError(_NO_SETTINGS, file=str(path))
             period = _sample_period(path, frame)
             origin = _time_origin(path, frame)
             # The frames are on the session clock already (resynchronised live if need be): never again.
@@ -123,6 +121,9 @@ def rerun_series(
         if not estimator.accepts(frame):
             continue  # reordered or repeated, skipped as live (not in gaitscope's own recordings)
         state = estimator.step(frame, 0)
+        torque = safe_torque(state.torque_Nm, current.max_torque_Nm)  # the live loop's last guard, as live
+        if torque != state.torque_Nm:
+            state = state.model_copy(update={"torque_Nm": torque, "fault": True})
         if lo is None or log_time >= lo:
             builder.add(state.model_dump())
     return builder.result()

@@ -37,8 +37,7 @@ import numpy as np
 from estimators.pipeline import TrainedModel
 from sessions import schema
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused
-from sessions.recording import Recorder
-from sessions.review import SAMPLE_PERIOD_KEY
+from sessions.recording import SAMPLE_PERIOD_KEY, Recorder
 from sessions.schema import GaitState, SensorFrame, SessionSettings, SettingsChange
 from sessions.sources import FrameSource, LiveDevice
 from sessions.store import Store
@@ -214,6 +213,8 @@ class SessionRuntime:
         """The session ends by itself (``stopped`` or ``failed``): event, stop, tell the manager."""
         if self.ended is not None or self._stopped:
             return
+        for folder in {str(self.data_dir.resolve()), str(self.data_dir)}:  # no server paths in events
+            reason = reason.replace(folder + "/", "").replace(folder, "the data folder")
         self.ended = reason
         self._event("system", f"session {state}: {reason}")
         await self.stop()

@@ -303,7 +303,13 @@ class RecordingControl(_Strict):
 
 
 class UploadCreate(_Strict):
-    filename: str = Field(min_length=1, max_length=200, pattern=r"^[^/\\]+\.(mcap|csv|parquet)$")
+    filename: str = Field(
+        min_length=1,
+        max_length=200,
+        # no folder separators, no control characters (C0, DEL, C1), no line or paragraph separators and
+        # no bidirectional controls ("x\u202egpj.csv" displays as "xvsc.jpg")
+        pattern=r"^[^/\\\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069]+\.(mcap|csv|parquet)$",
+    )
     size: int = Field(ge=1, description="bytes; refused above the server's limit")
     subject_id: int = Field(ge=1)
 

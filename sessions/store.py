@@ -23,7 +23,7 @@ import contextlib
 import datetime as dt
 import json
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, Final, TypeVar
 
@@ -276,6 +276,8 @@ class Store:
 
     @staticmethod
     def _get(session: orm.Session, cls: type[_Row], row_id: int, *, for_update: bool = False) -> _Row:
+        if not 0 < row_id <= schema.INT64_MAX:  # no such row; and SQLite cannot even take the number
+            raise NotFound(f"{_KIND[cls]} {row_id} does not exist")
         row = session.get(cls, row_id, with_for_update=for_update)
         if row is None:
             raise NotFound(f"{_KIND[cls]} {row_id} does not exist")
@@ -408,6 +410,55 @@ class Store:
             row.duration_s = float(duration_s)
             row.stopped_utc = _stamp()
             return _trial(row)
+
+    def create_upload_trial(
+        self,
+        subject_id: int,
+        filename: str,
+        path: str,
+        samples: int,
+        duration_s: float,
+        *,
+        before_commit: Callable[[], None] | None = None,
+    ) -> schema.Trial:
+        """An imported upload in ONE transaction: a stopped session (source ``upload``, default settings)
+        and its one trial (status ``uploaded``, ``path`` relative to the data folder).
+
+        ``before_commit`` runs once both rows are written and validated, just before the commit: the
+        caller moves the trial's file into place there. If anything raises (``before_commit`` too),
+        nothing is stored.
+        """
+        with self._write() as session:
+            self._get(session, _SubjectRow, subject_id)
+            now = _stamp()
+            source = schema.UploadSource(filename=filename)
+            session_row = _SessionRow(
+                subject_id=subject_id,
+                source=source.model_dump_json(),
+                settings=schema.SessionSettings().model_dump_json(),
+                state="stopped",
+                created_utc=now,
+                stopped_utc=now,
+            )
+            session.add(session_row)
+            session.flush()
+            row = _TrialRow(
+                session_id=session_row.id,
+                name=filename,
+                status="uploaded",
+                path=path,
+                started_utc=now,
+                stopped_utc=now,
+                samples=samples,
+                duration_s=float(duration_s),
+            )
+            session.add(row)
+            session.flush()
+            _session(session_row)
+            trial = _trial(row)
+            if before_commit is not None:
+                before_commit()
+            return trial
 
     def list_trials(self, session_id: int | None = None) -> list[schema.Trial]:
         """Trials in the order they were created; those of one session when ``session_id`` is given."""

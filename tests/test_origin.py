@@ -105,7 +105,7 @@ def test_allowlist_entries_are_canonical_and_bare() -> None:
     assert [allowed_host(h) for h in ("LOCALHOST", " [::1] ", "::1", "0:0::1", "10.0.0.7")] == [
         "localhost", "::1", "::1", "::1", "10.0.0.7",
     ]  # fmt: skip
-    for bad in ("*", "*.example.com", "gait.lab:8000", "http://gait.lab", "gait.lab/", ""):
+    for bad in ("*", "*.example.com", "gait.lab:8000", "http://gait.lab", "gait.lab/", "[gait.lab]", ""):
         with pytest.raises(ValueError, match="is not a host name or address"):
             allowed_host(bad)
     assert allowed_hosts_for("127.0.0.1") == list(LOOPBACK_HOSTS) == ["127.0.0.1", "localhost", "::1"]

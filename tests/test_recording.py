@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
+import errno
+import io
 import itertools
 import json
 import math
+import os
 import re
 import shutil
 import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -21,7 +26,7 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import Writer
 from pydantic import BaseModel
 
-from sessions import mcap_io, schema
+from sessions import mcap_io, recording, schema
 from sessions.errors import DataFormatError
 from sessions.mcap_io import (
     check_mcap,
@@ -32,7 +37,7 @@ from sessions.mcap_io import (
     read_series,
     recover,
 )
-from sessions.recording import FLUSH_INTERVAL_S, Recorder
+from sessions.recording import FLUSH_INTERVAL_S, Recorder, RecordingError
 
 START_NS = 1_700_000_000_123_456_789
 RATE_HZ = 200.0
@@ -250,6 +255,11 @@ def test_recorder_refuses_misuse(tmp_path: Path) -> None:
         Recorder(path, START_NS, {})
     assert rec.samples == 0 and rec.duration_s == 0.0
     assert [m["seq"] for _, _, m in read_messages(path)] == [0]
+    with pytest.raises(ValueError, match="flush_interval_s must be above 0, got 0"):
+        Recorder(tmp_path / "u.mcap", START_NS, {}, flush_interval_s=0)
+    with pytest.raises(ValueError, match="fsync_interval_s must be at least 0, got -1"):
+        Recorder(tmp_path / "u.mcap", START_NS, {}, fsync_interval_s=-1)
+    assert not (tmp_path / "u.mcap").exists()
 
 
 def test_context_manager_finishes_on_error(tmp_path: Path) -> None:
@@ -470,13 +480,14 @@ _CRASHING_RECORDER = textwrap.dedent(
         rec.write("/sensor", i / 200, frame(i))
         rec.write("/gait_state", i / 200, state(i))
         rec.write("/torque", i / 200, torque(i))
+        print(i / 200, flush=True)  # the sample is in the recorder's hands
         i += 1
         time.sleep(max(0.0, start + i / 200 - time.perf_counter()))
     """
 )
 
 
-def test_recover_after_sigkill(tmp_path: Path) -> None:
+def test_recover_after_sigkill_loses_at_most_the_flush_interval(tmp_path: Path) -> None:
     path = tmp_path / "killed.mcap"
     repo = Path(__file__).resolve().parents[1]
     proc = subprocess.Popen(
@@ -493,8 +504,10 @@ def test_recover_after_sigkill(tmp_path: Path) -> None:
         proc.send_signal(signal.SIGKILL)
         proc.wait()
         assert proc.stdout is not None
+        printed = proc.stdout.read().split()  # what the child printed before it died
         proc.stdout.close()
     assert proc.returncode == -signal.SIGKILL
+    last_written = float(printed[-1])  # the child may have written one more sample before the kill
 
     with pytest.raises(DataFormatError, match="not finished"):
         check_mcap(path)
@@ -508,6 +521,235 @@ def test_recover_after_sigkill(tmp_path: Path) -> None:
         assert len(times) > 100 and all(b > a for a, b in itertools.pairwise(times))
     log_times = [lt for _, lt, _ in messages]
     assert log_times == sorted(log_times)
+    kept = max(m["t"] for name, _, m in messages if name == "/gait_state")
+    assert last_written - FLUSH_INTERVAL_S <= kept <= last_written + 1 / RATE_HZ
+
+
+# --- durability: time-based flush, fsync, full disk ---------------------------------------------
+
+
+def on_disk(path: Path, scratch: Path) -> dict[str, list[float]]:
+    """``t`` of each topic's messages in what the OS holds of ``path``: a copy, recovered as after a crash."""
+    copy = scratch / f"copy-{path.name}"
+    shutil.copyfile(path, copy)
+    try:
+        result = recover(copy)
+        assert result.lost_bytes == 0  # the file ends at a record boundary
+        out: dict[str, list[float]] = {}
+        for topic, _, m in read_messages(copy):
+            out.setdefault(topic, []).append(m["t"] if "t" in m else math.nan)
+        return out
+    finally:
+        copy.unlink()
+
+
+def latest(kept: dict[str, list[float]]) -> float | None:
+    """The latest ``t`` of any message in :func:`on_disk`'s answer (None if none)."""
+    return max((t for ts in kept.values() for t in ts), default=None)
+
+
+def test_a_chunk_reaches_the_os_every_flush_interval_of_session_time(tmp_path: Path) -> None:
+    path = tmp_path / "t.mcap"
+    with Recorder(path, START_NS, {}) as rec:
+        for i in range(201):  # 1.0 s at 200 Hz, written far faster than real time
+            write_samples(rec, i, i + 1)
+            if i % 25 == 0:
+                t = i / RATE_HZ
+                kept = on_disk(path, tmp_path).get("/gait_state", [])
+                assert kept == [k / RATE_HZ for k in range(len(kept))]  # every sample, in order
+                # The open chunk holds less than FLUSH_INTERVAL_S: all older data is in the file.
+                assert t < FLUSH_INTERVAL_S or kept[-1] >= t - FLUSH_INTERVAL_S - 1e-9
+                assert rec.saved_t == latest(on_disk(path, tmp_path))
+        assert on_disk(path, tmp_path)["/gait_state"][-1] == 1.0 - 1 / RATE_HZ  # closed at /sensor t=1.0
+        assert rec.saved_t == 1.0
+
+
+def test_a_chunk_reaches_the_os_after_flush_interval_of_wall_time(tmp_path: Path) -> None:
+    # Messages at one session time (events after the source stopped): the wall clock closes the chunk.
+    path = tmp_path / "t.mcap"
+    with Recorder(path, START_NS, {}, flush_interval_s=0.2) as rec:
+        for i in range(5):
+            rec.write("/gait_state", 3.0, state(i))
+        assert "/gait_state" not in on_disk(path, tmp_path)
+        time.sleep(0.25)
+        rec.write("/gait_state", 3.0, state(5))
+        assert on_disk(path, tmp_path)["/gait_state"] == [state(i).t for i in range(6)]  # their own t
+        assert rec.saved_t == 3.0  # the session time they were logged at
+
+
+def test_fsync_runs_on_a_worker_thread_and_at_finish(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    calls: list[str] = []
+    real_fsync = os.fsync
+
+    def fsync(fd: int) -> None:
+        calls.append(threading.current_thread().name)
+        real_fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    with Recorder(tmp_path / "every.mcap", START_NS, {}, fsync_interval_s=0) as rec:
+        write_samples(rec, 0, 201)  # the header, then two chunks: at 0.5 s and at 1.0 s
+    workers = [name for name in calls if name != "MainThread"]
+    # One at a time: a hand-over while the last fsync still runs starts none (they never pile up).
+    assert 1 <= len(workers) <= 3 and set(workers) == {"fsync every.mcap"}
+    assert calls[-1] == "MainThread"  # finish() waits for the worker, then syncs before it closes
+    calls.clear()
+    with Recorder(tmp_path / "never.mcap", START_NS, {}, fsync_interval_s=math.inf) as rec:
+        write_samples(rec, 0, 201)
+    assert calls == ["MainThread"]
+
+
+def test_an_fsync_error_stops_the_recording(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    real_fsync, calls = os.fsync, []
+
+    def fsync(fd: int) -> None:  # the header's fsync works, the first chunk's fails
+        calls.append(fd)
+        if len(calls) > 1:
+            raise OSError(errno.EIO, "Input/output error")
+        real_fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    path = tmp_path / "t.mcap"
+    rec = Recorder(path, START_NS, {}, fsync_interval_s=0)
+    taken, deadline = 0, time.monotonic() + 10
+    with pytest.raises(RecordingError) as failed:  # the first chunk closes at 0.5 s; its fsync fails on
+        for i in itertools.count():  # the worker thread, and a later write says so
+            rec.write("/gait_state", i / RATE_HZ, state(i))
+            taken += 1
+            if i > 100:
+                time.sleep(0.001)
+                assert time.monotonic() < deadline, "the fsync error was never raised"
+    assert failed.value.errno == errno.EIO and taken > 100
+    assert str(failed.value) == (
+        "recording stopped: the disk could not be written (Input/output error); "
+        "what was written may not all be on the disk"
+    )
+    with pytest.raises(RecordingError, match="may not all be on the disk"):  # and the final fsync fails
+        rec.finish()
+    monkeypatch.undo()
+    check_mcap(path)  # written and indexed all the same; only its durability is in doubt
+    seqs = [m["seq"] for _, _, m in read_messages(path, ["/gait_state"])]
+    # Raised before the write took its message, or after the message's chunk was written.
+    assert seqs in (list(range(taken)), list(range(taken + 1)))
+
+
+class _SmallDisk:
+    """Stands in for ``recording._write_all`` on a disk with ``room`` bytes left: a longer write is
+    cut short where the room ends and raises ENOSPC, as a full disk does."""
+
+    def __init__(self, room: int):
+        self.room = room
+
+    def write_all(self, file: io.FileIO, data: bytes) -> None:
+        if len(data) > self.room:
+            file.write(data[: self.room])
+            self.room = 0
+            raise OSError(errno.ENOSPC, "No space left on device")
+        file.write(data)
+        self.room -= len(data)
+
+
+def _record_until_full(rec: Recorder, limit: int = 200 * 600) -> tuple[int, list[tuple[str, int]]]:
+    """Write samples until a RecordingError: (the failing sample, every (topic, seq) the recorder took)."""
+    taken: list[tuple[str, int]] = []
+    for i in range(limit):
+        for topic, message in (("/sensor", frame(i)), ("/gait_state", state(i)), ("/torque", torque(i))):
+            try:
+                rec.write(topic, i / RATE_HZ, message)
+            except RecordingError as e:
+                assert e.errno == errno.ENOSPC
+                taken.append((topic, i))  # in the failed chunk, held for finish() to retry
+                return i, taken
+            taken.append((topic, i))
+    raise AssertionError(f"the disk did not fill in {limit} samples")
+
+
+@pytest.mark.parametrize("room_at_finish", [False, True], ids=["disk-stays-full", "room-freed"])
+def test_a_full_disk_keeps_the_data_up_to_the_failure(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, room_at_finish: bool
+) -> None:
+    disk = _SmallDisk(room=120_000)
+    monkeypatch.setattr(recording, "_write_all", disk.write_all)
+    path = tmp_path / "t.mcap"
+    rec = Recorder(path, START_NS, META)
+    failed_at, taken = _record_until_full(rec)
+    t_fail = failed_at / RATE_HZ
+    assert rec.error is not None
+    assert str(rec.error) == f"recording stopped: the disk is full; data up to {rec.saved_t:.1f} s is kept"
+    assert str(tmp_path) not in str(rec.error) and rec.error.filename == str(path)
+    assert rec.saved_t is not None and rec.saved_t >= t_fail - FLUSH_INTERVAL_S - 1e-9
+    with pytest.raises(RecordingError, match="the disk is full"):  # refused from now on
+        rec.write("/torque", t_fail, torque(failed_at))
+    kept = on_disk(path, tmp_path)  # the torn write was cut off: the file ends at a record boundary
+    assert latest(kept) == rec.saved_t
+
+    if room_at_finish:
+        disk.room = 10**9
+        rec.finish()
+        check_mcap(path)  # complete and indexed: nothing lost up to the failure
+        got = [(topic, m["seq"]) for topic, _, m in read_messages(path, ["/sensor", "/gait_state", "/torque"])]
+        assert sorted(got) == sorted(taken)
+    else:
+        with pytest.raises(RecordingError, match="the disk is full"):
+            rec.finish()
+        result = recover(path)  # what start-up recovery does once there is room
+        assert result.recovered and result.lost_bytes == 0
+        seqs = [m["seq"] for _, _, m in read_messages(path, ["/gait_state"])]
+        assert seqs == list(range(len(kept["/gait_state"])))
+        assert seqs[-1] / RATE_HZ >= t_fail - FLUSH_INTERVAL_S - 1 / RATE_HZ - 1e-9  # lost: the failed chunk
+
+
+def test_no_room_for_the_header_leaves_no_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(recording, "_write_all", _SmallDisk(room=10).write_all)
+    path = tmp_path / "t.mcap"
+    with pytest.raises(RecordingError, match=r"^recording stopped: the disk is full; no data is kept$"):
+        Recorder(path, START_NS, META)
+    assert not path.exists()
+
+
+@pytest.fixture
+def tmpfs(tmp_path: Path) -> Iterator[Path]:
+    """A real 2 MiB file system (tmpfs): needs root on Linux, else the test is skipped."""
+    where = tmp_path / "tmpfs"
+    where.mkdir()
+    if sys.platform != "linux" or os.geteuid() != 0:
+        pytest.skip("mounting a tmpfs needs root on Linux; the simulated full disk covers the same code")
+    mounted = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(where)], capture_output=True, text=True, check=False
+    )
+    if mounted.returncode != 0:
+        pytest.skip(f"mounting a tmpfs is not permitted here ({mounted.stderr.strip()})")
+    try:
+        yield where
+    finally:
+        subprocess.run(["umount", str(where)], check=True)
+
+
+@pytest.mark.parametrize("room_at_finish", [False, True], ids=["disk-stays-full", "room-freed"])
+def test_a_real_full_disk_keeps_the_data_up_to_the_failure(tmp_path: Path, tmpfs: Path, room_at_finish: bool) -> None:
+    filler = tmpfs / "filler"
+    filler.write_bytes(b"\0" * (1024 * 1024))  # half the disk, freed before finish() in one case
+    path = tmpfs / "recordings" / "t.mcap"
+    rec = Recorder(path, START_NS, META)
+    failed_at, taken = _record_until_full(rec)
+    t_fail = failed_at / RATE_HZ
+    assert t_fail > 10  # about 1 MiB at ~29 KiB/s
+    assert str(rec.error) == f"recording stopped: the disk is full; data up to {rec.saved_t:.1f} s is kept"
+    if room_at_finish:
+        filler.unlink()
+        rec.finish()
+        check_mcap(path)
+        got = [(topic, m["seq"]) for topic, _, m in read_messages(path, ["/sensor", "/gait_state", "/torque"])]
+        assert sorted(got) == sorted(taken)
+    else:
+        with pytest.raises(RecordingError, match="the disk is full"):
+            rec.finish()
+        copy = tmp_path / "copy.mcap"  # recovered where there is room, as after freeing space
+        shutil.copyfile(path, copy)
+        result = recover(copy)
+        assert result.recovered and result.lost_bytes == 0
+        seqs = [m["seq"] for _, _, m in read_messages(copy, ["/gait_state"])]
+        assert seqs == list(range(len(seqs)))
+        assert seqs[-1] / RATE_HZ >= t_fail - FLUSH_INTERVAL_S - 1 / RATE_HZ - 1e-9  # lost: the failed chunk
 
 
 def test_series_of_a_long_recording_needs_memory_for_max_points_only(tmp_path: Path) -> None:

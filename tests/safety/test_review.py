@@ -19,8 +19,7 @@ from mcap.reader import make_reader
 from sessions import schema
 from sessions.estimation import DEFAULT_PERIOD, estimate
 from sessions.mcap_io import SERIES_COLUMNS
-from sessions.recording import METADATA_NAME, Recorder
-from sessions.review import SAMPLE_PERIOD_KEY
+from sessions.recording import METADATA_NAME, SAMPLE_PERIOD_KEY, Recorder
 from sessions.runtime import SessionRuntime
 from sessions.sources import LiveDevice, frames_from_table
 from sessions.trials import replay_columns, sensor_trial
@@ -149,6 +148,8 @@ def test_what_if_holds_its_settings_over_the_whole_trial(client: TestClient) -> 
     early = [i for i, t in enumerate(recorded["t"]) if 3.0 < t <= times[0]]
     assert max(what_if["torque_Nm"][i] for i in early) > 1.2 * max(recorded["torque_Nm"][i] for i in early)
     assert what_if["t"] == recorded["t"]  # on the recording's times, to overlay it
+    r = client.post(f"/api/trials/{tid}/rerun", json={"settings": {"model": "nope"}})
+    assert r.status_code == 422 and r.json()["detail"] == "model 'nope' does not exist"
 
 
 def test_live_session_rerun_reproduces_a_change_made_over_the_api(client: TestClient) -> None:

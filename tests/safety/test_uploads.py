@@ -131,7 +131,9 @@ def _edit(frames: list[dict[str, Any]], index: int, **fields: Any) -> list[dict[
 
 @functools.cache
 def _locohub() -> pd.DataFrame:
-    return generate_cohort(CohortSpec(n_subjects=1, speeds_m_s=(1.0,), inclines_deg=(0.0, 5.0), strides_per_condition=2))
+    return generate_cohort(
+        CohortSpec(n_subjects=1, speeds_m_s=(1.0,), inclines_deg=(0.0, 5.0), strides_per_condition=2)
+    )
 
 
 def _locohub_bytes(suffix: str, tmp_path: Path, frame: pd.DataFrame | None = None) -> bytes:
@@ -229,7 +231,7 @@ BAD_FILES: list[tuple[str, Callable[[Path], bytes], str]] = [
     ("huge_state.mcap", lambda _: _mcap(_frames(), states=[*_GOOD_STATES[:2], {**_GOOD_STATES[2], "t": 1e300}]),
      "/gait_state message 3: t = 1e+300 s is out of range"),
     ("nan.csv", lambda _: b"time_s,foot_angle_deg\n0,1\n0.01,nan\n", "column 'foot_angle_deg', row 3: NaN"),
-    ("huge_t.csv", lambda _: b"time_s,foot_angle_deg\n0,1\n1e300,2\n", "column 'time_s', row 3: t = 1e+300 s is out of range"),
+    ("huge_t.csv", lambda _: b"time_s,foot_angle_deg\n0,1\n1e300,2\n", "'time_s', row 3: t = 1e+300 s is out of range"),
     ("back_t.csv", lambda _: b"time_s,foot_angle_deg\n0,1\n0.02,2\n0.01,3\n", "row 4: time goes backwards"),
     ("short.csv", lambda _: b"time_s,foot_angle_deg\n0,1\n", "need at least 2 data rows"),
 ]  # fmt: skip
@@ -334,7 +336,9 @@ def test_store_creates_upload_session_and_trial_in_one_transaction(make_client: 
 # --- one chunk at a time -------------------------------------------------------------------------
 
 
-async def _blocked_body(first: bytes, rest: bytes, started: asyncio.Event, release: asyncio.Event) -> AsyncIterator[bytes]:
+async def _blocked_body(
+    first: bytes, rest: bytes, started: asyncio.Event, release: asyncio.Event
+) -> AsyncIterator[bytes]:
     yield first
     started.set()
     await release.wait()
@@ -344,13 +348,17 @@ async def _blocked_body(first: bytes, rest: bytes, started: asyncio.Event, relea
 def test_concurrent_chunks_at_one_offset(make_client: Callable[..., TestClient], tmp_path: Path) -> None:
     client = make_client()
     data = b"time_s,foot_angle_deg\n0,1\n0.01,2\n"
-    up = client.post("/api/uploads", json={"filename": "a.csv", "size": len(data), "subject_id": _subject(client)}).json()
+    up = client.post(
+        "/api/uploads", json={"filename": "a.csv", "size": len(data), "subject_id": _subject(client)}
+    ).json()
     url = f"http://testserver/api/uploads/{up['id']}"
 
     async def race() -> tuple[int, int, int, bool]:
         started, release = asyncio.Event(), asyncio.Event()
         async with httpx2.AsyncClient(transport=httpx2.ASGITransport(app=client.app)) as http:
-            first = asyncio.create_task(http.put(f"{url}?offset=0", content=_blocked_body(data[:5], data[5:], started, release)))
+            first = asyncio.create_task(
+                http.put(f"{url}?offset=0", content=_blocked_body(data[:5], data[5:], started, release))
+            )
             await started.wait()
             second = await http.put(f"{url}?offset=0", content=data)
             finish = await http.post(f"{url}/finish")
@@ -365,13 +373,17 @@ def test_concurrent_chunks_at_one_offset(make_client: Callable[..., TestClient],
 def test_cancel_during_a_chunk(make_client: Callable[..., TestClient], tmp_path: Path) -> None:
     client = make_client()
     data = b"time_s,foot_angle_deg\n0,1\n0.01,2\n"
-    up = client.post("/api/uploads", json={"filename": "a.csv", "size": len(data), "subject_id": _subject(client)}).json()
+    up = client.post(
+        "/api/uploads", json={"filename": "a.csv", "size": len(data), "subject_id": _subject(client)}
+    ).json()
     url = f"http://testserver/api/uploads/{up['id']}"
 
     async def race() -> tuple[int, int]:
         started, release = asyncio.Event(), asyncio.Event()
         async with httpx2.AsyncClient(transport=httpx2.ASGITransport(app=client.app)) as http:
-            put = asyncio.create_task(http.put(f"{url}?offset=0", content=_blocked_body(data[:5], data[5:], started, release)))
+            put = asyncio.create_task(
+                http.put(f"{url}?offset=0", content=_blocked_body(data[:5], data[5:], started, release))
+            )
             await started.wait()
             cancel = await http.delete(url)
             release.set()
@@ -407,7 +419,7 @@ def test_idle_uploads_expire(make_client: Callable[..., TestClient], tmp_path: P
 
 
 def test_disk_space_is_checked(make_client: Callable[..., TestClient], monkeypatch: pytest.MonkeyPatch) -> None:
-    client = make_client(min_free_disk_mb=100)
+    client = make_client(upload_min_free_mb=100)
     sid = _subject(client)
     real = shutil.disk_usage
     free = 100 * 2**20 + 3 * 2**20  # 3 MiB above the margin
@@ -420,7 +432,9 @@ def test_disk_space_is_checked(make_client: Callable[..., TestClient], monkeypat
     assert r.status_code == 201
     r = client.post("/api/uploads", json={"filename": "b.csv", "size": 2 * 2**20, "subject_id": sid})
     assert r.status_code == 507 and r.json()["detail"].startswith("not enough free disk space on the server for b.csv")
-    assert client.post("/api/uploads", json={"filename": "c.csv", "size": 2**20 - 1, "subject_id": sid}).status_code == 201
+    assert (
+        client.post("/api/uploads", json={"filename": "c.csv", "size": 2**20 - 1, "subject_id": sid}).status_code == 201
+    )
 
 
 # --- the worker process and memory ---------------------------------------------------------------

@@ -1,0 +1,326 @@
+"""Chunked uploads of logs for review (``/api/uploads``): create, PUT chunks in order, finish or cancel.
+
+An open upload lives in memory (:class:`Uploads`) and on disk as ``<data>/uploads/<id>.part``; a
+restart ends every upload (:meth:`Uploads.clear_leftovers`). The rules:
+
+- **One chunk at a time.** Each upload has an ``asyncio.Lock``: a request that finds a chunk still
+  arriving (a second PUT, a finish) gets 409. A cancel is always accepted; a chunk still arriving for
+  a cancelled upload is thrown away (404). A chunk is written at its offset, so a failed write never
+  leaves stray bytes behind.
+- **Quotas.** At most ``max_open_uploads`` are open at once (429); one without a request for
+  ``upload_idle_s`` is dropped. A new upload is refused with 507 when the data folder's free space,
+  less the bytes that open uploads and running imports may still write, would fall below
+  ``upload_min_free_mb``; a chunk or an import that meets a full disk is 507 too.
+- **Finish.** The import (:func:`sessions.imports.run_import`) runs in one worker process, started on
+  the first finish ('forkserver' where the platform has it, else 'spawn'; never 'fork' from a server
+  with threads) and shut down with the app, so parsing and estimating a large file never holds this
+  process's GIL while live sessions answer their devices. The worker writes the recording to
+  ``uploads/<id>.import.mcap`` and returns counts; here the session and trial rows are created in one
+  transaction that moves the recording into ``recordings/`` before it commits
+  (:meth:`~sessions.store.Store.create_upload_trial`): both appear or neither does. A finished upload
+  is gone whatever the outcome (a later request is 404).
+- Every message names the user's file, never a server path.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import errno
+import functools
+import multiprocessing
+import os
+import re
+import shutil
+import time
+import uuid
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Final
+
+from fastapi import APIRouter, HTTPException, Query, Request, Response
+
+from server.api import Ctx
+from server.settings import Settings
+from sessions import schema
+from sessions.imports import ImportJob, ImportRefused, ImportResult, run_import
+
+if TYPE_CHECKING:
+    from server.app import AppContext
+
+__all__ = ["UploadState", "Uploads", "router"]
+
+router = APIRouter(prefix="/api")
+
+_MIB: Final = 1024 * 1024
+_DISK_FULL: Final = (errno.ENOSPC, errno.EDQUOT)
+
+
+@dataclass
+class UploadState:
+    """One open upload.
+
+    Attributes:
+        info: what the client announced and how much has arrived.
+        subject_id: whose log it is.
+        path: where its bytes go (``<data>/uploads/<id>.part``).
+        touched: ``time.monotonic()`` of its last request (idle uploads are dropped).
+        lock: held while a chunk is received.
+        closed: finished or cancelled; a chunk still arriving is thrown away.
+    """
+
+    info: schema.Upload
+    subject_id: int
+    path: Path
+    touched: float
+    lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+    closed: bool = False
+
+
+class Uploads:
+    """The open uploads of one app, their quotas, and the import worker process.
+
+    Every method runs on the event loop (the routes are ``async``), so no two change it at once.
+
+    Attributes:
+        open: the open uploads by id.
+        start_method: how the worker process is started (``forkserver`` or ``spawn``).
+    """
+
+    def __init__(self, settings: Settings):
+        self.settings = settings
+        self.folder = settings.data_dir / "uploads"
+        self.open: dict[str, UploadState] = {}
+        self.start_method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+        self._importing: dict[str, int] = {}  # id -> bytes, of the imports running
+        self._worker: ProcessPoolExecutor | None = None
+
+    @property
+    def worker_started(self) -> bool:
+        """True once an import has started the worker process, until :meth:`shutdown`."""
+        return self._worker is not None
+
+    def clear_leftovers(self) -> None:
+        """Delete what an earlier run left in the uploads folder (nothing there outlives a run)."""
+        if self.folder.is_dir():
+            for path in self.folder.iterdir():
+                if not path.is_dir():
+                    path.unlink(missing_ok=True)
+
+    def shutdown(self) -> None:
+        """Stop the worker process (an import in progress is waited for; queued ones are cancelled)."""
+        if self._worker is not None:
+            self._worker.shutdown(wait=True, cancel_futures=True)
+            self._worker = None
+
+    # --- the protocol ---------------------------------------------------------------------------
+
+    def create(self, body: schema.UploadCreate) -> schema.Upload:
+        """Open an upload after the size, count and disk-space checks (413, 429, 507)."""
+        s = self.settings
+        if body.size > s.max_upload_mb * _MIB:
+            size = f"{body.size / _MIB:.1f} MiB"
+            raise HTTPException(413, f"{body.filename} is {size}; the limit is {s.max_upload_mb} MiB")
+        self._expire_idle()
+        if len(self.open) >= s.max_open_uploads:
+            raise HTTPException(
+                429,
+                f"{len(self.open)} uploads are open, the most allowed at once; finish or cancel one "
+                f"(an upload without a request for {s.upload_idle_s:g} s is dropped)",
+            )
+        self._check_space(body)
+        upload_id = uuid.uuid4().hex
+        path = self.folder / f"{upload_id}.part"
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            path.touch(exist_ok=False)
+        except OSError as err:
+            raise _disk_error(err, body.filename) from None
+        info = schema.Upload(
+            id=upload_id, filename=body.filename, size=body.size, received=0, chunk_size=s.upload_chunk_kb * 1024
+        )
+        self.open[upload_id] = UploadState(info, body.subject_id, path, time.monotonic())
+        return info
+
+    async def receive(self, upload_id: str, offset: int, request: Request) -> schema.Upload:
+        """Write the chunk at ``offset`` (409 out of order or while another arrives, 413 too long)."""
+        state = self._get(upload_id)
+        info = state.info
+        if state.lock.locked():
+            raise HTTPException(409, f"a chunk of {info.filename} is being received; send one chunk at a time")
+        async with state.lock:
+            state.touched = time.monotonic()
+            if offset != info.received:
+                raise HTTPException(409, f"expected the chunk at offset {info.received}, got {offset}")
+            data = bytearray()
+            async for part in request.stream():
+                data += part
+                if len(data) > info.chunk_size:
+                    raise HTTPException(413, f"a chunk may hold at most {info.chunk_size} bytes")
+            if info.received + len(data) > info.size:
+                raise HTTPException(413, f"{info.filename}: more bytes than the {info.size} announced")
+            try:
+                if state.closed:
+                    raise _gone(upload_id)
+                await asyncio.to_thread(_write_at, state.path, offset, bytes(data))
+            except OSError as err:
+                raise _gone(upload_id) if state.closed else _disk_error(err, info.filename) from None
+            if state.closed:  # cancelled while the chunk was written: throw it away
+                state.path.unlink(missing_ok=True)
+                raise _gone(upload_id)
+            state.info = info.model_copy(update={"received": info.received + len(data)})
+            state.touched = time.monotonic()
+            return state.info
+
+    async def finish(self, upload_id: str, c: AppContext) -> schema.Trial:
+        """Import a complete upload as a new session with one trial (422 for a bad file)."""
+        state = self._get(upload_id)
+        info = state.info
+        if state.lock.locked():
+            raise HTTPException(409, f"a chunk of {info.filename} is still being received; finish after it")
+        if info.received != info.size:
+            raise HTTPException(409, f"received {info.received} of {info.size} bytes; send the rest first")
+        self._close(upload_id)
+        self._importing[upload_id] = info.size
+        recording = self.folder / f"{upload_id}.import.mcap"
+        try:
+            subject = c.store.get_subject(state.subject_id)
+            model = c.models.get("default")[0]
+            result = await self._run(ImportJob(state.path, info.filename, recording, subject, model))
+            rel = f"recordings/upload_{int(time.time() * 1000)}_{upload_id[:8]}_{_safe_stem(info.filename)}.mcap"
+            final = c.settings.data_dir / rel
+            final.parent.mkdir(parents=True, exist_ok=True)
+            try:  # synchronous: a cancelled request must not leave a commit running in a thread
+                return c.store.create_upload_trial(
+                    subject.id,
+                    info.filename,
+                    rel,
+                    result.samples,
+                    result.duration_s,
+                    before_commit=functools.partial(os.replace, recording, final),
+                )
+            except BaseException:
+                final.unlink(missing_ok=True)  # moved, then the commit failed: no rows, so no file
+                raise
+        finally:
+            del self._importing[upload_id]
+            state.path.unlink(missing_ok=True)
+            recording.unlink(missing_ok=True)
+
+    def cancel(self, upload_id: str) -> None:
+        """Drop an upload and its bytes (a chunk still arriving is thrown away)."""
+        self._get(upload_id)
+        self._close(upload_id).path.unlink(missing_ok=True)
+
+    # --- private --------------------------------------------------------------------------------
+
+    def _get(self, upload_id: str) -> UploadState:
+        state = self.open.get(upload_id)
+        if state is None:
+            raise _gone(upload_id)
+        return state
+
+    def _close(self, upload_id: str) -> UploadState:
+        state = self.open.pop(upload_id)
+        state.closed = True
+        return state
+
+    def _expire_idle(self) -> None:
+        limit = time.monotonic() - self.settings.upload_idle_s
+        for upload_id, state in list(self.open.items()):
+            if state.touched < limit and not state.lock.locked():
+                self._close(upload_id).path.unlink(missing_ok=True)
+
+    def _check_space(self, body: schema.UploadCreate) -> None:
+        """507 unless ``upload_min_free_mb`` stays free once every open upload and import is written.
+
+        A running import counts its upload's size again: about what its recording will take.
+        """
+        pending = body.size + sum(s.info.size - s.info.received for s in self.open.values())
+        pending += sum(self._importing.values())
+        try:
+            free = shutil.disk_usage(self.settings.data_dir).free
+        except OSError:
+            free = 0
+        if free - pending < self.settings.upload_min_free_mb * _MIB:
+            raise HTTPException(
+                507,
+                f"not enough free disk space on the server for {body.filename} ({body.size / _MIB:.1f} MiB); "
+                "try again when other uploads have finished, or ask for space to be freed",
+            )
+
+    def _executor(self) -> ProcessPoolExecutor:
+        if self._worker is None:
+            context = multiprocessing.get_context(self.start_method)
+            if self.start_method == "forkserver":
+                context.set_forkserver_preload(["sessions.imports"])  # each worker starts with it imported
+            self._worker = ProcessPoolExecutor(max_workers=1, mp_context=context)
+        return self._worker
+
+    async def _run(self, job: ImportJob) -> ImportResult:
+        """``run_import(job)`` in the worker process, with its failures as HTTP errors."""
+        future = self._executor().submit(run_import, job)
+        try:
+            return await asyncio.wrap_future(future)
+        except asyncio.CancelledError:  # the worker cannot be interrupted: clean up after it
+            future.add_done_callback(lambda _: job.target.unlink(missing_ok=True))
+            raise
+        except ImportRefused as err:
+            raise HTTPException(422, str(err)) from None
+        except BrokenProcessPool:
+            self._worker = None  # the next import starts a new one
+            raise HTTPException(
+                503, f"the import of {job.filename} stopped unexpectedly (out of memory?); nothing was stored"
+            ) from None
+        except OSError as err:
+            raise _disk_error(err, job.filename) from None
+
+
+def _gone(upload_id: str) -> HTTPException:
+    return HTTPException(404, f"upload {upload_id} does not exist (finished, cancelled, expired or never started)")
+
+
+def _disk_error(err: OSError, filename: str) -> Exception:
+    """507 for a full disk, naming the user's file; any other OSError as it is (a server fault)."""
+    if err.errno in _DISK_FULL:
+        return HTTPException(507, f"the server's disk is full; {filename} was not stored")
+    return err
+
+
+def _write_at(path: Path, offset: int, data: bytes) -> None:
+    """Write ``data`` at ``offset`` and cut the file there: what an earlier failed write left goes."""
+    with path.open("r+b") as f:
+        f.seek(offset)
+        f.write(data)
+        f.truncate()
+
+
+def _safe_stem(filename: str) -> str:
+    """The file name's stem as a harmless part of a server file name."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(filename).stem)[:40].strip("._") or "upload"
+
+
+# --- routes --------------------------------------------------------------------------------------
+
+
+@router.post("/uploads", status_code=201)
+async def create_upload(body: schema.UploadCreate, c: Ctx) -> schema.Upload:
+    c.store.get_subject(body.subject_id)
+    return c.uploads.create(body)
+
+
+@router.put("/uploads/{upload_id}")
+async def upload_chunk(upload_id: str, request: Request, c: Ctx, offset: Annotated[int, Query(ge=0)]) -> schema.Upload:
+    return await c.uploads.receive(upload_id, offset, request)
+
+
+@router.post("/uploads/{upload_id}/finish", status_code=201)
+async def finish_upload(upload_id: str, c: Ctx) -> schema.Trial:
+    return await c.uploads.finish(upload_id, c)
+
+
+@router.delete("/uploads/{upload_id}", status_code=204)
+async def cancel_upload(upload_id: str, c: Ctx) -> Response:
+    c.uploads.cancel(upload_id)
+    return Response(status_code=204)

@@ -1,0 +1,118 @@
+"""Property: whatever the sensors send, the torque is a finite number within [0, max torque].
+
+Drives the estimator stack (the pipeline replay runs, and the frame estimator the live path and
+re-runs use) with arbitrary floats: NaN, infinities, huge and denormal values, arbitrary time steps.
+The live websocket and the replay command are driven the same way in ``test_live_faults.py`` and
+``test_replay_faults.py``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from sessions.estimation import FrameEstimator, FrameRefused
+from sessions.schema import SENSOR_LIMITS, SensorFrame, SessionSettings
+
+ANY_FLOAT = st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True)
+CHANNEL = st.one_of(ANY_FLOAT, st.floats(-200.0, 200.0), st.just(math.nan))
+MAX_TORQUE = 25.0
+
+SAFE = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+
+def _finite_state(values: list[float]) -> bool:
+    return all(math.isfinite(v) for v in values)
+
+
+@SAFE
+@given(
+    samples=st.lists(
+        st.tuples(
+            st.one_of(st.floats(5e-324, 1e12), st.floats(0.001, 0.02)), st.lists(CHANNEL, min_size=6, max_size=6)
+        ),
+        min_size=1,
+        max_size=40,
+    ),
+    heel_strikes=st.lists(st.sampled_from([None, True, False]), min_size=40, max_size=40),
+)
+def test_pipeline_torque_is_finite_and_bounded(
+    small_model: TrainedModel, samples: list[tuple[float, list[float]]], heel_strikes: list[bool | None]
+) -> None:
+    pipe = GaitStatePipeline(small_model, PipelineConfig(max_torque=MAX_TORQUE, torque_gain=3.0), sample_period=0.005)
+    t = 0.0
+    for (dt, raw), hs in zip(samples, heel_strikes, strict=False):
+        t_next = t + dt
+        if not t_next > t:
+            continue
+        t = t_next
+        e = pipe.step(t, np.array(raw), hs)
+        assert 0.0 <= e.torque_Nm <= MAX_TORQUE
+        assert _finite_state([e.phase, e.phase_rate, e.stride_length_m, e.incline_deg, e.tbe_phase])
+
+
+@SAFE
+@given(
+    frames=st.lists(
+        st.fixed_dictionaries(
+            {"t": st.one_of(st.floats(-1e12, 1e12, allow_subnormal=True), st.floats(0.0, 5.0))},
+            optional={
+                name: CHANNEL
+                for name in SENSOR_LIMITS
+            },
+        ),
+        min_size=1,
+        max_size=40,
+    )
+)
+def test_frame_estimator_torque_is_finite_and_bounded(small_model: TrainedModel, frames: list[dict]) -> None:
+    est = FrameEstimator(small_model, 0.9, 75.0, SessionSettings(torque_gain=3.0, max_torque_Nm=MAX_TORQUE))
+    for k, fields in enumerate(frames):
+        frame = SensorFrame.model_validate({"seq": k, **fields})
+        try:
+            state = est.step(frame, 0)
+        except FrameRefused:
+            continue
+        assert 0.0 <= state.torque_Nm <= MAX_TORQUE
+        assert _finite_state([state.t, state.phase, state.phase_rate, state.stride_length_m, state.incline_deg])
+        assert state.t >= 0.0 and math.isfinite(state.foot_pred_deg)
+        state.model_dump_json()  # serialisable, no NaN for JSON to turn into null
+
+
+def test_a_huge_velocity_does_not_poison_the_filter(small_model: TrainedModel) -> None:
+    """Reproduces the reported failure: one frame with foot_vel_dps = 1e50 made every later torque null."""
+    est = FrameEstimator(small_model, 0.9, 75.0, SessionSettings(), 0.01, soft_start=False)
+    torques = []
+    for k in range(300):
+        bad = {"foot_vel_dps": 1e50} if k == 10 else {}
+        angle = 20.0 * math.sin(2 * math.pi * k / 100)
+        frame = SensorFrame.model_validate({"seq": k, "t": k * 0.01, "foot_angle_deg": angle, **bad})
+        torques.append(est.step(frame, 0).torque_Nm)
+    assert all(math.isfinite(x) for x in torques) and max(torques[20:]) > 0.0
+    assert est.implausible == 1
+
+
+def test_a_time_jump_restarts_instead_of_blowing_up(small_model: TrainedModel) -> None:
+    """Reproduces the reported failure: one frame at t = 1e10 made every later torque null."""
+    est = FrameEstimator(small_model, 0.9, 75.0, SessionSettings(), 0.01, soft_start=False)
+    ts = [k * 0.01 for k in range(100)] + [1e10] + [1.0 + k * 0.01 for k in range(200)]
+    states = [est.step(SensorFrame(seq=k, t=t, foot_angle_deg=10.0 * math.sin(t * 6.0)), 0) for k, t in enumerate(ts)]
+    assert all(math.isfinite(s.torque_Nm) and math.isfinite(s.phase) for s in states)
+    times = [s.t for s in states]
+    assert all(b > a for a, b in itertools.pairwise(times)) and times[-1] < 10.0  # resynchronised
+    assert any("resynchronised" in n for n in est.notes)
+
+
+def test_a_diverged_filter_is_reset_with_zero_torque(small_model: TrainedModel) -> None:
+    pipe = GaitStatePipeline(small_model, PipelineConfig(), sample_period=0.01)
+    pipe.step(0.0, np.full(6, np.nan))
+    pipe.ekf.x[1] = math.nan  # as if a numerical fault had happened inside the filter
+    e = pipe.step(0.01, np.full(6, np.nan))
+    assert e.fault == "diverged" and e.torque_Nm == 0.0 and math.isfinite(e.phase_rate)
+    assert np.all(np.isfinite(pipe.ekf.P)) and pipe.resets == 1
+    assert pipe.step(0.02, np.full(6, np.nan)).fault == ""
