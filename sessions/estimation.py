@@ -255,10 +255,11 @@ def estimate(
     """Run recorded frames through a fresh estimator (review re-runs, imports of raw logs).
 
     Recorded ``/sensor`` frames carry session time, so a re-run passes ``time_origin=0`` to keep it.
-    Reordered frames are skipped, as live.
+    A log's times are trusted (a pause stays a pause: no resynchronisation); reordered frames are
+    skipped, as live.
     """
     period = (frames[-1].t - frames[0].t) / (len(frames) - 1) if len(frames) > 1 else DEFAULT_PERIOD
-    est = FrameEstimator(model, leg_length, mass_kg, settings, period, time_origin)
+    est = FrameEstimator(model, leg_length, mass_kg, settings, period, time_origin, max_jump_s=math.inf)
     out = []
     for f in frames:
         if est.accepts(f):

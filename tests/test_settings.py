@@ -38,3 +38,15 @@ def test_bad_values_are_refused() -> None:
         Settings(port=70000)
     with pytest.raises(ValidationError, match="max_upload_mb"):
         Settings(max_upload_mb=0)
+
+
+def test_disk_thresholds(monkeypatch: pytest.MonkeyPatch) -> None:
+    s = Settings()
+    assert (s.disk_warn_mb, s.disk_stop_mb) == (1024, 256)
+    monkeypatch.setenv("GAITSCOPE_DISK_WARN_MB", "2048")
+    monkeypatch.setenv("GAITSCOPE_DISK_STOP_MB", "512")
+    assert (Settings().disk_warn_mb, Settings().disk_stop_mb) == (2048, 512)
+    with pytest.raises(ValidationError, match=r"disk_stop_mb \(600\) must not be above disk_warn_mb \(500\)"):
+        Settings(disk_warn_mb=500, disk_stop_mb=600)
+    with pytest.raises(ValidationError, match="disk_stop_mb"):
+        Settings(disk_stop_mb=0)
