@@ -26,6 +26,7 @@ from server.streams import router as stream_router
 from server.uploads import Uploads
 from server.uploads import router as upload_router
 from sessions import schema
+from sessions.disk import DiskGuard
 from sessions.manager import ModelStore, SessionManager
 from sessions.models import gaitscope_version
 from sessions.store import Store
@@ -82,7 +83,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         settings.data_dir.mkdir(parents=True, exist_ok=True)
         store = Store(settings.database_url)
         models = ModelStore(settings.data_dir / "models")
-        manager = SessionManager(store, settings.data_dir, models, on_state=lambda *a: ctx.on_state(*a))
+        disk = DiskGuard(settings.data_dir, settings.disk_warn_mb, settings.disk_stop_mb)
+        manager = SessionManager(
+            store, settings.data_dir, models, on_state=lambda *a: ctx.on_state(*a), disk_check=disk.check
+        )
         ctx = AppContext(settings=settings, store=store, models=models, manager=manager, uploads=Uploads(settings))
         ctx.uploads.clear_leftovers()  # uploads live in memory: a restart ends them
         for trial in ctx.manager.recover_after_crash():

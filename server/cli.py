@@ -203,6 +203,11 @@ def cmd_serve(a: argparse.Namespace) -> int:
 
 
 def cmd_loadbench(a: argparse.Namespace) -> int:
+    if a.soak:
+        from server.soak import run_soak
+
+        result = run_soak(devices=a.sessions if a.sessions != 10 else 4, rate=a.rate, seconds=a.seconds)
+        return 0 if result["clean"] and not any(r.out_of_bounds for r in result["devices"]) else 1
     from server.loadbench import run_loadbench
 
     run_loadbench(a.sessions, a.clients, a.rate, a.seconds, a.batch_ms)
@@ -270,6 +275,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rate", type=float, default=200.0)
     p.add_argument("--seconds", type=float, default=20.0)
     p.add_argument("--batch-ms", type=float, default=33.0)
+    p.add_argument(
+        "--soak",
+        action="store_true",
+        help="soak with faults injected (bad frames, a reboot, a flooding device, a full disk); --sessions "
+        "devices (default 4), --seconds long",
+    )
     p.set_defaults(func=cmd_loadbench)
     return parser
 

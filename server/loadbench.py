@@ -163,8 +163,9 @@ def _run(base: str, sessions: int, clients: int, rate: float, seconds: float, ba
     data = replay_input(sensors)
     frames = [{"type": "frame", **{k: float(v[i]) for k, v in data.signals.items()}} for i in range(len(data.time_s))]
     subject = _post(base, "/api/subjects", {"code": f"LB{time.time_ns() % 10**8}", "leg_length_m": 0.9, "mass_kg": 70})
+    device = {"kind": "device", "rate_hz": rate}
     ids = [
-        int(_post(base, "/api/sessions", {"subject_id": subject["id"], "source": {"kind": "device"}})["id"])  # type: ignore[call-overload]
+        int(_post(base, "/api/sessions", {"subject_id": subject["id"], "source": device})["id"])  # type: ignore[call-overload]
         for _ in range(sessions)
     ]
     now = time.time()

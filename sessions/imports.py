@@ -23,8 +23,10 @@ strictly, and a log may span at most :data:`MAX_SPAN_S`; sensor values must be f
 from __future__ import annotations
 
 import codecs
+import collections
 import contextlib
 import csv
+import errno
 import io
 import itertools
 import math
@@ -45,7 +47,7 @@ from sessions.errors import DataFormatError
 from sessions.estimation import FrameEstimator
 from sessions.locohub import read_table
 from sessions.mcap_io import check_mcap, count_messages, read_messages
-from sessions.recording import Recorder
+from sessions.recording import SAMPLE_PERIOD_KEY, Recorder
 from sessions.replay_io import MAX_PERIOD_S, MIN_PERIOD_S
 
 __all__ = [
@@ -65,7 +67,7 @@ __all__ = [
 #: LocoHub columns a table needs to be replayed (heel positions are used when present).
 LOCOHUB_REPLAY_COLUMNS: Final = (schema.SUBJECT, schema.TASK_ID, schema.TIME_S, schema.FOOT_ANGLE, schema.SHANK_ANGLE)
 #: Frames read, estimated and written per batch: what an import holds in memory at once.
-BATCH_FRAMES: Final = 1024
+BATCH_FRAMES: Final = 256
 #: Largest time (s, either sign) a log may hold: a device clock in Unix seconds fits; 1e300 does not.
 MAX_ABS_TIME_S: Final = 1e10
 #: Longest log (s, last time minus first): about 11.6 days.
@@ -133,7 +135,10 @@ def import_log(job: ImportJob) -> ImportResult:
     Raises:
         DataFormatError: the file is not an acceptable log (named by ``job.filename``).
         OSError: the recording could not be written (a full disk); ``job.target`` is removed.
+        FileExistsError: ``job.target`` exists (it is left alone).
     """
+    if job.target.exists():
+        raise FileExistsError(errno.EEXIST, "the import's recording exists already", str(job.target))
     try:
         with _user_errors(job):
             fmt = detect_format(job.upload, job.filename)
@@ -215,12 +220,21 @@ def _user_errors(job: ImportJob) -> Iterator[None]:
         yield
     except DataFormatError as err:
         where = str(DataFormatError("", file=err.file, column=err.column, row=err.row))
-        message = str(err).removeprefix(where)
-        paths = {_link(job.upload, ".csv"), _link(job.upload, ".parquet"), job.upload, job.target}
-        for path in sorted((str(p) for p in paths), key=len, reverse=True):  # a link's name holds the upload's
-            message = message.replace(path, job.filename)
-        message = message.replace(str(job.upload.parent), "").replace(str(job.target.parent), "")
+        message = _scrub(str(err).removeprefix(where), job)
         raise DataFormatError(message, file=job.filename, column=err.column, row=err.row) from None
+
+
+def _scrub(message: str, job: ImportJob) -> str:
+    """``message`` with every server path of the job replaced by the user's file name (files) or
+    removed (folders), as given and as absolute paths."""
+    files = {_link(job.upload, ".csv"), _link(job.upload, ".parquet"), job.upload, job.target}
+    folders = {job.upload.parent, job.target.parent}
+    for path in sorted({str(p) for p in files} | {os.path.abspath(p) for p in files}, key=len, reverse=True):
+        message = message.replace(path, job.filename)  # longest first: a link's name holds the upload's
+    for path in sorted({str(p) for p in folders} | {os.path.abspath(p) for p in folders}, key=len, reverse=True):
+        if path not in (".", os.sep):  # a bare file name has no folder to remove
+            message = message.replace(path, "")
+    return message
 
 
 def _link(path: Path, suffix: str) -> Path:
@@ -331,7 +345,7 @@ def _import_mcap(job: ImportJob) -> ImportResult:
 
 def _record(job: ImportJob, frames: Iterator[schema.SensorFrame]) -> ImportResult:
     """Estimate ``frames`` batch by batch and write them with their states to ``job.target``."""
-    first = list(itertools.islice(frames, BATCH_FRAMES))
+    first = collections.deque(itertools.islice(frames, BATCH_FRAMES))
     if len(first) < 2:
         raise DataFormatError("the log holds fewer than 2 sensor frames", file=job.filename)
     period = float(np.median(np.diff([f.t for f in first])))
@@ -344,18 +358,28 @@ def _record(job: ImportJob, frames: Iterator[schema.SensorFrame]) -> ImportResul
     settings = schema.SessionSettings()
     subject = job.subject
     estimator = FrameEstimator(job.model, subject.leg_length_m, subject.mass_kg, settings, period)
-    metadata = {"subject": subject.code, "source": f"upload {job.filename}"}
+    metadata = {
+        "subject": subject.code,
+        "source": f"upload {job.filename}",
+        SAMPLE_PERIOD_KEY: repr(estimator.sample_period),  # a review re-run reproduces the states
+    }
     with Recorder(job.target, time.time_ns(), metadata, flush_interval_s=math.inf, fsync_interval_s=math.inf) as rec:
         rec.write("/settings", 0.0, settings)
-        for frame in itertools.chain(first, frames):
+        for frame in itertools.chain(_drain(first), frames):
             if not estimator.accepts(frame):
                 continue
             state = estimator.step(frame, 0)
             estimator.notes.clear()  # resynchronisations and filter restarts: live events, not kept here
-            rec.write("/sensor", state.t, frame)
+            rec.write("/sensor", state.t, frame.model_copy(update={"t": state.t}))  # session time, as the rest
             rec.write("/gait_state", state.t, state)
             rec.write("/torque", state.t, schema.TorqueCommand(seq=state.seq, t=state.t, torque_Nm=state.torque_Nm))
     return ImportResult(samples=rec.samples, duration_s=rec.duration_s)
+
+
+def _drain(items: collections.deque[schema.SensorFrame]) -> Iterator[schema.SensorFrame]:
+    """The items, each let go of as it is taken."""
+    while items:
+        yield items.popleft()
 
 
 def _replay_frames(path: Path, name: str) -> Iterator[schema.SensorFrame]:
@@ -432,8 +456,8 @@ class _ReplayBatch:
         signals = [c for c in values if c in schema.REPLAY_SIGNALS]
         heel = values.get(schema.REPLAY_HEEL_STRIKE)
         for i, t in enumerate(values[schema.REPLAY_TIME].tolist()):
-            if problem := _time_problem(t, self._first, self._previous):
-                raise DataFormatError(problem, file=self.name, column=schema.REPLAY_TIME, row=lines[i])
+            if late := _time_problem(t, self._first, self._previous):
+                raise DataFormatError(late, file=self.name, column=schema.REPLAY_TIME, row=lines[i])
             self._first = t if self._first is None else self._first
             self._previous = t
             fields: dict[str, Any] = {c: float(values[c][i]) for c in signals}
@@ -495,7 +519,7 @@ def _locohub_frames(path: Path, name: str, suffix: str) -> Iterator[schema.Senso
                 columns[field] = g[col].to_numpy(np.float64)
         heel = g[schema.HEEL_STRIKE].to_numpy(np.float64) > 0.5 if schema.HEEL_STRIKE in g.columns else None
         for k in range(len(t)):
-            fields = {c: float(v[k]) for c, v in columns.items()}
+            fields: dict[str, Any] = {c: float(v[k]) for c, v in columns.items()}
             hs = None if heel is None else bool(heel[k])
             yield schema.SensorFrame(seq=seq, t=float(session_t[k]), heel_strike=hs, **fields)
             seq += 1

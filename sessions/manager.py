@@ -80,7 +80,8 @@ class SessionManager:
                 result = recover(path)
                 samples, duration, end_t = _count(path)
             except Exception as e:
-                log.error("trial %d: could not recover %s: %s", trial.id, path, e, exc_info=not isinstance(e, OSError))
+                expected = isinstance(e, OSError | DataFormatError)  # else a bug: log its traceback
+                log.error("trial %d: could not recover %s: %s", trial.id, path, e, exc_info=not expected)
                 self.store.finish_trial(trial.id, "damaged", trial.samples, trial.duration_s)
                 text = f"server restarted: the recording of {trial.name} is lost: {_damage(e)}"
                 t = _last_event_t(self.store, trial.session_id)

@@ -216,7 +216,7 @@ class DeviceSource(_Strict):
     """A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames.
 
     ``rate_hz`` is the device's declared sample rate: the server takes up to ``1.25 x rate_hz``
-    frames per second (with a burst of half a second) and drops the rest, counted and reported to
+    frames per second (with a burst of two seconds' worth) and drops the rest, counted and reported to
     the device, so that a flooding device cannot starve the other sessions.
     """
 

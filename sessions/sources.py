@@ -158,8 +158,9 @@ class LiveDevice:
 
     The websocket handler processes each frame it admits at once (the torque reply goes back on the
     same socket); :meth:`admit` is a token bucket that lets through ``headroom x rate_hz`` frames per
-    second with a burst of ``burst_s`` seconds' worth, so that a device flooding the server costs it a
-    counter increment per excess frame rather than a filter step, and cannot starve other sessions.
+    second with a burst of ``burst_s`` seconds' worth (frames a network stall delayed arrive together
+    and must not be dropped), so that a device flooding the server costs it a counter increment per
+    excess frame rather than a filter step, and cannot starve other sessions.
 
     Attributes:
         rate_hz: the declared rate (Hz).
@@ -167,7 +168,7 @@ class LiveDevice:
         connected: a device is connected now (one at a time).
     """
 
-    def __init__(self, rate_hz: float = 200.0, headroom: float = 1.25, burst_s: float = 0.5):
+    def __init__(self, rate_hz: float = 200.0, headroom: float = 1.25, burst_s: float = 2.0):
         if not (math.isfinite(rate_hz) and rate_hz > 0):
             raise ValueError(f"rate_hz must be a positive number, got {rate_hz}")
         self.rate_hz: float | None = rate_hz

@@ -38,10 +38,11 @@ def small_model(small_data: StrideData) -> TrainedModel:
 def client(tmp_path: Path) -> Iterator[TestClient]:
     """The app (lifespan included) on a fresh data folder: no demo, no leg view, small upload limits.
 
-    TestClient sends ``Host: testserver``: allowed here, and only here (never by default)."""
+    TestClient sends ``Host: testserver``: allowed here, and only here (never by default). The disk
+    thresholds are 1 MiB so that the tests do not depend on how full the machine's disk is."""
     settings = Settings(
         data_dir=tmp_path / "data", demo=False, leg_view=False, max_upload_mb=5, upload_chunk_kb=64,
-        allowed_hosts=["testserver"],
+        allowed_hosts=["testserver"], disk_warn_mb=1, disk_stop_mb=1, upload_min_free_mb=1,
     )  # fmt: skip
     with TestClient(create_app(settings)) as c:
         yield c

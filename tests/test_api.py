@@ -8,8 +8,6 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-from sessions.trials import replay_columns, sensor_trial
-
 SHORT = {
     "kind": "simulated",
     "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 200}],
@@ -121,74 +119,6 @@ def test_rerun_with_other_settings(client: TestClient) -> None:
     again = client.post(f"/api/trials/{tid}/rerun?max_points=5000", json={"settings": settings}).json()
     assert len(again["t"]) == len(base["t"]) and again["t"][:50] == pytest.approx(base["t"][:50])
     assert 0 < max(again["torque_Nm"]) < 0.5 * max(base["torque_Nm"])
-
-
-def _upload(client: TestClient, path: Path, name: str, subject_id: int) -> tuple[int, dict]:
-    data = path.read_bytes()
-    r = client.post("/api/uploads", json={"filename": name, "size": len(data), "subject_id": subject_id})
-    if r.status_code != 201:
-        return r.status_code, r.json()
-    up = r.json()
-    for off in range(0, len(data), up["chunk_size"]):
-        chunk = data[off : off + up["chunk_size"]]
-        r = client.put(f"/api/uploads/{up['id']}?offset={off}", content=chunk)
-        assert r.status_code == 200, r.text
-    r = client.post(f"/api/uploads/{up['id']}/finish")
-    return r.status_code, r.json()
-
-
-def _files(root: Path) -> set[str]:
-    return {str(p.relative_to(root)) for p in root.rglob("*") if p.is_file() and not p.name.startswith("gaitscope.db")}
-
-
-def test_upload_csv_then_review(client: TestClient, tmp_path: Path) -> None:
-    sensors, _, _ = sensor_trial([(1.0, 5.0, 30)])
-    path = tmp_path / "walk.csv"
-    replay_columns(sensors).to_csv(path, index=False, float_format="%.5f")
-    assert path.stat().st_size > 3 * 64 * 1024  # several chunks
-    code, trial = _upload(client, path, "walk.csv", _subject(client))
-    assert code == 201, trial
-    assert trial["status"] == "uploaded" and trial["samples"] == len(sensors)
-    series = client.get(f"/api/trials/{trial['id']}/series?max_points=20000").json()
-    assert len(series["t"]) == len(sensors)
-    late = [r for t, r in zip(series["t"], series["incline_deg"], strict=True) if t > series["t"][-1] - 3]
-    assert abs(sum(late) / len(late) - 5.0) < 3.0
-
-
-def test_bad_uploads_store_nothing(client: TestClient, tmp_path: Path) -> None:
-    sid = _subject(client)
-    data_dir = tmp_path / "data"
-    before = _files(data_dir)
-    sensors, _, _ = sensor_trial([(1.0, 0.0, 3)])
-    frame = replay_columns(sensors).astype({"shank_angle_deg": object})
-    frame.loc[40, "shank_angle_deg"] = "n/a"
-    bad = tmp_path / "bad.csv"
-    frame.to_csv(bad, index=False)
-    code, body = _upload(client, bad, "bad.csv", sid)
-    assert code == 422 and "column 'shank_angle_deg', row 42" in body["detail"]
-    unfinished = tmp_path / "cut.mcap"
-    unfinished.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 64)
-    code, body = _upload(client, unfinished, "cut.mcap", sid)
-    assert code == 422 and "cut.mcap" in body["detail"]
-    big = tmp_path / "big.csv"
-    with big.open("wb") as f:
-        f.truncate(6 * 1024 * 1024)
-    code, body = _upload(client, big, "big.csv", sid)
-    assert code == 413 and "limit is 5 MiB" in body["detail"]
-    assert _files(data_dir) == before
-    assert client.get("/api/trials").json() == []
-
-
-def test_upload_protocol_errors(client: TestClient) -> None:
-    sid = _subject(client)
-    up = client.post("/api/uploads", json={"filename": "a.csv", "size": 10, "subject_id": sid}).json()
-    assert client.put(f"/api/uploads/{up['id']}?offset=5", content=b"12345").status_code == 409
-    assert client.put(f"/api/uploads/{up['id']}?offset=0", content=b"12345678901").status_code == 413
-    assert client.post(f"/api/uploads/{up['id']}/finish").status_code == 409
-    assert client.delete(f"/api/uploads/{up['id']}").status_code == 204
-    assert client.post(f"/api/uploads/{up['id']}/finish").status_code == 404
-    r = client.post("/api/uploads", json={"filename": "../evil.csv", "size": 10, "subject_id": sid})
-    assert r.status_code == 422
 
 
 def test_unknown_things_are_404(client: TestClient) -> None:

@@ -258,3 +258,32 @@ def test_non_finite_json_is_a_422(client: TestClient, body: str) -> None:
 def test_ids_beyond_sqlite_are_a_clear_4xx(client: TestClient, url: str) -> None:
     r = client.get(url.format(big=2**70))
     assert r.status_code in (404, 422) and "detail" in r.json()
+
+
+def test_a_disk_running_out_warns_then_stops_cleanly(client: TestClient) -> None:
+    """Reproduces: with the disk full a session's task died, it stayed "running" and lost its last seconds."""
+    sid = _device_session(client)
+    runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
+    level = {"now": "low"}
+    runtime.disk_check = lambda: level["now"]
+    with _device(client, sid) as ws:
+        _walk_torques(ws, 0.0, 100)
+        deadline = time.monotonic() + 5
+        while runtime.disk != "low" and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert runtime.health().disk == "low"
+        level["now"] = "critical"
+        deadline = time.monotonic() + 5
+        while _state(client, sid) == "running" and time.monotonic() < deadline:
+            time.sleep(0.05)
+        ws.send_text(json.dumps(_walk(100, 0.5)))
+        with pytest.raises(WebSocketDisconnect):  # the device is told the session ended
+            while True:
+                json.loads(ws.receive_text())
+    assert _state(client, sid) == "stopped"
+    texts = [e["text"] for e in client.get(f"/api/sessions/{sid}/events").json()]
+    assert any("disk space is low" in t for t in texts) and any("almost full" in t for t in texts)
+    trial = client.get(f"/api/trials?session_id={sid}").json()[0]
+    assert trial["status"] == "finished" and trial["samples"] == 100
+    r = client.post(f"/api/sessions/{sid}/recording", json={"action": "start"})
+    assert r.status_code == 409  # not running any more
