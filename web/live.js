@@ -100,12 +100,14 @@ export function mountLive(root, sessionId) {
   const summary = h("div", { class: "summary", "data-testid": "summary" }, phaseCell, cadCell, slCell, spCell, incCell, pkCell);
 
   const hv = (key) => h("dd", { "data-testid": `health-${key}`, text: "–" });
-  const health = { t: hv("session-time"), rate: hv("rate"), latency: hv("latency"), serverLatency: hv("server-latency"), input: hv("dropped-input"), client: hv("dropped-client"), clients: hv("clients"), samples: hv("samples") };
+  const health = { t: hv("session-time"), rate: hv("rate"), latency: hv("latency"), serverLatency: hv("server-latency"), input: hv("dropped-input"), client: hv("dropped-client"), clients: hv("clients"), samples: hv("samples"), implausible: hv("implausible"), faults: hv("faults"), disk: hv("disk") };
   const healthCard = h("section", { class: "card health", "data-testid": "health" }, h("h2", { text: "Data health" }), indicator,
     h("dl", {}, h("dt", { text: "Session time" }), health.t, h("dt", { text: "Rate" }), health.rate, h("dt", { text: "Device → screen latency p50 / p95" }), health.latency,
       h("dt", { text: "Device → server p50 / p95" }), health.serverLatency,
       h("dt", { text: "Dropped device frames" }), health.input, h("dt", { text: "Dropped batches (this screen)" }), health.client,
-      h("dt", { text: "Screens connected" }), health.clients, h("dt", { text: "Samples" }), health.samples), conn);
+      h("dt", { text: "Screens connected" }), health.clients, h("dt", { text: "Samples" }), health.samples,
+      h("dt", { text: "Implausible sensor values (ignored)" }), health.implausible,
+      h("dt", { text: "Estimator resets / torque faults" }), health.faults, h("dt", { text: "Recording disk" }), health.disk), conn);
 
   // --- plots --------------------------------------------------------------------------------------
   const plotsBox = h("div", { class: "plots" });
@@ -214,6 +216,13 @@ export function mountLive(root, sessionId) {
     health.samples.textContent = String(m.samples);
     health.client.classList.toggle("warn", m.dropped_client > 0);
     health.input.classList.toggle("warn", m.dropped_input > 0);
+    health.implausible.textContent = String(m.implausible ?? 0);
+    health.implausible.classList.toggle("warn", (m.implausible ?? 0) > 0);
+    health.faults.textContent = String(m.faults ?? 0);
+    health.faults.classList.toggle("warn", (m.faults ?? 0) > 0);
+    const disk = { ok: "ok", low: "space low: recording stops when it runs out", critical: "full: recording stopped" }[m.disk ?? "ok"];
+    health.disk.textContent = disk;
+    health.disk.classList.toggle("warn", (m.disk ?? "ok") !== "ok");
   }
 
   const stream = openSessionStream(sessionId, {
