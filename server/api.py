@@ -130,7 +130,10 @@ def list_sessions(c: Ctx, subject_id: OptionalId = None) -> list[schema.Session]
 async def create_session(body: schema.SessionCreate, c: Ctx) -> schema.Session:
     _model(c, body.settings.model)
     if isinstance(body.source, schema.ReplaySource):
-        c.store.get_trial(body.source.trial_id)
+        trial = c.store.get_trial(body.source.trial_id)
+        if trial.status in ("recording", "damaged"):
+            why = "is still recording" if trial.status == "recording" else "has a damaged recording"
+            raise SessionStateError(f"trial {trial.id} {why}; it cannot be replayed")
     session = c.store.create_session(body)
     return c.manager.start(session.id) if body.start else session
 
@@ -192,6 +195,8 @@ def _trial(c: AppContext, trial_id: int) -> tuple[schema.Trial, Path]:
     trial = c.store.get_trial(trial_id)
     if trial.status == "recording":
         raise HTTPException(409, f"trial {trial_id} is still recording; stop the recording to review it")
+    if trial.status == "damaged":
+        raise HTTPException(409, f"trial {trial_id}'s recording is damaged beyond repair (see its session's events)")
     return trial, c.settings.data_dir / trial.path
 
 

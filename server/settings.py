@@ -33,10 +33,10 @@ class Settings(BaseSettings):
             ``disk_warn_mb`` by default, so that an upload never makes a live session warn.
         slow_client_s: a browser that cannot take its stream for this long is disconnected (1013).
         disk_warn_mb: below this many MiB free on the data folder's disk a running session warns
-            (:class:`~sessions.disk.DiskGuard`); 1024 MiB is about ten hours of one 200 Hz session.
+            (:class:`~sessions.disk.DiskGuard`); 512 MiB is about five hours of one 200 Hz session.
         disk_stop_mb: below this many MiB free the recording is finished and the session stopped;
-            at most ``disk_warn_mb``. 256 MiB leaves room to finish the file's index and for crash
-            recovery's copy of a recording of about two hours.
+            at most ``disk_warn_mb``. 128 MiB leaves room to finish the file's index and for crash
+            recovery's copy of a recording of about an hour.
         allowed_hosts: the names (and addresses) the dashboard and the leg view may be reached at;
             any other ``Host`` is refused, which defeats DNS rebinding (:mod:`server.origin`). Names
             without ports; the environment gives them comma-separated
@@ -58,10 +58,10 @@ class Settings(BaseSettings):
     upload_chunk_kb: int = Field(default=4096, ge=64, le=65536)
     max_open_uploads: int = Field(default=8, ge=1, le=256)
     upload_idle_s: float = Field(default=900.0, gt=0.0, le=86400.0)
-    upload_min_free_mb: int = Field(default=1024, ge=0)
+    upload_min_free_mb: int = Field(default=512, ge=0)
     slow_client_s: float = Field(default=10.0, gt=0.0, le=300.0)
-    disk_warn_mb: int = Field(default=1024, ge=1)
-    disk_stop_mb: int = Field(default=256, ge=1)
+    disk_warn_mb: int = Field(default=512, ge=1)
+    disk_stop_mb: int = Field(default=128, ge=1)
     allowed_hosts: Annotated[list[str], NoDecode] = Field(default_factory=lambda: list(LOOPBACK_HOSTS))
 
     @field_validator("allowed_hosts", mode="before")

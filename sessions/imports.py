@@ -48,7 +48,7 @@ from sessions.estimation import FrameEstimator
 from sessions.locohub import read_table
 from sessions.mcap_io import check_mcap, count_messages, read_messages
 from sessions.recording import SAMPLE_PERIOD_KEY, Recorder
-from sessions.replay_io import MAX_PERIOD_S, MIN_PERIOD_S
+from sessions.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, parse_cells
 
 __all__ = [
     "BATCH_FRAMES",
@@ -447,7 +447,7 @@ class _ReplayBatch:
         values: dict[str, np.ndarray] = {}
         problems: list[tuple[int, int, str, str]] = []  # (row index, column position, column, message)
         for column, j in self.used.items():
-            values[column], problem = _parse_cells([row[j] for row in rows], column == schema.REPLAY_HEEL_STRIKE)
+            values[column], problem = parse_cells([row[j] for row in rows], column == schema.REPLAY_HEEL_STRIKE)
             if problem is not None:
                 problems.append((problem[0], j, column, problem[1]))
         if problems:
@@ -463,31 +463,6 @@ class _ReplayBatch:
             fields: dict[str, Any] = {c: float(values[c][i]) for c in signals}
             yield schema.SensorFrame(seq=self.seq, t=t, heel_strike=None if heel is None else bool(heel[i]), **fields)
             self.seq += 1
-
-
-def _parse_cells(text: list[str], zero_one: bool) -> tuple[np.ndarray, tuple[int, str] | None]:
-    """Cells as float64, and the first bad one (index, message) if any: empty, not a number, NaN,
-    infinite, or (``zero_one``) other than 0/1."""
-    try:
-        values = np.array(text, dtype=np.float64)
-    except ValueError:
-        values = np.full(len(text), np.nan)
-        for i, cell in enumerate(text):  # slow path, only for a batch that has a bad cell
-            if not cell.strip():
-                return values, (i, "empty cell")
-            try:
-                values[i] = float(cell)
-            except ValueError:
-                return values, (i, f"not a number: {cell.strip()!r}")
-    bad = ~np.isfinite(values)
-    if bad.any():
-        i = int(np.argmax(bad))
-        what = "NaN" if math.isnan(values[i]) else "infinite value"
-        return values, (i, f"{what} ({text[i].strip()}) is not allowed")
-    if zero_one and ((values != 0.0) & (values != 1.0)).any():
-        i = int(np.argmax((values != 0.0) & (values != 1.0)))
-        return values, (i, f"must be 0 or 1, got {text[i].strip()!r}")
-    return values, None
 
 
 def _locohub_frames(path: Path, name: str, suffix: str) -> Iterator[schema.SensorFrame]:

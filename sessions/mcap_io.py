@@ -70,7 +70,7 @@ _PLOT_COLUMNS: Final = tuple(
     f for f, info in schema.GaitState.model_fields.items() if f != "t" and info.annotation in (float, float | None)
 )
 #: Flags kept True on the decimated row nearest to their first occurrence in the bucket.
-_FLAG_COLUMNS: Final = ("heel_strike", "backup_reset")
+_FLAG_COLUMNS: Final = ("heel_strike", "backup_reset", "fault")
 
 
 def _is_damage(exc: BaseException) -> bool:

@@ -6,20 +6,20 @@ session's start wall clock plus the sample time ``t`` (s). Lifecycle: construct 
 the ``gaitscope`` metadata record and the channels), :meth:`Recorder.write` per message,
 :meth:`Recorder.finish` (writes the index; the file is unreadable to Foxglove without it).
 
-What a crash loses. The mcap ``Writer`` builds a chunk in memory. The recorder closes it
-(``Writer.flush()``, public since mcap 1.5) once it holds ``flush_interval_s`` of session time, or
-has been open that long by the wall clock, or reaches :data:`~sessions.mcap_io.CHUNK_SIZE`, whichever
-comes first. It then hands the chunk to the operating system at once. So ``kill -9`` loses at most
-the open chunk: about ``flush_interval_s`` (0.5 s) of data. Session time bounds that loss in seconds
-of data, and it makes the rule deterministic (tests, replays faster than real time). The wall clock
-bounds how long data waits in memory when the session clock runs slower than the wall (a replay
-below 1x, messages logged at the time of the last sample after the source stopped). The file is
-fsynced every ``fsync_interval_s`` of wall time (2 s) and at :meth:`~Recorder.finish`. A power cut
-therefore loses at most about ``flush_interval_s + fsync_interval_s`` of data. The periodic fsync
-runs on a worker thread, because the caller is the session's event loop. On a busy disk one fsync
-of a 15 KiB chunk took up to 490 ms (median 0.7 ms), while the ``write`` that hands a chunk to the
-OS stayed under 0.1 ms. An fsync error is raised by the next write.
-:func:`~sessions.mcap_io.recover` re-indexes what is left.
+What a crash loses. The mcap ``Writer`` builds a chunk in memory. The recorder closes it with
+``Writer.flush()`` (public in mcap 1.5 and 1.6; gaitscope needs >= 1.6) once it holds
+``flush_interval_s`` of session time, or has been open that long by the wall clock, or reaches
+:data:`~sessions.mcap_io.CHUNK_SIZE`, whichever comes first. It then hands the chunk to the
+operating system at once. So ``kill -9`` loses at most the open chunk: about ``flush_interval_s``
+(0.5 s) of data. Session time bounds that loss in seconds of data, and it makes the rule
+deterministic (tests, replays faster than real time). The wall clock bounds how long data waits in
+memory when the session clock runs slower than the wall (a replay below 1x, messages logged at the
+time of the last sample after the source stopped). The file is fsynced every ``fsync_interval_s`` of
+wall time (2 s) and at :meth:`~Recorder.finish`. A power cut therefore loses at most about
+``flush_interval_s + fsync_interval_s`` of data. The periodic fsync runs on a worker thread, because
+the caller is the session's event loop. On a busy disk one fsync of a 15 KiB chunk took up to 490 ms
+(median 0.7 ms), while the ``write`` that hands a chunk to the OS stayed under 0.1 ms. An fsync
+error is raised by the next write. :func:`~sessions.mcap_io.recover` re-indexes what is left.
 
 Write errors (a full disk). The ``Writer`` writes into memory, never to the file, so an I/O error
 cannot leave it half-updated. The recorder copies its output to the file. When that write fails,

@@ -91,9 +91,7 @@ def read_replay_csv(path: str | Path) -> ReplayInput:
     values: dict[str, np.ndarray] = {}
     problems: list[tuple[int, int, str, str]] = []  # (row index, column position, column, message)
     for column in used:
-        column_values, problem = _parse_column(cells[column])
-        if column == schema.REPLAY_HEEL_STRIKE and problem is None:
-            problem = _check_zero_one(column_values, cells[column])
+        column_values, problem = parse_cells(cells[column], column == schema.REPLAY_HEEL_STRIKE)
         if problem is not None:
             problems.append((problem[0], where[column], column, problem[1]))
         values[column] = column_values
@@ -194,13 +192,14 @@ def _read_rows(path: Path, name: str) -> tuple[list[str], list[list[str]], list[
     return header, rows, lines
 
 
-def _parse_column(text: list[str]) -> tuple[np.ndarray, tuple[int, str] | None]:
-    """Convert cells to float64; return the values and the first bad cell (index, message), if any."""
+def parse_cells(text: list[str], zero_one: bool = False) -> tuple[np.ndarray, tuple[int, str] | None]:
+    """Cells as float64, and the first bad one (index, message) if any: empty, not a number, NaN,
+    infinite, or (``zero_one``) other than 0/1. Shared with the streaming upload reader."""
     try:
         values = np.array(text, dtype=np.float64)
     except ValueError:
         values = np.full(len(text), np.nan)
-        for i, cell in enumerate(text):  # slow path, only for a file that has a bad cell
+        for i, cell in enumerate(text):  # slow path, only for cells that hold a bad one
             if not cell.strip():
                 return values, (i, "empty cell")
             try:
@@ -212,12 +211,7 @@ def _parse_column(text: list[str]) -> tuple[np.ndarray, tuple[int, str] | None]:
         i = int(np.argmax(bad))
         what = "NaN" if math.isnan(values[i]) else "infinite value"
         return values, (i, f"{what} ({text[i].strip()}) is not allowed")
+    if zero_one and ((values != 0.0) & (values != 1.0)).any():
+        i = int(np.argmax((values != 0.0) & (values != 1.0)))
+        return values, (i, f"must be 0 or 1, got {text[i].strip()!r}")
     return values, None
-
-
-def _check_zero_one(values: np.ndarray, text: list[str]) -> tuple[int, str] | None:
-    bad = (values != 0.0) & (values != 1.0)
-    if not bad.any():
-        return None
-    i = int(np.argmax(bad))
-    return i, f"must be 0 or 1, got {text[i].strip()!r}"

@@ -30,13 +30,15 @@ from collections import deque
 from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
 from estimators.pipeline import TrainedModel
 from sessions import schema
+from sessions.disk import DiskLevel
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused
+from sessions.mcap_io import recover
 from sessions.recording import SAMPLE_PERIOD_KEY, Recorder
 from sessions.schema import GaitState, SensorFrame, SessionSettings, SettingsChange
 from sessions.sources import FrameSource, LiveDevice
@@ -49,7 +51,7 @@ SUBSCRIBER_CAPACITY = 1000
 #: Least time between two system events about estimator faults or clock resynchronisations (s).
 NOTE_INTERVAL_S = 1.0
 
-DiskState = Literal["ok", "low", "critical"]
+DiskState = DiskLevel
 
 
 class SettingRejected(ValueError):
@@ -498,17 +500,29 @@ class SessionRuntime:
         return self.trial
 
     def stop_recording(self) -> schema.Trial | None:
-        """Finish the recording and its trial row; each step is tried even if an earlier one fails."""
+        """Finish the recording and its trial row; each step is tried even if an earlier one fails.
+
+        A file whose index cannot be written (the disk still full) is recovered (re-indexed up to its
+        last complete chunk, trial ``recovered``) or, failing that, the trial is marked ``damaged``.
+        """
         if self.trial is None or self.recorder is None:
             return None
         trial, recorder = self.trial, self.recorder
         self._event("recording", f"recording stopped: {trial.name}")
         self.trial, self.recorder = None, None
+        status: schema.TrialStatus = "finished"
         try:
             recorder.finish()
-        except Exception:
-            log.exception("session %d: finishing %s failed", self.session.id, recorder.path)
-        return self.store.finish_trial(trial.id, "finished", recorder.samples, recorder.duration_s)
+        except Exception as e:
+            log.error("session %d: finishing %s failed: %s", self.session.id, recorder.path, e)
+            try:
+                recover(recorder.path)
+                status = "recovered"
+            except Exception as again:
+                log.error("session %d: %s cannot be recovered: %s", self.session.id, recorder.path, again)
+                status = "damaged"
+            self._event("system", f"the recording of {trial.name} could not be finished ({_describe(e)}): {status}")
+        return self.store.finish_trial(trial.id, status, recorder.samples, recorder.duration_s)
 
     @property
     def settings(self) -> SessionSettings:

@@ -42,7 +42,7 @@ def test_bad_values_are_refused() -> None:
 
 def test_disk_thresholds(monkeypatch: pytest.MonkeyPatch) -> None:
     s = Settings()
-    assert (s.disk_warn_mb, s.disk_stop_mb) == (1024, 256)
+    assert (s.disk_warn_mb, s.disk_stop_mb) == (512, 128)
     monkeypatch.setenv("GAITSCOPE_DISK_WARN_MB", "2048")
     monkeypatch.setenv("GAITSCOPE_DISK_STOP_MB", "512")
     assert (Settings().disk_warn_mb, Settings().disk_stop_mb) == (2048, 512)

@@ -79,7 +79,7 @@ export function mountSessions(root) {
       trialsSig = sig;
       const keep = sel.value;
       sel.replaceChildren(h("option", { value: "", text: trials.length ? "— choose a trial —" : "— no trials yet —" }),
-        ...trials.filter((t) => t.status !== "recording").map((t) => h("option", { value: String(t.id), text: `Trial ${t.id} ${t.name}` })));
+        ...trials.filter((t) => t.status !== "recording" && t.status !== "damaged").map((t) => h("option", { value: String(t.id), text: `Trial ${t.id} ${t.name}` })));
       sel.value = keep;
     }
   }

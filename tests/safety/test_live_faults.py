@@ -287,3 +287,36 @@ def test_a_disk_running_out_warns_then_stops_cleanly(client: TestClient) -> None
     assert trial["status"] == "finished" and trial["samples"] == 100
     r = client.post(f"/api/sessions/{sid}/recording", json={"action": "start"})
     assert r.status_code == 409  # not running any more
+
+
+def test_a_trial_still_recording_cannot_be_replayed(client: TestClient) -> None:
+    """Reproduces: a replay of an unfinished trial stayed "running" forever."""
+    sid = _device_session(client)
+    trial = client.get(f"/api/trials?session_id={sid}").json()[0]
+    assert trial["status"] == "recording"
+    body = {"subject_id": 1, "source": {"kind": "replay", "trial_id": trial["id"]}}
+    r = client.post("/api/sessions", json=body)
+    assert r.status_code == 409
+    assert r.json()["detail"] == f"trial {trial['id']} is still recording; it cannot be replayed"
+
+
+def test_a_recording_that_cannot_be_finished_is_recovered_not_left_unindexed(client: TestClient) -> None:
+    sid = _device_session(client)
+    runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
+    with _device(client, sid) as ws:
+        _walk_torques(ws, 0.0, 400)
+
+    recorder = runtime.recorder
+
+    def full() -> None:  # the index cannot be written: the file is left as a crash would leave it
+        recorder._file.close()
+        raise OSError(28, "No space left on device")
+
+    recorder.finish = full
+    assert client.post(f"/api/sessions/{sid}/stop").json()["state"] == "stopped"
+    trial = client.get(f"/api/trials?session_id={sid}").json()[0]
+    assert trial["status"] == "recovered"
+    series = client.get(f"/api/trials/{trial['id']}/series?max_points=5000").json()
+    assert len(series["t"]) >= 200  # what was flushed before the failure is there, and reviewable
+    texts = [e["text"] for e in client.get(f"/api/sessions/{sid}/events").json()]
+    assert any("could not be finished (No space left on device): recovered" in t for t in texts)
