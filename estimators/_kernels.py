@@ -294,3 +294,32 @@ def ekf_update(
     measurement(coef, x, leg_length, terms, h, H)
     noise_at(bins, x[0], R)
     return update(x, P, z, h, H, R, y_out, S_out, K_out, True)
+
+
+@njit(cache=True)
+def screen(z: Array, lo: Array, hi: Array) -> int:
+    """Set every finite value of ``z`` outside ``[lo, hi]`` (and every infinity) to NaN; return how many."""
+    n = 0
+    for i in range(z.shape[0]):
+        v = z[i]
+        if v != v:  # NaN: missing already
+            continue
+        if not (lo[i] <= v <= hi[i]):
+            z[i] = np.nan
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def healthy(x: Array, P: Array, min_rate: float, max_rate: float, max_abs_incline: float, max_var: float) -> bool:
+    """The EKF state and covariance are finite, the phase rate and incline in range, the variances in
+    ``[0, max_var]``."""
+    for i in range(x.shape[0]):
+        if not np.isfinite(x[i]):
+            return False
+        for j in range(P.shape[1]):
+            if not np.isfinite(P[i, j]):
+                return False
+        if not (0.0 <= P[i, i] <= max_var):
+            return False
+    return min_rate <= x[1] <= max_rate and abs(x[3]) <= max_abs_incline

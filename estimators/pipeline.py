@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from estimators import _kernels
 from estimators.basis import Array
 from estimators.gait_model import N_CHANNELS, NoiseModel
 from estimators.heel_strike import (
@@ -241,11 +242,8 @@ class GaitStatePipeline:
         self._t = t
         z = self._z
         z[:] = raw
-        bad = ~((z >= self._lo) & (z <= self._hi))  # NaN compares False: missing or implausible
-        implausible = int(np.count_nonzero(bad & ~np.isnan(z)))
-        if implausible:
-            z[bad] = np.nan
-            self.implausible += implausible
+        implausible = _kernels.screen(z, self._lo, self._hi)
+        self.implausible += implausible
         heel = z[HEEL_FORWARD : HEEL_UP + 1]
         if not heel_filtered and np.all(np.isfinite(heel)):
             filtered = self.highpass.step(heel)
@@ -294,14 +292,12 @@ class GaitStatePipeline:
 
     def _healthy(self) -> bool:
         """The EKF's state and covariance are finite and within :class:`HealthLimits`."""
-        x, P, lim = self.ekf.x, self.ekf.P, self.config.health
-        if not math.isfinite(float(x.sum()) + float(P.sum())):
-            return False
-        pdot, r = float(x[1]), float(x[3])
-        if not (lim.min_phase_rate <= pdot <= lim.max_phase_rate and abs(r) <= lim.max_abs_incline):
-            return False
-        diag = P.diagonal()
-        return bool(diag.max() <= lim.max_variance and diag.min() >= 0.0)
+        lim = self.config.health
+        return bool(
+            _kernels.healthy(
+                self.ekf.x, self.ekf.P, lim.min_phase_rate, lim.max_phase_rate, lim.max_abs_incline, lim.max_variance
+            )
+        )
 
     def _reset_diverged(self) -> None:
         """Reset a diverged EKF from the backup, else the timing-based estimate, else its start."""
