@@ -15,9 +15,9 @@ from pydantic import BaseModel, Field
 from estimators.pipeline import TrainedModel
 from sessions import schema
 from sessions.errors import DataFormatError
-from sessions.manager import SessionStateError
-from sessions.models import gaitscope_version
-from sessions.runtime import ChangeNotSaved, DiskFull, SettingRejected
+from sessions.formats.models import gaitscope_version
+from sessions.live.manager import SessionStateError
+from sessions.live.runtime import ChangeNotSaved, DiskFull, SettingRejected
 from sessions.store import Conflict, NotFound
 
 if TYPE_CHECKING:
@@ -231,7 +231,7 @@ async def trial_series(
     t1: _SeriesTime = None,
     max_points: Annotated[int, Query(ge=10, le=20000)] = 2000,
 ) -> dict[str, list[Any]]:
-    from sessions.mcap_io import read_series
+    from sessions.formats.mcap_io import read_series
 
     _, path = _trial(c, trial_id)
     return await asyncio.to_thread(read_series, path, t0, t1, max_points)
@@ -246,7 +246,7 @@ def download(trial_id: int, c: Ctx) -> FileResponse:
 @router.get("/trials/{trial_id}/settings")
 async def trial_settings(trial_id: int, c: Ctx) -> schema.SessionSettings:
     """The settings in force at the trial's first frame, as recorded (its changes are on ``/events``)."""
-    from sessions.review import recorded_settings
+    from sessions.review.rerun import recorded_settings
 
     _, path = _trial(c, trial_id)
     return await asyncio.to_thread(recorded_settings, path)
@@ -263,7 +263,7 @@ async def rerun(
 ) -> dict[str, list[Any]]:
     """The trial's raw frames through the estimators again (series like ``/series``): as recorded by
     default, or with the body's settings over the whole trial (what if); see ``RerunRequest``."""
-    from sessions.review import rerun_series
+    from sessions.review.rerun import rerun_series
 
     trial, path = _trial(c, trial_id)
     subject = c.store.get_subject(c.store.get_session(trial.session_id).subject_id)
@@ -312,7 +312,7 @@ def viewer_focus(body: ViewerFocus, c: Ctx) -> dict[str, int | None]:
 @router.post("/viewer/show")
 async def viewer_show(body: ViewerShow, c: Ctx) -> dict[str, float]:
     """Pose the leg view at time ``t`` of a trial (the review page's cursor)."""
-    from sessions.mcap_io import read_series
+    from sessions.formats.mcap_io import read_series
 
     trial, path = _trial(c, body.trial_id)
     series = await asyncio.to_thread(read_series, path, body.t - 0.02, body.t + 0.02, 10)

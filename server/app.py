@@ -26,9 +26,9 @@ from server.streams import router as stream_router
 from server.uploads import Uploads
 from server.uploads import router as upload_router
 from sessions import schema
-from sessions.disk import DiskGuard
-from sessions.manager import ModelStore, SessionManager
-from sessions.models import gaitscope_version
+from sessions.formats.models import gaitscope_version
+from sessions.live.disk import DiskGuard
+from sessions.live.manager import ModelStore, SessionManager
 from sessions.store import Store
 
 log = logging.getLogger("gaitscope")
@@ -64,7 +64,7 @@ def _demo(ctx: AppContext) -> None:
     """An empty database gets a demo subject walking seed 000's treadmill protocol."""
     if ctx.store.list_subjects():
         return
-    from sessions.sources import SimulatedDevice
+    from sessions.live.sources import SimulatedDevice
 
     leg, mass = SimulatedDevice(schema.SimulatedSource()).subject_body()
     subject = ctx.store.create_subject(

@@ -50,13 +50,13 @@ def _config(a: argparse.Namespace) -> PipelineConfig:
 
 
 def _load(path: Path | None) -> tuple[TrainedModel, ModelProvenance]:
-    from sessions.models import default_model_path, load_model
+    from sessions.formats.models import default_model_path, load_model
 
     return load_model(path or default_model_path())
 
 
 def cmd_replay(a: argparse.Namespace) -> int:
-    from sessions.replay import replay_file
+    from sessions.offline.replay import replay_file
 
     model, prov = _load(a.model)
     summary = replay_file(a.input, a.out, model, _config(a))
@@ -66,9 +66,9 @@ def cmd_replay(a: argparse.Namespace) -> int:
 
 
 def cmd_demo(a: argparse.Namespace) -> int:
-    from sessions.models import load_model
-    from sessions.replay import replay_file
-    from sessions.trials import TREADMILL_PROTOCOL, replay_columns, sensor_trial
+    from sessions.formats.models import load_model
+    from sessions.offline.replay import replay_file
+    from sessions.synth.trials import TREADMILL_PROTOCOL, replay_columns, sensor_trial
 
     out_dir: Path = a.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -85,7 +85,7 @@ def cmd_demo(a: argparse.Namespace) -> int:
     import numpy as np
     import pandas as pd
 
-    from sessions.crossval import stride_rmse, wrapped
+    from sessions.offline.crossval import stride_rmse, wrapped
 
     est = pd.read_csv(out)
     hs = sensors["heel_strike"].to_numpy() > 0
@@ -100,17 +100,17 @@ def cmd_demo(a: argparse.Namespace) -> int:
 def cmd_train(a: argparse.Namespace) -> int:
     import numpy as np
 
-    from sessions.models import hash_arrays, provenance, save_model
-    from sessions.training import fit_models, stride_data
+    from sessions.formats.models import hash_arrays, provenance, save_model
+    from sessions.offline.training import fit_models, stride_data
 
     start = time.perf_counter()
     if a.data:
-        from sessions.locohub import read_table
+        from sessions.formats.locohub import read_table
 
         frame = read_table(a.data)
         source, seed = str(a.data), None
     else:
-        from sessions.cohort import CohortSpec, generate_cohort
+        from sessions.synth.cohort import CohortSpec, generate_cohort
 
         spec = CohortSpec()
         frame = generate_cohort(spec)
@@ -144,8 +144,8 @@ def cmd_train(a: argparse.Namespace) -> int:
 
 
 def cmd_cohort(a: argparse.Namespace) -> int:
-    from sessions.cohort import CohortSpec, generate_cohort
-    from sessions.locohub import write_table
+    from sessions.formats.locohub import write_table
+    from sessions.synth.cohort import CohortSpec, generate_cohort
 
     spec = CohortSpec(n_subjects=a.subjects, strides_per_condition=a.strides, seed=a.seed)
     frame = generate_cohort(spec)
@@ -156,7 +156,7 @@ def cmd_cohort(a: argparse.Namespace) -> int:
 
 
 def cmd_crossval(a: argparse.Namespace) -> int:
-    from sessions.crossval import crossvalidate, summary, to_csv, to_markdown
+    from sessions.offline.crossval import crossvalidate, summary, to_csv, to_markdown
 
     start = time.perf_counter()
     results = crossvalidate(workers=a.workers)
@@ -215,7 +215,7 @@ def cmd_loadbench(a: argparse.Namespace) -> int:
 
 
 def cmd_bench(a: argparse.Namespace) -> int:
-    from sessions.bench import run_bench
+    from sessions.offline.bench import run_bench
 
     run_bench(crossval=not a.skip_crossval, reference_samples=a.reference_samples)
     return 0

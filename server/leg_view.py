@@ -27,13 +27,13 @@ subject's right. That is a rotation about -y, so a segment at angle ``a`` has
 its angle relative to its parent (all rotations share the y axis, so they add).
 
 Segment lengths are Winter's fractions of height ``H = leg_length / 0.53`` (as the virtual cohort
-uses them, :mod:`sessions.cohort`): thigh 0.245 H, shank 0.246 H, foot 0.152 H, ankle height
+uses them, :mod:`sessions.synth.cohort`): thigh 0.245 H, shank 0.246 H, foot 0.152 H, ankle height
 0.039 H, so the straight leg's sole touches the ground.
 
 The thigh is neither always sensed nor predicted by the gait model. When a state has no thigh angle,
 the thigh is placed consistently with the shank: ``thigh = shank + knee flexion``, with the knee
 flexion of Schwartz et al. (2008) at free walking speed at the estimated phase
-(:mod:`sessions.normative`). The ghost shares the measured leg's thigh, so both knees coincide and
+(:mod:`sessions.synth.normative`). The ghost shares the measured leg's thigh, so both knees coincide and
 the ghost's shank and foot differ from the measured ones exactly where the model does.
 """
 
@@ -55,7 +55,7 @@ from estimators.gait_model import FOOT, SHANK, evaluate
 from estimators.pipeline import TrainedModel
 from server.origin import LOOPBACK_HOSTS, ProcessRequest, allowed_hosts_for, websockets_guard
 from sessions import schema
-from sessions.cohort import (
+from sessions.synth.cohort import (
     ANKLE_HEIGHT_FRAC,
     FOOT_FRAC,
     HEEL_BACK_FRAC,
@@ -63,7 +63,7 @@ from sessions.cohort import (
     SHANK_FRAC,
     THIGH_FRAC,
 )
-from sessions.normative import CLASSES, KNEE, curve_spline, normative
+from sessions.synth.normative import CLASSES, KNEE, curve_spline, normative
 
 __all__ = ["LegView", "knee_flexion_deg", "quat_y", "segment_angles_for", "status_markdown"]
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from server.launch import start_server
-from sessions.trials import replay_input, sensor_trial
+from sessions.synth.trials import replay_input, sensor_trial
 
 TARGET_P95_MS = 50.0
 

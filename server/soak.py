@@ -31,8 +31,8 @@ from pathlib import Path
 from typing import Any
 
 from server.launch import start_server
-from sessions.mcap_io import read_messages
-from sessions.trials import replay_input, sensor_trial
+from sessions.formats.mcap_io import read_messages
+from sessions.synth.trials import replay_input, sensor_trial
 
 #: MCAP bytes per 200 Hz device-second (sensor, state and torque messages; measured on the cohort).
 _BYTES_PER_DEVICE_S = 55_000

@@ -14,8 +14,8 @@ from pydantic import ValidationError
 
 from sessions import schema
 from sessions.estimation import FrameRefused
-from sessions.runtime import SessionRuntime, Subscriber
-from sessions.sources import LiveDevice
+from sessions.live.runtime import SessionRuntime, Subscriber
+from sessions.live.sources import LiveDevice
 from sessions.store import NotFound
 
 if TYPE_CHECKING:

@@ -11,7 +11,7 @@ restart ends every upload (:meth:`Uploads.clear_leftovers`). The rules:
   ``upload_idle_s`` is dropped. A new upload is refused with 507 when the data folder's free space,
   less the bytes that open uploads and running imports may still write, would fall below
   ``upload_min_free_mb``; a chunk or an import that meets a full disk is 507 too.
-- **Finish.** The import (:func:`sessions.imports.run_import`) runs in one worker process, started on
+- **Finish.** The import (:func:`sessions.formats.imports.run_import`) runs in one worker process, started on
   the first finish ('forkserver' where the platform has it, else 'spawn'; never 'fork' from a server
   with threads) and shut down with the app, so parsing and estimating a large file never holds this
   process's GIL while live sessions answer their devices. The worker writes the recording to
@@ -44,7 +44,7 @@ from fastapi import APIRouter, HTTPException, Query, Request, Response
 from server.api import Ctx
 from server.settings import Settings
 from sessions import schema
-from sessions.imports import ImportJob, ImportRefused, ImportResult, run_import
+from sessions.formats.imports import ImportJob, ImportRefused, ImportResult, run_import
 
 if TYPE_CHECKING:
     from server.app import AppContext
@@ -254,7 +254,7 @@ class Uploads:
         if self._worker is None:
             context = multiprocessing.get_context(self.start_method)
             if self.start_method == "forkserver":
-                context.set_forkserver_preload(["sessions.imports"])  # each worker starts with it imported
+                context.set_forkserver_preload(["sessions.formats.imports"])  # each worker starts with it imported
             self._worker = ProcessPoolExecutor(max_workers=1, mp_context=context)
         return self._worker
 

@@ -1,13 +1,19 @@
-"""gaitscope sessions: data in and out of the estimators.
+"""gaitscope sessions: everything around the estimators, one subpackage per concept.
 
-The virtual cohort and simulated sensors, LocoHub and replay-CSV files, model files, training,
-replay and cross-validation. (Subjects, sessions, trials and recording arrive with the dashboard.)
+- ``schema``: every message that crosses a socket or a file; ``store``: subjects, sessions, trials and
+  events in SQL; ``estimation``: sensor frames to gait states (the one path live, review and imports
+  share); ``errors``, ``files``: shared helpers.
+- ``formats/``: replay CSV, LocoHub, MCAP recordings, model files, uploaded-log imports.
+- ``live/``: frame sources, the session runtime, its subscribers, the session manager, the disk guard.
+- ``review/``: re-runs of recorded trials.
+- ``synth/``: the virtual cohort and simulated sensors.
+- ``offline/``: training, cross-validation, the replay command, the benchmark.
 """
 
 from sessions.errors import DataFormatError
-from sessions.locohub import read_table, write_table
-from sessions.models import default_model_path, load_model, save_model
-from sessions.replay_io import ReplayInput, read_replay_csv, write_replay_output
+from sessions.formats.locohub import read_table, write_table
+from sessions.formats.models import default_model_path, load_model, save_model
+from sessions.formats.replay_io import ReplayInput, read_replay_csv, write_replay_output
 
 __all__ = [
     "DataFormatError",

@@ -1,6 +1,6 @@
 """Sensor frames in, gait states out: the estimator stack as a device stream needs it.
 
-Used live by :class:`~sessions.runtime.SessionRuntime`, and offline to re-run recordings and to import
+Used live by :class:`~sessions.live.runtime.SessionRuntime`, and offline to re-run recordings and to import
 raw logs (:func:`estimate`).
 """
 

@@ -13,8 +13,8 @@ from fastapi.testclient import TestClient
 from estimators.pipeline import TrainedModel
 from server.app import create_app
 from server.settings import Settings
-from sessions.cohort import CohortSpec, generate_cohort
-from sessions.training import StrideData, fit_models, stride_data
+from sessions.offline.training import StrideData, fit_models, stride_data
+from sessions.synth.cohort import CohortSpec, generate_cohort
 
 SMALL = CohortSpec(n_subjects=3, strides_per_condition=3)
 

@@ -156,7 +156,7 @@ def _number(text: str | None) -> float:
 
 
 def _replay_csv(path: Path, strides: int = 20) -> Path:
-    from sessions.trials import replay_columns, sensor_trial
+    from sessions.synth.trials import replay_columns, sensor_trial
 
     sensors, _, _ = sensor_trial(schedule=[(1.2, 0.0, strides)])
     replay_columns(sensors).to_csv(path, index=False)

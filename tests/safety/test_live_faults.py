@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from starlette.websockets import WebSocketDisconnect
 
 from sessions.schema import SENSOR_LIMITS
-from sessions.trials import replay_input, sensor_trial
+from sessions.synth.trials import replay_input, sensor_trial
 
 MAX_TORQUE = 20.0
 

@@ -1,7 +1,7 @@
 """Review shows what ran: a default re-run of a trial reproduces its recorded gait states, setting
 changes included; a what-if holds other settings over the whole trial; bad time bounds are 422.
 
-Recordings are made by a real :class:`~sessions.runtime.SessionRuntime` (driven frame by frame, or live
+Recordings are made by a real :class:`~sessions.live.runtime.SessionRuntime` (driven frame by frame, or live
 in the app) and read back through the real API on a temporary data folder.
 """
 
@@ -18,11 +18,11 @@ from mcap.reader import make_reader
 
 from sessions import schema
 from sessions.estimation import DEFAULT_PERIOD, estimate
-from sessions.mcap_io import SERIES_COLUMNS
-from sessions.recording import METADATA_NAME, SAMPLE_PERIOD_KEY, Recorder
-from sessions.runtime import SessionRuntime
-from sessions.sources import LiveDevice, frames_from_table
-from sessions.trials import replay_columns, sensor_trial
+from sessions.formats.mcap_io import SERIES_COLUMNS
+from sessions.formats.recording import METADATA_NAME, SAMPLE_PERIOD_KEY, Recorder
+from sessions.live.runtime import SessionRuntime
+from sessions.live.sources import LiveDevice, frames_from_table
+from sessions.synth.trials import replay_columns, sensor_trial
 
 RATE_HZ = 100.0  # the device's rate; the live estimator, not told it, runs with DEFAULT_PERIOD
 ALL = 20000  # max_points above every trial's length: no decimation

@@ -1,0 +1,507 @@
+"""A running session: source -> estimator pipeline -> recording and subscribers.
+
+One :class:`SessionRuntime` per running session, driven by one asyncio task on the server's loop.
+Each sensor frame is processed synchronously (pipeline step, MCAP record, fan-out), so anything else
+that runs on the loop (a settings change, an annotation, a recording toggle) happens *between* two
+samples: a change takes effect at the next sample, and its event carries the time of the last sample
+processed before it. Subscribers never slow the pipeline: each has a bounded buffer that drops its
+oldest entries (counted) when the client does not keep up.
+
+Safety:
+
+- the torque that leaves the runtime is always a finite number in ``[0, max_torque_Nm]``
+  (:func:`safe_torque`), whatever the estimators did;
+- a change of settings is stored with its events in one transaction first and applied only then, so
+  that what runs is always what the database (and the rate limits) say;
+- every task of the session is supervised: an error ends the session as ``failed`` with an event,
+  the recording finished and the browsers told; the disk is checked every second, with a warning
+  when it runs low and a clean stop before it is full;
+- :meth:`SessionRuntime.stop` always finishes the recording and the session, whatever else fails.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from collections import deque
+from collections.abc import Awaitable, Callable, Coroutine
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from estimators.pipeline import TrainedModel
+from sessions import schema
+from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused
+from sessions.formats.mcap_io import recover
+from sessions.formats.recording import SAMPLE_PERIOD_KEY, Recorder
+from sessions.live.disk import DiskLevel
+from sessions.live.sources import FrameSource, LiveDevice
+from sessions.live.subscribers import SUBSCRIBER_CAPACITY, Subscriber
+from sessions.schema import GaitState, SensorFrame, SessionSettings, SettingsChange
+from sessions.store import Store
+
+__all__ = [
+    "SUBSCRIBER_CAPACITY",
+    "ChangeNotSaved",
+    "DiskFull",
+    "SessionRuntime",
+    "SettingRejected",
+    "Subscriber",
+    "safe_torque",
+]
+
+log = logging.getLogger("gaitscope")
+
+#: Least time between two system events about estimator faults or clock resynchronisations (s).
+NOTE_INTERVAL_S = 1.0
+
+DiskState = DiskLevel
+
+
+class SettingRejected(ValueError):
+    """A settings change that breaks a rate-of-change limit; the message says which and why."""
+
+
+class DiskFull(RuntimeError):
+    """A recording cannot start: the disk is (almost) full."""
+
+
+class ChangeNotSaved(RuntimeError):
+    """A change that could not be stored, and so was not applied; the message says why."""
+
+
+def safe_torque(value: float, bound: float) -> float:
+    """``value`` clamped to ``[0, bound]``; 0 when it (or the bound) is not a finite number."""
+    if not (math.isfinite(value) and math.isfinite(bound)):
+        return 0.0
+    return min(max(value, 0.0), max(bound, 0.0))
+
+
+class SessionRuntime:
+    """Runs one session.
+
+    Args:
+        session: the stored session.
+        subject: its subject (leg length and mass parameterise the pipeline).
+        model: the trained models.
+        source: where frames come from.
+        store: the database.
+        data_dir: where recordings go (``recordings/`` below it).
+        on_state: called with every gait state (the leg view takes what it needs).
+        disk_check: returns the state of the recording's disk (``ok``, ``low``, ``critical``); called
+            before a recording starts and once a second.
+        on_end: called once when the session ends by itself (source finished, fault, disk full), after
+            the runtime stopped, with the session's final state; the manager stores it.
+    """
+
+    def __init__(
+        self,
+        session: schema.Session,
+        subject: schema.Subject,
+        model: TrainedModel,
+        source: FrameSource,
+        store: Store,
+        data_dir: Path,
+        on_state: Callable[[int, GaitState, float], None] | None = None,
+        disk_check: Callable[[], DiskState] | None = None,
+        on_end: Callable[[SessionRuntime, schema.SessionState, str], Awaitable[None]] | None = None,
+    ):
+        self.session = session
+        self.subject = subject
+        self.model = model
+        self.source = source
+        self.store = store
+        self.data_dir = data_dir
+        self.on_state = on_state
+        period = 1.0 / source.rate_hz if source.rate_hz else DEFAULT_PERIOD
+        self.sample_period = period  # recorded, so that a review re-run builds the same estimator
+        self.estimator = FrameEstimator(model, subject.leg_length_m, subject.mass_kg, session.settings, period)
+        self.subscribers: set[Subscriber] = set()
+        self.recorder: Recorder | None = None
+        self.trial: schema.Trial | None = None
+        self.samples = 0
+        self.dropped_input = 0
+        self._last_change: dict[str, float] = {}
+        self._recent_recv: deque[int] = deque(maxlen=4096)
+        self._recent_latency: deque[float] = deque(maxlen=4096)
+        self._task: asyncio.Task[None] | None = None
+        self._health_task: asyncio.Task[None] | None = None
+        self.start_ns = time.time_ns()
+        self.disk_check = disk_check
+        self.on_end = on_end
+        self.disk: DiskState = "ok"
+        self.torque_faults = 0
+        self.ended: str | None = None  # why the session ended, once it has
+        self._stopped = False
+        self._last_note = -math.inf
+        self._suppressed_notes = 0
+
+    # --- lifecycle ------------------------------------------------------------------------------
+    def start(self) -> None:
+        self.start_recording("trial 1")
+        s = self.settings
+        ramp = max(
+            s.torque_gain / schema.SETTING_LIMITS["torque_gain"][2],
+            s.max_torque_Nm / schema.SETTING_LIMITS["max_torque_Nm"][2],
+        )
+        if self.estimator.soft_start and ramp > 0:
+            self._event(
+                "system",
+                f"soft start: assistance ramps up to gain {s.torque_gain:g} and {s.max_torque_Nm:g} N m "
+                f"over the first {ramp:.1f} s",
+            )
+        loop = asyncio.get_running_loop()
+        self._task = loop.create_task(self._supervised(self._run()), name=f"session-{self.session.id}")
+        self._health_task = loop.create_task(self._supervised(self._health()), name=f"health-{self.session.id}")
+
+    async def stop(self) -> None:
+        """Stop the source and the tasks, finish the recording, close the streams; never raises."""
+        if self._stopped:
+            return
+        self._stopped = True
+        if isinstance(self.source, LiveDevice):
+            self.source.close()
+        for task in (self._task, self._health_task):
+            if task is not None and task is not asyncio.current_task():
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await task
+        try:
+            self.stop_recording()
+        except Exception:
+            log.exception("session %d: finishing the recording failed", self.session.id)
+        for sub in self.subscribers:
+            sub.close()
+
+    async def end(self, state: schema.SessionState, reason: str) -> None:
+        """The session ends by itself (``stopped`` or ``failed``): event, stop, tell the manager."""
+        if self.ended is not None or self._stopped:
+            return
+        for folder in {str(self.data_dir.resolve()), str(self.data_dir)}:  # no server paths in events
+            reason = reason.replace(folder + "/", "").replace(folder, "the data folder")
+        self.ended = reason
+        self._event("system", f"session {state}: {reason}")
+        await self.stop()
+        if self.on_end is not None:
+            await self.on_end(self, state, reason)
+
+    async def _supervised(self, work: Coroutine[Any, Any, None]) -> None:
+        """Run one task of the session; an error fails the session instead of vanishing."""
+        try:
+            await work
+        except asyncio.CancelledError:
+            raise
+        except Exception as e:
+            log.exception("session %d failed", self.session.id)
+            await self.end("failed", _describe(e))
+
+    async def _run(self) -> None:
+        async for frame in self.source.frames():
+            if self._stopped:
+                return
+            try:
+                self.process(frame, time.time_ns())
+            except FrameRefused:
+                self.dropped_input += 1
+        if not isinstance(self.source, LiveDevice):
+            await self.end("stopped", "the source has no more frames")
+
+    async def _health(self) -> None:
+        while True:
+            await asyncio.sleep(1.0)
+            self.check_disk()
+            self.broadcast_health()
+
+    def check_disk(self) -> DiskState:
+        """Look at the disk; warn once when low, stop cleanly when critical."""
+        if self.disk_check is None:
+            return "ok"
+        state = self.disk_check()
+        if state != self.disk:
+            if state == "low":
+                self._event("system", "disk space is low: the recording stops when it runs out")
+            elif state == "critical" and self.ended is None:
+                asyncio.get_running_loop().create_task(
+                    self.end("stopped", "the disk is almost full: recording finished and session stopped")
+                )
+        self.disk = state
+        return state
+
+    # --- per sample -----------------------------------------------------------------------------
+    def process(self, frame: SensorFrame, recv_ns: int) -> GaitState:
+        """Estimate, record and publish one frame; returns the state (its torque goes to the device).
+
+        Raises:
+            FrameRefused: a reordered or repeated frame; nothing changed.
+        """
+        state = self.estimator.step(frame, recv_ns)
+        torque = safe_torque(state.torque_Nm, self.settings.max_torque_Nm)
+        if torque != state.torque_Nm:
+            self.torque_faults += 1
+            state = state.model_copy(update={"torque_Nm": torque, "fault": True})
+        if self.estimator.notes:
+            self._notes()
+        t = state.t
+        self.samples += 1
+        self._recent_recv.append(recv_ns)
+        if frame.sent_ns is not None:
+            self._recent_latency.append((recv_ns - frame.sent_ns) / 1e6)
+        if self.recorder is not None:
+            try:
+                self.recorder.write("/sensor", t, frame.model_copy(update={"t": t}))  # session time, as the rest
+                self.recorder.write("/gait_state", t, state)
+                self.recorder.write("/torque", t, schema.TorqueCommand(seq=frame.seq, t=t, torque_Nm=state.torque_Nm))
+            except (OSError, ValueError) as e:
+                self._recording_failed(e)
+        for sub in self.subscribers:
+            sub.offer(state)
+        if self.on_state is not None:
+            self.on_state(self.session.id, state, self.subject.leg_length_m)
+        return state
+
+    def _notes(self) -> None:
+        """Turn the estimator's notes into system events, at most one per NOTE_INTERVAL_S."""
+        notes = self.estimator.notes
+        now = time.monotonic()
+        if now - self._last_note < NOTE_INTERVAL_S:
+            self._suppressed_notes += len(notes)
+        else:
+            more = len(notes) - 1 + self._suppressed_notes
+            self._event("system", notes[0] + (f" (and {more} more since the last such event)" if more else ""))
+            self._last_note, self._suppressed_notes = now, 0
+        notes.clear()
+
+    def _recording_failed(self, e: Exception) -> None:
+        """A recording write failed (a full disk): finish what was recorded and stop the session."""
+        log.error("session %d: recording failed: %s", self.session.id, e)
+        with contextlib.suppress(Exception):
+            self.stop_recording()
+        self.recorder, self.trial = None, None
+        if self.ended is None and not self._stopped:
+            asyncio.get_running_loop().create_task(
+                self.end("stopped", f"the recording could not be written ({_describe(e)}); session stopped")
+            )
+
+    def accepts(self, frame: SensorFrame) -> bool:
+        """Whether a device frame's time can be placed after the last one (a device may restart its clock)."""
+        return self.estimator.accepts(frame)
+
+    def device_connected(self) -> None:
+        """A device (re)connected: its clock may have restarted, so session time resynchronises."""
+        if self.samples:
+            self.estimator.resync((time.time_ns() - self.start_ns) / 1e9)
+
+    # --- subscribers and health ---------------------------------------------------------------
+    def subscribe(self, max_rate_hz: float) -> Subscriber:
+        rate = self.source.rate_hz or 1.0 / DEFAULT_PERIOD
+        decimation = 1 if max_rate_hz <= 0 else max(1, math.ceil(rate / max_rate_hz))
+        sub = Subscriber(decimation=decimation)
+        self.subscribers.add(sub)
+        return sub
+
+    def unsubscribe(self, sub: Subscriber) -> None:
+        self.subscribers.discard(sub)
+
+    def health(self, sub: Subscriber | None = None) -> schema.Health:
+        now = time.time_ns()
+        recent = [r for r in self._recent_recv if now - r < 1_000_000_000]
+        lat = np.array(list(self._recent_latency)[-len(recent) :]) if recent else np.array([])
+        dropped_input = self.dropped_input + (self.source.dropped if isinstance(self.source, LiveDevice) else 0)
+        return schema.Health(
+            session_id=self.session.id,
+            rate_hz=float(len(recent)),
+            latency_ms_p50=float(np.percentile(lat, 50)) if lat.size else None,
+            latency_ms_p95=float(np.percentile(lat, 95)) if lat.size else None,
+            samples=self.samples,
+            dropped_input=dropped_input,
+            dropped_client=sub.dropped if sub is not None else 0,
+            clients=len(self.subscribers),
+            implausible=self.estimator.implausible,
+            faults=self.estimator.faults + self.torque_faults,
+            disk=self.disk,
+        )
+
+    def broadcast_health(self) -> None:
+        for sub in self.subscribers:
+            sub.notify(self.health(sub))
+
+    def _broadcast(self, message: schema.BaseModel) -> None:
+        for sub in self.subscribers:
+            sub.notify(message)
+
+    # --- clinician actions (between samples) --------------------------------------------------
+    def change_settings(self, change: SettingsChange) -> schema.Session:
+        """Validate bounds (done by the schema) and rates of change against the settings in effect,
+        store the change and its events in one transaction, and only then apply them.
+
+        Raises:
+            SettingRejected: a rate-of-change limit; nothing changed.
+            ChangeNotSaved: the database refused the write; nothing changed.
+        """
+        current = self.session.settings
+        updates = {
+            k: v
+            for k, v in change.model_dump(exclude={"actor", "reason"}).items()
+            if v is not None and v != getattr(current, k)
+        }
+        now = time.monotonic()
+        for name, value in updates.items():
+            _, _, per_second = schema.SETTING_LIMITS[name]
+            step = abs(value - getattr(current, name))
+            if step > per_second + 1e-12:
+                raise SettingRejected(
+                    f"{name} may change by at most {per_second:g} per step and per second; "
+                    f"{getattr(current, name):g} -> {value:g} is a step of {step:g}"
+                )
+            last = self._last_change.get(name)
+            if last is not None and now - last < step / per_second:
+                wait = step / per_second - (now - last)
+                raise SettingRejected(
+                    f"{name} changed {now - last:.2f} s ago; a step of {step:g} needs "
+                    f"{step / per_second:.2f} s between changes (try again in {wait:.2f} s)"
+                )
+        if not updates:
+            return self.session
+        new = current.model_copy(update=updates)
+        t, reason = self.estimator.last_t, change.reason
+        events = [
+            {
+                "t": t,
+                "kind": "setting",
+                "text": f"{name} {getattr(current, name):g} -> {value:g}" + (f" ({reason})" if reason else ""),
+                "field": name,
+                "before": getattr(current, name),
+                "after": value,
+                "actor": change.actor,
+            }
+            for name, value in updates.items()
+        ]
+        try:
+            session, stored = self.store.change_settings(
+                self.session.id, new, events, trial_id=self.trial.id if self.trial else None
+            )
+        except Exception as e:
+            log.error("session %d: settings change not saved: %s", self.session.id, e)
+            raise ChangeNotSaved(f"the change could not be saved ({_describe(e)}), so it was not applied") from e
+        self.session = session
+        self.estimator.retune(new)
+        for name in updates:
+            self._last_change[name] = now
+        if self.recorder is not None:
+            try:
+                self.recorder.write("/settings", t, new)
+                for event in stored:
+                    self.recorder.write_event(event)
+            except (OSError, ValueError) as e:
+                self._recording_failed(e)
+        self._broadcast(schema.SettingsMessage(session_id=self.session.id, settings=new))
+        for event in stored:
+            self._broadcast(schema.EventMessage(event=event))
+        return self.session
+
+    def annotate(self, text: str, actor: str) -> schema.Event:
+        event = self._event("annotation", text, actor=actor)
+        if event is None:
+            raise ChangeNotSaved("the annotation could not be saved")
+        return event
+
+    def _event(self, kind: schema.EventKind, text: str, **fields: object) -> schema.Event | None:
+        """Store, record and broadcast an event; a failure to store it is logged, not raised (None)."""
+        try:
+            event = self.store.add_event(
+                self.session.id,
+                t=self.estimator.last_t,
+                kind=kind,
+                text=text,
+                trial_id=self.trial.id if self.trial else None,
+                **fields,  # type: ignore[arg-type]
+            )
+        except Exception as e:
+            log.error("session %d: event %r not stored: %s", self.session.id, text, e)
+            return None
+        if self.recorder is not None:
+            try:
+                self.recorder.write_event(event)
+            except (OSError, ValueError) as e:
+                self._recording_failed(e)
+        self._broadcast(schema.EventMessage(event=event))
+        return event
+
+    def start_recording(self, name: str = "") -> schema.Trial:
+        """Start a new trial's recording (or return the one recording).
+
+        Raises:
+            DiskFull: the disk is (almost) full; nothing was started.
+        """
+        if self.trial is not None:
+            return self.trial
+        if self.disk_check is not None and self.disk_check() == "critical":
+            raise DiskFull("the disk is almost full: free some space before recording")
+        number = len(self.store.list_trials(self.session.id)) + 1
+        rel = f"recordings/session{self.session.id:05d}_trial{number:03d}_{int(time.time())}.mcap"
+        self.recorder = Recorder(
+            self.data_dir / rel,
+            self.start_ns,
+            {
+                "session_id": str(self.session.id),
+                "subject": self.subject.code,
+                "source": self.session.source.kind,
+                SAMPLE_PERIOD_KEY: repr(self.sample_period),
+            },
+        )
+        try:
+            self.trial = self.store.create_trial(self.session.id, name or f"trial {number}", rel)
+        except BaseException:
+            recorder, self.recorder = self.recorder, None
+            with contextlib.suppress(Exception):
+                recorder.finish()
+            recorder.path.unlink(missing_ok=True)  # no row points at it
+            raise
+        self.recorder.write("/settings", self.estimator.last_t, self.session.settings)
+        self._event("recording", f"recording started: {self.trial.name}")
+        return self.trial
+
+    def stop_recording(self) -> schema.Trial | None:
+        """Finish the recording and its trial row; each step is tried even if an earlier one fails.
+
+        A file whose index cannot be written (the disk still full) is recovered (re-indexed up to its
+        last complete chunk, trial ``recovered``) or, failing that, the trial is marked ``damaged``.
+        """
+        if self.trial is None or self.recorder is None:
+            return None
+        trial, recorder = self.trial, self.recorder
+        self._event("recording", f"recording stopped: {trial.name}")
+        self.trial, self.recorder = None, None
+        status: schema.TrialStatus = "finished"
+        try:
+            recorder.finish()
+        except Exception as e:
+            log.error("session %d: finishing %s failed: %s", self.session.id, recorder.path, e)
+            try:
+                recover(recorder.path)
+                status = "recovered"
+            except Exception as again:
+                log.error("session %d: %s cannot be recovered: %s", self.session.id, recorder.path, again)
+                status = "damaged"
+            self._event("system", f"the recording of {trial.name} could not be finished ({_describe(e)}): {status}")
+        return self.store.finish_trial(trial.id, status, recorder.samples, recorder.duration_s)
+
+    @property
+    def settings(self) -> SessionSettings:
+        return self.session.settings
+
+    @property
+    def last_t(self) -> float:
+        """Session time of the last sample processed."""
+        return self.estimator.last_t
+
+
+def _describe(e: BaseException) -> str:
+    """An error in a user's words: its message without server paths."""
+    if isinstance(e, OSError) and e.strerror:
+        return e.strerror
+    return str(e) or type(e).__name__

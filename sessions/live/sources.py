@@ -1,0 +1,206 @@
+"""Where a session's sensor frames come from: one interface, three kinds.
+
+- :class:`SimulatedDevice`: a virtual-cohort subject walking a protocol (seed 000 III-E by default)
+  through simulated sensors, paced in real time; runs without hardware (offline mode).
+- :class:`ReplayDevice`: a stored trial's sensor frames played back at 1x or faster.
+- :class:`LiveDevice`: frames pushed by a device over ``/ws/devices/{id}``; the device keeps its own
+  clock and receives torque commands back.
+
+Every source is an async iterator of :class:`~sessions.schema.SensorFrame` whose ``t`` increases;
+pacing uses the event loop's monotonic clock against each frame's due time, so a late wake-up catches
+up (the frames already due go out at once) instead of drifting.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import math
+import time
+from collections.abc import AsyncIterator, Callable, Sequence
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+import pandas as pd
+
+from sessions import schema
+from sessions.schema import SensorFrame
+
+
+class FrameSource(Protocol):
+    """What a session runtime consumes."""
+
+    rate_hz: float | None
+
+    def frames(self) -> AsyncIterator[SensorFrame]: ...
+
+
+def frames_from_table(table: pd.DataFrame) -> list[SensorFrame]:
+    """Sensor frames from a replay-CSV-like table (``time_s``, replay signals, optional extras)."""
+    cols = [c for c in (*schema.REPLAY_SIGNALS, "thigh_angle_deg") if c in table.columns]
+    t = table[schema.REPLAY_TIME].to_numpy(np.float64)
+    values = {c: table[c].to_numpy(np.float64) for c in cols}
+    hs = table[schema.REPLAY_HEEL_STRIKE].to_numpy() if schema.REPLAY_HEEL_STRIKE in table.columns else None
+    out = []
+    for k in range(len(t)):
+        fields: dict[str, object] = {c: float(v[k]) for c, v in values.items() if math.isfinite(v[k])}
+        fields.update(seq=k, t=float(t[k]), heel_strike=None if hs is None else bool(hs[k] > 0.5))
+        out.append(SensorFrame.model_validate(fields))
+    return out
+
+
+async def _paced(
+    passes: Callable[[], AsyncIterator[SensorFrame]], speed: float, loop: bool
+) -> AsyncIterator[SensorFrame]:
+    """Yield the frames of ``passes()`` at ``speed`` x real time, again and again if ``loop``.
+
+    Times restart at 0 and continue across passes (one sample period apart), ``seq`` keeps counting,
+    and each frame is stamped with its send time (``sent_ns``).
+    """
+    clock = asyncio.get_running_loop().time
+    start = clock()
+    offset, seq = 0.0, 0
+    while True:
+        t0: float | None = None
+        last_t, period = 0.0, 0.0
+        async for f in passes():
+            if t0 is None:
+                t0 = f.t
+            t = f.t - t0 + offset
+            period = t - last_t if t > last_t else period
+            last_t = t
+            delay = start + t / speed - clock()
+            if delay > 0:
+                await asyncio.sleep(delay)
+            yield f.model_copy(update={"seq": seq, "t": t, "sent_ns": time.time_ns()})
+            seq += 1
+        if not loop or t0 is None:
+            return
+        offset = last_t + period
+
+
+async def _from_list(frames: Sequence[SensorFrame]) -> AsyncIterator[SensorFrame]:
+    for f in frames:
+        yield f
+
+
+class SimulatedDevice:
+    """A virtual subject on a treadmill (``SimulatedSource``), with simulated sensor noise.
+
+    The walk is generated once (deterministic from the spec's seed) and looped if asked.
+    """
+
+    def __init__(self, spec: schema.SimulatedSource):
+        self.spec = spec
+        self.rate_hz: float | None = spec.rate_hz
+        self._frames: list[SensorFrame] | None = None
+
+    def _generate(self) -> list[SensorFrame]:
+        from sessions.synth.trials import sensor_trial
+
+        schedule = [(p.speed_m_s, p.incline_deg, p.strides) for p in self.spec.protocol]
+        sensors, _, _ = sensor_trial(
+            schedule, subject=self.spec.cohort_subject, rate_hz=self.spec.rate_hz, seed=self.spec.seed
+        )
+        return frames_from_table(sensors)
+
+    async def frames(self) -> AsyncIterator[SensorFrame]:
+        if self._frames is None:
+            self._frames = await asyncio.to_thread(self._generate)
+        frames = self._frames
+        async for f in _paced(lambda: _from_list(frames), 1.0, self.spec.loop):
+            yield f
+
+    def subject_body(self) -> tuple[float, float]:
+        """Leg length (m) and mass (kg) of the virtual subject walking."""
+        from sessions.synth.cohort import CohortSpec, make_subjects
+
+        subj = make_subjects(CohortSpec())[self.spec.cohort_subject]
+        return subj.leg_length_m, subj.mass_kg
+
+
+class ReplayDevice:
+    """A stored trial (its ``/sensor`` channel) played back at ``speed`` x real time.
+
+    Frames are read lazily in batches on a worker thread, so a long trial never sits in memory whole
+    and the event loop never waits on the disk.
+    """
+
+    BATCH = 2000
+
+    def __init__(self, path: Path, speed: float = 1.0, loop: bool = False):
+        self.path = path
+        self.speed = speed
+        self.loop = loop
+        self.rate_hz: float | None = None
+
+    async def _read(self) -> AsyncIterator[SensorFrame]:
+        from sessions.formats.mcap_io import iter_sensor_frames
+
+        frames = iter_sensor_frames(self.path)
+        while True:
+            batch = await asyncio.to_thread(lambda: [f for _, f in itertools.islice(frames, self.BATCH)])
+            if not batch:
+                return
+            if self.rate_hz is None and len(batch) > 1 and batch[-1].t > batch[0].t:
+                self.rate_hz = (len(batch) - 1) / (batch[-1].t - batch[0].t) * self.speed
+            for f in batch:
+                yield f
+
+    async def frames(self) -> AsyncIterator[SensorFrame]:
+        async for f in _paced(self._read, self.speed, self.loop):
+            yield f
+
+
+class LiveDevice:
+    """Frames pushed by a device over its websocket, limited to its declared rate.
+
+    The websocket handler processes each frame it admits at once (the torque reply goes back on the
+    same socket); :meth:`admit` is a token bucket that lets through ``headroom x rate_hz`` frames per
+    second with a burst of ``burst_s`` seconds' worth (frames a network stall delayed arrive together
+    and must not be dropped), so that a device flooding the server costs it a counter increment per
+    excess frame rather than a filter step, and cannot starve other sessions.
+
+    Attributes:
+        rate_hz: the declared rate (Hz).
+        dropped: frames dropped over the rate.
+        connected: a device is connected now (one at a time).
+    """
+
+    def __init__(self, rate_hz: float = 200.0, headroom: float = 1.25, burst_s: float = 2.0):
+        if not (math.isfinite(rate_hz) and rate_hz > 0):
+            raise ValueError(f"rate_hz must be a positive number, got {rate_hz}")
+        self.rate_hz: float | None = rate_hz
+        self._fill = rate_hz * headroom
+        self._capacity = max(1.0, self._fill * burst_s)
+        self._tokens = self._capacity
+        self._last = time.monotonic()
+        self._closed = asyncio.Event()
+        self.dropped = 0
+        self.connected = False
+
+    def admit(self, now: float | None = None) -> bool:
+        """Take one frame's token at monotonic time ``now``; False (and counted) when over the rate."""
+        now = time.monotonic() if now is None else now
+        self._tokens = min(self._capacity, self._tokens + (now - self._last) * self._fill)
+        self._last = now
+        if self._tokens >= 1.0:
+            self._tokens -= 1.0
+            return True
+        self.dropped += 1
+        return False
+
+    def close(self) -> None:
+        """End the stream (the session is stopping)."""
+        self._closed.set()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed.is_set()
+
+    async def frames(self) -> AsyncIterator[SensorFrame]:
+        """Yields nothing: frames arrive through the websocket handler; ends when closed."""
+        await self._closed.wait()
+        return
+        yield  # an async generator

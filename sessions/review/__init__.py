@@ -1,0 +1,1 @@
+"""Review of recorded and uploaded trials: re-runs through the estimators."""

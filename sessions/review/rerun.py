@@ -1,0 +1,205 @@
+"""Reviewing a recorded trial: re-run its raw sensor frames through the estimators.
+
+Two modes (:class:`~sessions.schema.RerunRequest`):
+
+* **as recorded** (``settings=None``, the default): the trial's ``/settings`` timeline is replayed, the
+  settings in force at its first frame and then each recorded change from the frame after the one it
+  followed, as it applied live. The result reproduces the recorded ``/gait_state`` to floating-point
+  round-off: the baseline ("what ran") a clinician compares a what-if with.
+* **what if** (``settings`` given): those settings, model included, held constant over the whole trial.
+
+The estimator is built as the live one was (:class:`~sessions.live.runtime.SessionRuntime`): the model named
+in the settings, the subject's leg length and mass, the sample period in the recording's metadata record
+(:data:`~sessions.formats.recording.SAMPLE_PERIOD_KEY`) and the recording's session clock, so the states come
+out on the times of the recorded ones and overlay them; its torque passes the live loop's last guard
+(:func:`~sessions.live.runtime.safe_torque`).
+
+Frames are read lazily and the result is decimated on the fly (:class:`~sessions.formats.mcap_io.SeriesBuilder`),
+so a re-run of an hour-long trial needs memory for ``max_points`` rows, not for the hour. The estimator
+always starts from the trial's first frame (the filter must converge as it did live); only the states
+inside ``[t0, t1]`` are returned. A trial that began with its session's first frame (the first trial of
+a live session, every import) is therefore reproduced exactly; a later trial of a session began with a
+filter that had been running, so its first strides can differ from what ran until the filter converges.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Final
+
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+
+from estimators.pipeline import TrainedModel
+from sessions.errors import DataFormatError
+from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
+from sessions.formats.mcap_io import SeriesBuilder, count_messages, read_messages, series_window
+from sessions.formats.recording import METADATA_NAME, SAMPLE_PERIOD_KEY
+from sessions.live.runtime import safe_torque
+from sessions.schema import SensorFrame, SessionSettings
+
+__all__ = ["recorded_settings", "rerun_series"]
+
+_NO_SETTINGS: Final = (
+    "the settings in force at the trial's first frame are not recorded (no /settings message before it), "
+    "so what ran cannot be reproduced; re-run it with chosen settings ('what if')"
+)
+
+
+def recorded_settings(path: Path) -> SessionSettings:
+    """The settings in force at the trial's first frame (its first ``/settings`` message).
+
+    Raises:
+        DataFormatError: the file records none, or a bad one.
+    """
+    for _, log_time, msg in read_messages(path, ["/settings"]):
+        return _settings(path, log_time, msg)
+    raise DataFormatError(_NO_SETTINGS, file=str(path))
+
+
+def rerun_series(
+    path: Path,
+    models: Callable[[str], TrainedModel],
+    leg_length: float,
+    mass_kg: float,
+    settings: SessionSettings | None = None,
+    t0: float | None = None,
+    t1: float | None = None,
+    max_points: int = 2000,
+) -> dict[str, list[Any]]:
+    """Series (as :func:`~sessions.formats.mcap_io.read_series`) of the trial re-estimated.
+
+    Args:
+        path: the trial's MCAP file.
+        models: the trained model of a name (the settings name the model).
+        leg_length, mass_kg: the subject's (m, kg).
+        settings: None to replay the recorded settings (as recorded); else held over the whole trial
+            (what if).
+        t0, t1: session times (s) of the states returned (None: unbounded).
+        max_points: decimation bound, as :func:`~sessions.formats.mcap_io.read_series`.
+
+    Raises:
+        DataFormatError: a bad file; as recorded, a file without the settings of its first frame, or
+            whose recorded model changes mid-trial.
+    """
+    window = series_window(path, t0, t1)
+    if window is None:
+        return SeriesBuilder(0, max_points).result()
+    lo, hi = window
+    builder = SeriesBuilder(count_messages(path, "/sensor", lo, hi), max_points)
+    current = settings
+    estimator: FrameEstimator | None = None
+    topics = ["/sensor", "/settings"] if settings is None else ["/sensor"]
+    # Log-time order, equal times in file order: the order they were written in, so a /settings
+    # message applies to the frames written after it, exactly as the change applied live.
+    for topic, log_time, msg in read_messages(path, topics):
+        if hi is not None and log_time > hi:
+            break
+        if topic == "/settings":
+            recorded = _settings(path, log_time, msg)
+            if current is not None and recorded.model != current.model:
+                raise DataFormatError(
+                    f"the recorded model changes from {current.model!r} to {recorded.model!r} at {log_time} ns",
+                    file=str(path),
+                )
+            if estimator is not None and recorded != current:
+                estimator.retune(recorded)
+            current = recorded
+            continue
+        frame = _frame(path, log_time, msg)
+        if current is None:
+            raise DataFormatError(_NO_SETTINGS, file=str(path))
+        if estimator is None:
+            period = _sample_period(path, frame)
+            origin = _time_origin(path, frame)
+            # The frames are on the session clock already (resynchronised live if need be): never again.
+            model = models(current.model)
+            estimator = FrameEstimator(model, leg_length, mass_kg, current, period, origin, max_jump_s=math.inf)
+        if not estimator.accepts(frame):
+            continue  # reordered or repeated, skipped as live (not in gaitscope's own recordings)
+        state = estimator.step(frame, 0)
+        torque = safe_torque(state.torque_Nm, current.max_torque_Nm)  # the live loop's last guard, as live
+        if torque != state.torque_Nm:
+            state = state.model_copy(update={"torque_Nm": torque, "fault": True})
+        if lo is None or log_time >= lo:
+            builder.add(state.model_dump())
+    return builder.result()
+
+
+def _settings(path: Path, log_time: int, msg: object) -> SessionSettings:
+    try:
+        return SessionSettings.model_validate(msg)
+    except ValueError as exc:
+        raise DataFormatError(f"bad /settings message at {log_time} ns: {exc}", file=str(path)) from exc
+
+
+def _frame(path: Path, log_time: int, msg: object) -> SensorFrame:
+    try:
+        return SensorFrame.model_validate(msg)
+    except ValueError as exc:
+        raise DataFormatError(f"bad /sensor frame at {log_time} ns: {exc}", file=str(path)) from exc
+
+
+def _time_origin(path: Path, first: SensorFrame) -> float | None:
+    """``time_origin`` that puts the frames on the recording's session clock: the first frame's ``t``
+    minus that of the first gait state (0 for a live recording, whose frames carry session time; the
+    log's own first time for an import, whose frames keep it). None (start at 0) without gait states."""
+    for _, log_time, msg in read_messages(path, ["/gait_state"]):
+        t = msg.get("t") if isinstance(msg, dict) else None
+        if not isinstance(t, int | float):
+            raise DataFormatError(f"/gait_state message without t at {log_time} ns", file=str(path))
+        return first.t - t
+    return None
+
+
+def _sample_period(path: Path, first: SensorFrame) -> float:
+    """The sample period (s) the recorded states were estimated with.
+
+    Read from the metadata record. Recordings made before it was recorded get what made them: the live
+    runtime built a device's or a replay's estimator before it knew their rate (so with
+    ``DEFAULT_PERIOD``); a simulated source's was ``1 / rate``, and an import's
+    (:func:`~sessions.estimation.estimate`) the mean frame period, which equals it to round-off.
+    """
+    meta = _metadata(path)
+    text = meta.get(SAMPLE_PERIOD_KEY)
+    if text is not None:
+        try:
+            period = float(text)
+        except ValueError:
+            period = math.nan
+        if not (math.isfinite(period) and period > 0):
+            raise DataFormatError(f"bad {SAMPLE_PERIOD_KEY} {text!r} in the metadata record", file=str(path))
+        return period
+    if meta.get("source") in ("device", "replay"):
+        return DEFAULT_PERIOD
+    n = count_messages(path, "/sensor", None, None)
+    last = _last_frame(path)
+    if n > 1 and last is not None and last.t > first.t:
+        return (last.t - first.t) / (n - 1)
+    return DEFAULT_PERIOD
+
+
+def _metadata(path: Path) -> dict[str, str]:
+    """Key/values of the recording's ``gaitscope`` metadata record (empty without one)."""
+    try:
+        with open(path, "rb") as f:
+            for record in make_reader(f).iter_metadata():
+                if record.name == METADATA_NAME:
+                    return dict(record.metadata)
+    except (McapError, ValueError, struct.error, EOFError) as exc:
+        raise DataFormatError(f"damaged metadata ({exc})", file=str(path)) from exc
+    return {}
+
+
+def _last_frame(path: Path) -> SensorFrame | None:
+    """The last ``/sensor`` frame (read through the index: one chunk)."""
+    try:
+        with open(path, "rb") as f:
+            for _, _, message in make_reader(f).iter_messages(topics=["/sensor"], reverse=True):
+                return SensorFrame.model_validate_json(message.data)
+    except (McapError, ValueError, struct.error, EOFError) as exc:
+        raise DataFormatError(f"damaged /sensor data ({exc})", file=str(path)) from exc
+    return None

@@ -1,0 +1,110 @@
+"""The gaitscope command line, run in-process and once as the installed console script."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from server.cli import main
+from sessions import schema
+from sessions.formats.locohub import write_table
+from sessions.formats.models import load_model
+from sessions.synth.trials import replay_columns, sensor_trial
+
+
+@pytest.fixture(scope="module")
+def trial_csv(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, pd.DataFrame]:
+    sensors, _, _ = sensor_trial([(1.2, 0.0, 8), (1.0, 5.0, 8)])
+    path = tmp_path_factory.mktemp("trial") / "trial.csv"
+    replay_columns(sensors).to_csv(path, index=False, float_format="%.6f")
+    return path, sensors
+
+
+def test_replay_writes_every_output_column(tmp_path: Path, trial_csv, capsys) -> None:
+    src, sensors = trial_csv
+    out = tmp_path / "out.csv"
+    assert main(["replay", str(src), "--out", str(out), "--leg-length", "0.9"]) == 0
+    est = pd.read_csv(out)
+    assert tuple(est.columns) == schema.REPLAY_OUTPUT
+    assert len(est) == len(sensors)
+    assert est["heel_strike"].sum() == sensors["heel_strike"].sum()
+    assert est["phase"].between(0, 1).all() and (est["torque_Nm"] >= 0).all()
+    assert "heel strikes" in capsys.readouterr().out
+
+
+def test_replay_detects_heel_strikes_and_uses_a_subset_of_sensors(tmp_path: Path, trial_csv) -> None:
+    src, sensors = trial_csv
+    reduced = pd.read_csv(src)[["time_s", "foot_angle_deg", "foot_vel_dps", "shank_angle_deg"]]
+    path = tmp_path / "reduced.csv"
+    reduced.to_csv(path, index=False)
+    out = tmp_path / "out.csv"
+    assert main(["replay", str(path), "--out", str(out)]) == 0
+    est = pd.read_csv(out)
+    true_hs = sensors["time_s"].to_numpy()[sensors["heel_strike"].to_numpy() > 0]
+    found = est["time_s"].to_numpy()[est["heel_strike"].to_numpy() > 0]
+    assert abs(len(found) - len(true_hs)) <= 1
+    gaps = np.abs(found[:, None] - true_hs[None, :]).min(axis=1)
+    assert np.median(gaps) < 0.06  # within a few samples of the true heel strike
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (
+            lambda f: f.assign(shank_angle_deg=f["shank_angle_deg"].astype(object).where(f.index != 9, "abc")),
+            "column 'shank_angle_deg', row 11",
+        ),
+        (lambda f: f.assign(time_s=np.where(f.index == 20, 0.0, f["time_s"])), "column 'time_s', row 22"),
+        (lambda f: f.drop(columns=["time_s"]), "time_s"),
+        (lambda f: f.drop(columns=["foot_angle_deg", "shank_angle_deg"]), "angle"),
+    ],
+)
+def test_bad_input_exits_2_naming_the_place_and_leaves_no_output(
+    tmp_path: Path, trial_csv, capsys, edit, message
+) -> None:
+    src, _ = trial_csv
+    bad = tmp_path / "bad.csv"
+    edit(pd.read_csv(src)).to_csv(bad, index=False)
+    out = tmp_path / "out.csv"
+    assert main(["replay", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "gaitscope: error: file" in err and message in err
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv"]
+
+
+def test_bad_settings_exit_2(tmp_path: Path, trial_csv, capsys) -> None:
+    src, _ = trial_csv
+    assert main(["replay", str(src), "--out", str(tmp_path / "o.csv"), "--max-torque", "900"]) == 2
+    assert "max torque 900.0 N m is outside 0..200" in capsys.readouterr().err
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_train_from_a_locohub_file(tmp_path: Path, small_cohort: pd.DataFrame) -> None:
+    table = tmp_path / "lab.parquet"
+    write_table(small_cohort, table)
+    out = tmp_path / "model.npz"
+    assert main(["train", "--data", str(table), "--out", str(out), "--order", "8"]) == 0
+    model, prov = load_model(out)
+    assert prov.source == str(table) and prov.fourier_order == 8 and len(prov.subjects) == 3
+    assert model.coef.shape == (4, 2, 2, 17)
+
+
+def test_train_refuses_a_table_without_a_required_column(tmp_path: Path, small_cohort: pd.DataFrame, capsys) -> None:
+    table = tmp_path / "lab.csv"
+    write_table(small_cohort.drop(columns=[schema.FOOT_ANGLE]).head(450), table)
+    assert main(["train", "--data", str(table), "--out", str(tmp_path / "m.npz")]) == 2
+    assert schema.FOOT_ANGLE in capsys.readouterr().err
+    assert not (tmp_path / "m.npz").exists()
+
+
+def test_console_script_runs_the_demo(tmp_path: Path) -> None:
+    exe = str(Path(sys.executable).with_name("gaitscope"))
+    done = subprocess.run([exe, "demo", "--out-dir", str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "phase RMSE EKF" in done.stdout
+    est = pd.read_csv(tmp_path / "default_trial_estimates.csv")
+    assert len(est) == len(pd.read_csv(tmp_path / "default_trial.csv")) > 10_000
