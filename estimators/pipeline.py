@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators import _kernels
+from estimators import _batch, _kernels
 from estimators.basis import Array
 from estimators.gait_model import N_CHANNELS, NoiseModel
 from estimators.heel_strike import (
@@ -256,13 +256,13 @@ class GaitStatePipeline:
             heel_strike = bool(
                 np.isfinite(z[FOOT_ANGLE])
                 and np.isfinite(z[FOOT_VEL])
-                and self.detector.step(t, dt, float(z[FOOT_ANGLE]), float(z[FOOT_VEL]))
+                and self.detector.detect(t, dt, float(z[FOOT_ANGLE]), float(z[FOOT_VEL]))
             )
         if dt > 0:
             self.ekf.predict(dt)
             self.tbe.predict(dt)
         self.ekf.update(z)
-        reset = self.backup.step(t, dt, z, heel_strike) if self.backup is not None else False
+        reset = self.backup.track(t, dt, z, heel_strike) if self.backup is not None else False
         if heel_strike:
             self.tbe.update(self._hs)
         if not self._healthy():
@@ -289,6 +289,35 @@ class GaitStatePipeline:
             fault=fault,
             implausible=implausible,
         )
+
+    def run(
+        self,
+        t: Array,
+        z: Array,
+        heel_strike: NDArray[np.bool_] | None = None,
+        heel_filtered: bool = False,
+    ) -> dict[str, NDArray[np.generic]]:
+        """Process a whole batch of samples at once: :meth:`step` for each, in one compiled loop.
+
+        The outputs equal those of calling :meth:`step` sample by sample (same operations in the same
+        order), and the pipeline is left in the same state, so ``run`` and ``step`` calls may be mixed.
+        Unlike a loop of ``step``, the times are all checked before any sample is processed.
+
+        Args:
+            t: ``(n,)`` time stamps (s), finite and strictly increasing (also after the last step).
+            z: ``(n, 6)`` raw measurements as for :meth:`step`; NaN where a sensor is missing.
+            heel_strike: ``(n,)`` given heel strikes, or None to detect them all from the foot signals.
+            heel_filtered: the heel positions were already high-passed.
+
+        Returns:
+            One ``(n,)`` array per :class:`GaitEstimate` field: ``phase``, ``phase_rate``,
+            ``stride_length_m``, ``incline_deg``, ``torque_Nm``, ``tbe_phase`` (float), ``heel_strike``,
+            ``backup_reset`` (bool), ``fault`` (str) and ``implausible`` (int).
+
+        Raises:
+            ValueError: a non-finite or non-increasing time, or arrays of the wrong shape.
+        """
+        return _batch.run(self, t, z, heel_strike, heel_filtered)
 
     def _healthy(self) -> bool:
         """The EKF's state and covariance are finite and within :class:`HealthLimits`."""

@@ -17,14 +17,10 @@ from pathlib import Path
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
-from server.api import install_error_handlers
-from server.api import router as api_router
 from server.leg_view import LegView
 from server.origin import AllowedHostsMiddleware, SameOriginMiddleware
+from server.routes import ROUTERS, Uploads, install_error_handlers
 from server.settings import Settings
-from server.streams import router as stream_router
-from server.uploads import Uploads
-from server.uploads import router as upload_router
 from sessions import schema
 from sessions.formats.models import gaitscope_version
 from sessions.live.disk import DiskGuard
@@ -115,9 +111,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(SameOriginMiddleware)
     app.add_middleware(AllowedHostsMiddleware, allowed_hosts=settings.allowed_hosts)  # outermost: runs first
     install_error_handlers(app)
-    app.include_router(api_router)
-    app.include_router(upload_router)
-    app.include_router(stream_router)
+    for router in ROUTERS:
+        app.include_router(router)
     if WEB_DIR.is_dir():
         app.mount("/", StaticFiles(directory=WEB_DIR, html=True), name="web")
     return app

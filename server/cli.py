@@ -1,7 +1,8 @@
 """The ``gaitscope`` command line.
 
-Subcommands: ``demo`` (replay the bundled default trial), ``replay``, ``train``, ``cohort``,
-``crossval`` and ``bench``. Bad input exits with status 2 and a message naming the file, row and column.
+Subcommands: ``serve``, ``demo`` (replay the bundled default trial), ``replay``, ``train``, ``cohort``,
+``crossval``, ``bench``, ``loadbench`` and ``wire`` (the browser's wire types). Bad input exits with
+status 2 and a message naming the file, row and column.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pathlib import Path
 
 from estimators.pipeline import PipelineConfig, TrainedModel
 from sessions.errors import DataFormatError
-from sessions.schema import ModelProvenance
+from sessions.schema import SETTING_LIMITS, ModelProvenance, SubjectCreate, field_bounds
 
 EXIT_BAD_INPUT = 2
 
@@ -29,21 +30,42 @@ def _positive(text: str) -> float:
     return v
 
 
+#: Bounds of the pipeline options, as the dashboard's (``SubjectCreate`` and ``SETTING_LIMITS``):
+#: option -> (description, unit, minimum, maximum).
+_BOUNDS: dict[str, tuple[str, str, float, float]] = {
+    "leg_length": ("leg length", " m", *field_bounds(SubjectCreate, "leg_length_m")),
+    "mass": ("mass", " kg", *field_bounds(SubjectCreate, "mass_kg")),
+    "torque_gain": ("torque gain", "", *SETTING_LIMITS["torque_gain"][:2]),
+    "max_torque": ("max torque", " N m", *SETTING_LIMITS["max_torque_Nm"][:2]),
+}
+
+
+def _range(option: str) -> str:
+    _, unit, lo, hi = _BOUNDS[option]
+    return f"{lo:g}..{hi:g}{unit}"
+
+
 def _pipeline_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", type=Path, help="model file (default: the model that ships with gaitscope)")
-    p.add_argument("--leg-length", type=_positive, default=0.88, help="user's leg length in m (default 0.88)")
-    p.add_argument("--mass", type=_positive, default=75.0, help="user's body mass in kg (default 75)")
-    p.add_argument("--torque-gain", type=float, default=1.0, help="multiplies the torque profile (default 1)")
-    p.add_argument("--max-torque", type=float, default=40.0, help="torque bound in N m, 0..200 (default 40)")
+    p.add_argument(
+        "--leg-length", type=_positive, default=0.88, help=f"user's leg length, {_range('leg_length')} (default 0.88)"
+    )
+    p.add_argument("--mass", type=_positive, default=75.0, help=f"user's body mass, {_range('mass')} (default 75)")
+    p.add_argument(
+        "--torque-gain",
+        type=float,
+        default=1.0,
+        help=f"multiplies the torque profile, {_range('torque_gain')} (default 1)",
+    )
+    p.add_argument("--max-torque", type=float, default=40.0, help=f"torque bound, {_range('max_torque')} (default 40)")
 
 
 def _config(a: argparse.Namespace) -> PipelineConfig:
-    if not 0.5 <= a.leg_length <= 1.3:
-        raise DataFormatError(f"leg length {a.leg_length} m is outside 0.5..1.3 m", file="--leg-length")
-    if not 0 <= a.torque_gain <= 3:
-        raise DataFormatError(f"torque gain {a.torque_gain} is outside 0..3", file="--torque-gain")
-    if not 0 <= a.max_torque <= 200:
-        raise DataFormatError(f"max torque {a.max_torque} N m is outside 0..200", file="--max-torque")
+    for option, (what, unit, lo, hi) in _BOUNDS.items():
+        value = getattr(a, option)
+        if not lo <= value <= hi:
+            flag = "--" + option.replace("_", "-")
+            raise DataFormatError(f"{what} {value}{unit} is outside {_range(option)}", file=flag)
     return PipelineConfig(
         leg_length=a.leg_length, body_mass_kg=a.mass, torque_gain=a.torque_gain, max_torque=a.max_torque
     )
@@ -204,13 +226,23 @@ def cmd_serve(a: argparse.Namespace) -> int:
 
 def cmd_loadbench(a: argparse.Namespace) -> int:
     if a.soak:
-        from server.soak import run_soak
+        from server.bench.soak import run_soak
 
         result = run_soak(devices=a.sessions if a.sessions != 10 else 4, rate=a.rate, seconds=a.seconds)
         return 0 if result["clean"] and not any(r.out_of_bounds for r in result["devices"]) else 1
-    from server.loadbench import run_loadbench
+    from server.bench.load import run_loadbench
 
     run_loadbench(a.sessions, a.clients, a.rate, a.seconds, a.batch_ms)
+    return 0
+
+
+def cmd_wire(a: argparse.Namespace) -> int:
+    from server.wire import render, write
+
+    if a.out is None:
+        sys.stdout.write(render())
+    else:
+        print(f"{'wrote' if write(a.out) else 'unchanged:'} {a.out}")
     return 0
 
 
@@ -282,6 +314,10 @@ def build_parser() -> argparse.ArgumentParser:
         "devices (default 4), --seconds long",
     )
     p.set_defaults(func=cmd_loadbench)
+
+    p = sub.add_parser("wire", help="generate the browser's wire types (web/wire.js) from sessions/schema.py")
+    p.add_argument("--out", type=Path, help="file to write (e.g. web/wire.js); default: standard output")
+    p.set_defaults(func=cmd_wire)
     return parser
 
 

@@ -13,11 +13,12 @@
 from sessions.errors import DataFormatError
 from sessions.formats.locohub import read_table, write_table
 from sessions.formats.models import default_model_path, load_model, save_model
-from sessions.formats.replay_io import ReplayInput, read_replay_csv, write_replay_output
+from sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv, write_replay_output
 
 __all__ = [
     "DataFormatError",
     "ReplayInput",
+    "ReplayOutput",
     "default_model_path",
     "load_model",
     "read_replay_csv",

@@ -1,20 +1,25 @@
-"""Sensor frames in, gait states out: the estimator stack as a device stream needs it.
+"""Sensor frames in, gait states out: the session's estimator stack as a device stream needs it.
 
-Used live by :class:`~sessions.live.runtime.SessionRuntime`, and offline to re-run recordings and to import
-raw logs (:func:`estimate`).
+The one sensor-to-estimate path: used live by :class:`~sessions.live.runtime.SessionRuntime`, and offline
+to re-run recordings (:mod:`sessions.review.rerun`) and to import raw logs (:func:`estimate`). The
+estimators and the torque are :class:`~sessions.stack.EstimatorStack`'s; this module adds what a device
+stream needs around it (session time, derived velocities, soft start).
 """
 
 from __future__ import annotations
 
+import json
 import math
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
-import numpy as np
-
-from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from estimators.pipeline import TrainedModel
+from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator
 from sessions import schema
+from sessions.registry import StackContext, build_stack, channels_of
 from sessions.schema import GaitState, SensorFrame, SessionSettings
+from sessions.stack import EstimatorStack, StackSample
 
 #: Assumed sample period until the source's rate is known (s).
 DEFAULT_PERIOD = 0.005
@@ -42,25 +47,37 @@ class Admission:
 
 
 class FrameEstimator:
-    """Sensor frames in, gait states out: the pipeline plus what a device stream needs around it.
+    """Sensor frames in, gait states out: the estimator stack plus what a device stream needs around it.
 
     Session time starts at 0 on the first frame (or is ``frame.t - time_origin`` when given) and always
     increases: a device whose clock restarts (a reboot) or jumps by more than ``max_jump_s`` is
     resynchronised, and :meth:`resync` moves session time to a wall clock's (a reconnect after a
-    pause). Angular velocities a device does not send are derived by backward difference;
-    ``foot_pred_deg`` and ``shank_pred_deg`` are the gait model at the prior estimate.
+    pause). Angular velocities a device does not send are derived by backward difference.
+
+    The stack (:mod:`sessions.registry`, :mod:`sessions.stack`) is ``estimators`` (names), else the
+    settings' ``estimators``, else every estimator the source's ``channels`` allow (all of them when the
+    channels are unknown), plus ``extra`` instances; its primary is the settings' ``primary``. The gait
+    state is the primary's outputs and the stack's torque (``foot_pred_deg`` and ``shank_pred_deg``: the
+    gait model at the prior estimate).
 
     Soft start (``soft_start``): the torque gain and bound ramp from 0 to the session's values at the
     rate limits of :data:`~sessions.schema.SETTING_LIMITS` (0.5 gain/s, 10 N m/s), from the first frame
-    and again after every restart or reset of the filters, so that assistance never starts as a step.
+    and again after every restart or reset of the primary, so that assistance never starts as a step.
     Deterministic in session time, so a re-run reproduces it.
 
     Attributes:
+        stack: the estimators and the torque.
+        last: what the stack made of the last frame (every estimator's outputs).
         last_t: session time of the last frame stepped.
         notes: what happened that deserves an event (resynchronisations, filter faults); the caller
-            drains it after each step.
+            drains it after each step (and may merge them).
+        events: estimator failures and primary switches; the caller logs each one.
         implausible: channel values treated as missing (outside ``SENSOR_LIMITS``) since the start.
         faults: samples whose state has ``fault`` set.
+
+    Raises:
+        ValueError: unknown estimators, or a primary the stack cannot run.
+        sessions.registry.MissingChannels: an estimator asked for whose required channels the source lacks.
     """
 
     def __init__(
@@ -75,26 +92,36 @@ class FrameEstimator:
         soft_start: bool = True,
         max_jump_s: float = MAX_JUMP_S,
         reorder_window_s: float = REORDER_WINDOW_S,
+        estimators: Sequence[str] | None = None,
+        channels: Collection[str] | None = None,
+        extra: Sequence[Estimator] = (),
+        blend_s: float = schema.PRIMARY_BLEND_S,
     ):
         if not (math.isfinite(sample_period) and 1e-5 <= sample_period <= 1.0):
             sample_period = DEFAULT_PERIOD
         self.sample_period = sample_period
-        self.pipeline = GaitStatePipeline(
-            model,
-            PipelineConfig(
-                leg_length=leg_length,
-                body_mass_kg=mass_kg,
-                torque_gain=settings.torque_gain,
-                max_torque=settings.max_torque_Nm,
-            ),
-            sample_period=sample_period,
+        self.stack: EstimatorStack = build_stack(
+            StackContext(model, leg_length, mass_kg, sample_period),
+            names=settings.estimators if estimators is None else estimators,
+            channels=channels,
+            primary=settings.primary,
+            torque_gain=settings.torque_gain,
+            max_torque=settings.max_torque_Nm,
+            blend_s=blend_s,
+            extra=extra,
         )
+        self._topics = list(schema.estimator_channels(self.stack.names))
+        self._json_templates = [
+            _outputs_templates(name, outs) for name, outs in zip(self.stack.names, self.stack.outputs, strict=True)
+        ]
         self.settings = settings
         self.soft_start = soft_start
         self.max_jump_s = max_jump_s
         self.reorder_window_s = reorder_window_s
+        self.last: StackSample | None = None
         self.last_t = 0.0
         self.notes: list[str] = []
+        self.events: list[str] = []
         self.implausible = 0
         self.faults = 0
         self._t_offset = time_origin
@@ -105,17 +132,48 @@ class FrameEstimator:
         self._last_recv_ns = 0
         self.retune(settings)
 
+    @property
+    def primary(self) -> str | None:
+        """The estimator driving the torque now (the settings' unless it failed; None: none)."""
+        return self.stack.primary
+
     def retune(self, s: SessionSettings) -> None:
-        """Take new settings from the next frame on (the soft start, if running, still caps the torque)."""
+        """Take new settings from the next frame on (the soft start, if running, still caps the torque).
+
+        Raises:
+            ValueError: ``s.primary`` cannot drive the torque (not in the stack, no phase, failed); the
+                other settings are applied.
+        """
         self.settings = s
-        self.pipeline.retune(
-            torque_gain=s.torque_gain,
-            max_torque=s.max_torque_Nm,
-            measurement_noise_scale=s.measurement_noise_scale,
-            process_noise_scale=s.process_noise_scale,
-        )
+        self.stack.retune_torque(s.torque_gain, s.max_torque_Nm)
+        self.stack.retune(measurement_noise_scale=s.measurement_noise_scale, process_noise_scale=s.process_noise_scale)
+        self.events.extend(self.stack.take_events())
         if self._ramping:
             self._apply_ramp(self.last_t)
+        if s.primary != self.stack.requested:
+            self.stack.set_primary(s.primary)
+
+    def recorded_channels(self) -> dict[str, tuple[str, type[schema.BaseModel]]]:
+        """The MCAP channels of the stack's outputs, for :class:`~sessions.formats.recording.Recorder`."""
+        return schema.estimator_channels(self.stack.names)
+
+    def output_json(self, seq: int) -> list[tuple[str, bytes]]:
+        """The last frame's outputs, recorded as they are made: ``(topic, JSON of an``
+        :class:`~sessions.schema.EstimatorOutputs` ``)`` per estimator, values null once it failed.
+
+        Built as text rather than through the model: per sample and estimator, building and dumping the
+        model cost more than the rest of the recording (``tests/sessions/test_stack.py`` checks that it
+        reads back as the model).
+        """
+        last = self.last
+        if last is None:
+            return []
+        seq, t = int(seq), float(self.last_t)
+        out = []
+        for topic, (ok, failed), y in zip(self._topics, self._json_templates, last.outputs, strict=True):
+            # %r of a float is its shortest round-trip repr: valid JSON for the finite values the stack lets by
+            out.append((topic, (failed % (seq, t) if y is None else ok % (seq, t, *y.tolist())).encode()))
+        return out
 
     def resync(self, elapsed_s: float) -> None:
         """The device reconnected ``elapsed_s`` seconds (wall clock) into the session: its next frame
@@ -172,32 +230,35 @@ class FrameEstimator:
             self._t_offset = frame.t - t
         frame, implausible = frame.plausible()
         self.implausible += implausible
-        raw = np.array(
-            [
-                _or_nan(frame.foot_angle_deg),
-                _or_nan(frame.foot_vel_dps),
-                _or_nan(frame.shank_angle_deg),
-                _or_nan(frame.shank_vel_dps),
-                _or_nan(frame.heel_forward_m),
-                _or_nan(frame.heel_up_m),
-            ]
-        )
-        self._derive_velocities(raw, t)
+        channels = {
+            "foot_angle_deg": _or_nan(frame.foot_angle_deg),
+            "foot_vel_dps": _or_nan(frame.foot_vel_dps),
+            "shank_angle_deg": _or_nan(frame.shank_angle_deg),
+            "shank_vel_dps": _or_nan(frame.shank_vel_dps),
+            "heel_forward_m": _or_nan(frame.heel_forward_m),
+            "heel_up_m": _or_nan(frame.heel_up_m),
+            HEEL_STRIKE: math.nan if frame.heel_strike is None else float(frame.heel_strike),
+        }
+        self._derive_velocities(channels, t)
         if self._ramping:
             self._apply_ramp(t)
-        e = self.pipeline.step(t, raw, frame.heel_strike)
+        e = self.stack.step(t, channels)
+        self.events.extend(e.events)
         if e.fault:
             self.faults += 1
-            if e.fault in ("gap", "diverged"):
-                what = "a gap of over" if e.fault == "gap" else "the phase filter diverged; reset,"
-                limit = f" {self.pipeline.config.max_gap_s:g} s" if e.fault == "gap" else ""
-                self.notes.append(f"estimator restarted at {t:.3f} s ({what}{limit}); assistance ramps up again")
-                if self.soft_start:
-                    self._ramp_t0, self._ramping = t, True
-                    self._apply_ramp(t)
-            else:
-                self.notes.append(f"torque forced to 0 at {t:.3f} s: the torque model gave no finite value")
-        pred = self.pipeline.predicted
+        restarted = e.fault in ("gap", "diverged")
+        for name in e.resets:
+            if name != e.primary:
+                self.notes.append(f"estimator {name} diverged at {t:.3f} s and was reset")
+        if restarted:
+            what = f"a gap of over {MAX_GAP_S:g} s" if e.fault == "gap" else f"{e.primary} diverged; reset"
+            self.notes.append(f"estimator restarted at {t:.3f} s ({what}); assistance ramps up again")
+            if self.soft_start:
+                self._ramp_t0, self._ramping = t, True
+                self._apply_ramp(t)
+        elif e.fault == "torque":
+            self.notes.append(f"torque forced to 0 at {t:.3f} s: the torque model gave no finite value")
+        self.last = e
         self.last_t = t
         self._last_recv_ns = recv_ns
         self._prev = frame.model_copy(update={"t": t})
@@ -216,8 +277,8 @@ class FrameEstimator:
             foot_angle_deg=frame.foot_angle_deg,
             shank_angle_deg=frame.shank_angle_deg,
             thigh_angle_deg=frame.thigh_angle_deg,
-            foot_pred_deg=_finite(pred[0]),
-            shank_pred_deg=_finite(pred[2]),
+            foot_pred_deg=e.foot_pred_deg,
+            shank_pred_deg=e.shank_pred_deg,
             sent_ns=frame.sent_ns,
             recv_ns=recv_ns,
         )
@@ -230,18 +291,20 @@ class FrameEstimator:
         bound_rate = schema.SETTING_LIMITS["max_torque_Nm"][2]
         gain = min(s.torque_gain, gain_rate * elapsed)
         bound = min(s.max_torque_Nm, bound_rate * elapsed)
-        self.pipeline.retune(torque_gain=gain, max_torque=bound)
+        self.stack.retune_torque(gain, bound)
         if gain >= s.torque_gain and bound >= s.max_torque_Nm:
             self._ramping = False
 
-    def _derive_velocities(self, raw: np.ndarray, t: float) -> None:
+    def _derive_velocities(self, channels: dict[str, float], t: float) -> None:
         """Backward-difference velocities for a device without gyroscopes."""
         prev = self._prev
-        for angle_i, vel_i, name in ((0, 1, "foot_angle_deg"), (2, 3, "shank_angle_deg")):
-            if math.isnan(raw[vel_i]) and not math.isnan(raw[angle_i]) and prev is not None:
-                before = getattr(prev, name)
-                if before is not None and t > prev.t:
-                    raw[vel_i] = (raw[angle_i] - before) / (t - prev.t)
+        if prev is None or not t > prev.t:
+            return
+        for angle, vel in (("foot_angle_deg", "foot_vel_dps"), ("shank_angle_deg", "shank_vel_dps")):
+            if math.isnan(channels[vel]) and not math.isnan(channels[angle]):
+                before = getattr(prev, angle)
+                if before is not None:
+                    channels[vel] = (channels[angle] - before) / (t - prev.t)
 
 
 def estimate(
@@ -256,10 +319,12 @@ def estimate(
 
     Recorded ``/sensor`` frames carry session time, so a re-run passes ``time_origin=0`` to keep it.
     A log's times are trusted (a pause stays a pause: no resynchronisation); reordered frames are
-    skipped, as live.
+    skipped, as live. The stack is the settings' or every estimator the frames' channels allow.
     """
     period = (frames[-1].t - frames[0].t) / (len(frames) - 1) if len(frames) > 1 else DEFAULT_PERIOD
-    est = FrameEstimator(model, leg_length, mass_kg, settings, period, time_origin, max_jump_s=math.inf)
+    est = FrameEstimator(
+        model, leg_length, mass_kg, settings, period, time_origin, max_jump_s=math.inf, channels=channels_of(frames)
+    )
     out = []
     for f in frames:
         if est.accepts(f):
@@ -267,10 +332,17 @@ def estimate(
     return out
 
 
+def _outputs_templates(name: str, outputs: Sequence[str]) -> tuple[str, str]:
+    """%-format templates of an :class:`~sessions.schema.EstimatorOutputs` JSON: ``(healthy, failed)``,
+    filled with ``(seq, t, *values)`` and ``(seq, t)``."""
+
+    def text(values: str, failed: str) -> str:
+        head = '{"seq":%d,"t":%r,"name":' + json.dumps(name).replace("%", "%%")
+        return head + ',"values":{' + values + '},"failed":' + failed + "}"
+
+    keys = [json.dumps(o).replace("%", "%%") for o in outputs]
+    return text(",".join(f"{k}:%r" for k in keys), "false"), text(",".join(f"{k}:null" for k in keys), "true")
+
+
 def _or_nan(v: float | None) -> float:
     return math.nan if v is None else v
-
-
-def _finite(v: float) -> float:
-    v = float(v)
-    return v if math.isfinite(v) else 0.0

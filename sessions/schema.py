@@ -1,8 +1,9 @@
 """The one place that names what crosses a file or a socket: columns, wire messages, MCAP payloads.
 
 Every column of a LocoHub table gaitscope reads or writes, every column of the replay CSV, and the
-metadata of a fitted-model file are defined here; readers, writers and (later) the server's wire
-messages derive from these names so that they cannot drift apart.
+metadata of a fitted-model file, every REST body, websocket message and MCAP payload are defined here;
+readers, writers, the server and the browser's ``web/wire.js`` derive from these names so that they
+cannot drift apart.
 
 LocoHub conventions (jmontp/LocoHub, ``docs/reference/biomechanical_standard.md``): one row per sample,
 angles in radians, moments in N m, ``phase_ipsi`` in percent of the ipsilateral gait cycle (0 at heel
@@ -15,9 +16,10 @@ toes up). With these signs ``foot = shank + ankle_dorsiflexion`` (seed 000: shan
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Final, Literal
+from collections.abc import Iterable
+from typing import Annotated, Any, Final, Literal, NamedTuple
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 # --- LocoHub table: metadata columns -------------------------------------------------------------
 SUBJECT: Final = "subject"
@@ -48,6 +50,30 @@ HEEL_STRIKE: Final = "heel_strike_ipsi"  # 1 on the sample of an ipsilateral hee
 TOE_OFF: Final = "toe_off_ipsi"
 HEEL_STRIKE_CONTRA: Final = "heel_strike_contra"
 STEP_LENGTH: Final = "step_length_ipsi_m"  # ipsilateral step ending at this stride's heel strike
+# Both legs, pelvis and feet (schema version 2 of the sensor frame; virtual cohort, docs/cohort.md).
+THIGH_ANGLE_CONTRA: Final = "thigh_sagittal_angle_contra_rad"
+SHANK_ANGLE_CONTRA: Final = "shank_sagittal_angle_contra_rad"
+FOOT_ANGLE_CONTRA: Final = "foot_sagittal_angle_contra_rad"
+KNEE_ANGLE_CONTRA: Final = "knee_flexion_angle_contra_rad"
+ANKLE_ANGLE_CONTRA: Final = "ankle_dorsiflexion_angle_contra_rad"
+PELVIS_ANGLE: Final = "pelvis_sagittal_angle_rad"  # (+) anterior tilt, as LocoHub; thigh = hip - pelvis
+VERTICAL_GRF: Final = "vertical_grf_ipsi_N"
+VERTICAL_GRF_CONTRA: Final = "vertical_grf_contra_N"
+STEP_LENGTH_CONTRA: Final = "step_length_contra_m"  # contralateral step ending in this stride
+#: Centre of mass relative to the stance foot (the one that touched down last): forward, lateral (+ to
+#: the left, as ``COM_POSITION``), up. Its velocity relative to the stance foot is ``COM_VELOCITY`` (over
+#: the belt surface) on the level; on a slope the stance foot moves along it with the belt.
+COM_STANCE_POSITION: Final = (
+    "com_forward_position_stance_m",
+    "com_lateral_position_stance_m",
+    "com_vertical_position_stance_m",
+)
+#: Segments that carry an IMU; ``_contra`` ones are on the contralateral leg.
+IMU_SEGMENTS: Final = ("pelvis", "thigh", "shank", "foot", "thigh_contra", "shank_contra", "foot_contra")
+#: Linear acceleration (gravity not included; forward, up; m/s^2) of each segment's IMU mounting point.
+IMU_POINT_ACCELERATION: Final[dict[str, tuple[str, str]]] = {
+    seg: (f"imu_{seg}_forward_acceleration_m_s2", f"imu_{seg}_vertical_acceleration_m_s2") for seg in IMU_SEGMENTS
+}
 
 # --- Ground truth, per sample ------------------------------------------------------------------
 PHASE_RATE: Final = "phase_rate_ipsi_1_s"  # 1 / stride duration
@@ -144,7 +170,10 @@ class Subject(SubjectCreate):
     created_utc: str
 
 
-#: Bounds of every clinician-adjustable setting: (minimum, maximum, largest change per second).
+#: Bounds of every clinician-adjustable setting: (minimum, maximum, largest change per second). The one
+#: statement of them: ``SessionSettings`` and ``SettingsChange`` take their bounds from here, the
+#: session runtime the rate, the command line reads them, and the browser imports them from the
+#: generated ``web/wire.js`` (``gaitscope wire``).
 SETTING_LIMITS: Final[dict[str, tuple[float, float, float]]] = {
     "torque_gain": (0.0, 3.0, 0.5),
     "max_torque_Nm": (0.0, 80.0, 10.0),
@@ -153,23 +182,59 @@ SETTING_LIMITS: Final[dict[str, tuple[float, float, float]]] = {
 }
 
 
+#: An estimator's name in a session's stack (``phase_ekf``, ``tbe``, ...; ``sessions.registry.ESTIMATORS``).
+EstimatorName = Annotated[str, Field(pattern=r"^[a-z][a-z0-9_]{0,31}$")]
+#: Least time (s) between two switches of a session's primary estimator, and the time over which the
+#: torque command blends from the old primary's to the new one's (so that a switch never steps it).
+PRIMARY_SWITCH_INTERVAL_S: Final = 2.0
+PRIMARY_BLEND_S: Final = 0.5
+
+
+def _setting(name: str, default: float | None, description: str | None = None) -> Any:
+    """A field bounded by ``SETTING_LIMITS[name]`` (``ge`` its minimum, ``le`` its maximum)."""
+    lo, hi, _ = SETTING_LIMITS[name]
+    return Field(default=default, ge=lo, le=hi, description=description)
+
+
+def field_bounds(cls: type[BaseModel], name: str) -> tuple[float, float]:
+    """The inclusive bounds (``ge``, ``le``) of a numeric field of a schema class, for code outside pydantic
+    (the command line) that must check the same numbers. Raises ``KeyError`` if the field has no such bounds."""
+    metadata = cls.model_fields[name].metadata
+    found = {k: v for m in metadata for k in ("ge", "le") if (v := getattr(m, k, None)) is not None}
+    return float(found["ge"]), float(found["le"])
+
+
 class SessionSettings(_Strict):
     """Assistance and estimator tuning of one session (seed 000's defaults at 1.0)."""
 
-    torque_gain: float = Field(default=1.0, ge=0.0, le=3.0, description="x the 1/5-scaled biological moment")
-    max_torque_Nm: float = Field(default=30.0, ge=0.0, le=80.0, description="hard bound on the command")
-    measurement_noise_scale: float = Field(default=1.0, ge=0.1, le=10.0)
-    process_noise_scale: float = Field(default=1.0, ge=0.1, le=10.0)
+    torque_gain: float = _setting("torque_gain", 1.0, "x the 1/5-scaled biological moment")
+    max_torque_Nm: float = _setting("max_torque_Nm", 30.0, "hard bound on the command")
+    measurement_noise_scale: float = _setting("measurement_noise_scale", 1.0)
+    process_noise_scale: float = _setting("process_noise_scale", 1.0)
     model: str = Field(default="default", pattern=_CODE, description="name of a model in the model store")
+    primary: EstimatorName = Field(
+        default="phase_ekf", description="the estimator of the stack whose phase drives the torque profile"
+    )
+    estimators: list[EstimatorName] | None = Field(
+        default=None,
+        max_length=16,
+        description="the session's estimator stack, chosen at start and fixed while it runs; "
+        "null: every estimator the source's channels allow",
+    )
 
 
 class SettingsChange(_Strict):
     """A requested change of some settings; fields left out keep their value."""
 
-    torque_gain: float | None = Field(default=None, ge=0.0, le=3.0)
-    max_torque_Nm: float | None = Field(default=None, ge=0.0, le=80.0)
-    measurement_noise_scale: float | None = Field(default=None, ge=0.1, le=10.0)
-    process_noise_scale: float | None = Field(default=None, ge=0.1, le=10.0)
+    torque_gain: float | None = _setting("torque_gain", None)
+    max_torque_Nm: float | None = _setting("max_torque_Nm", None)
+    measurement_noise_scale: float | None = _setting("measurement_noise_scale", None)
+    process_noise_scale: float | None = _setting("process_noise_scale", None)
+    primary: EstimatorName | None = Field(
+        default=None,
+        description=f"switched at most every {PRIMARY_SWITCH_INTERVAL_S:g} s; the torque blends over "
+        f"{PRIMARY_BLEND_S:g} s",
+    )
     actor: str = Field(default="clinician", max_length=64)
     reason: str = Field(default="", max_length=500)
 
@@ -338,57 +403,290 @@ class RerunRequest(_Strict):
     settings: SessionSettings | None = Field(
         default=None, description="null: as recorded (the default); else these settings over the whole trial"
     )
+    estimators: list[EstimatorName] | None = Field(
+        default=None,
+        max_length=16,
+        description="the estimators to re-run (their outputs come back as '<name>.<output>' columns); "
+        "null: the trial's recorded stack",
+    )
+
+
+class ModelInfo(BaseModel):
+    """A model in the model store (``GET /api/models``)."""
+
+    name: str
+    provenance: ModelProvenance
+
+
+class ViewerFocus(BaseModel):
+    """Which running session the leg view follows (``POST /api/viewer/focus``)."""
+
+    session_id: int = Field(ge=1)
+
+
+class ViewerShow(BaseModel):
+    """Pose the leg view at time ``t`` (s) of a trial: the review page's cursor (``POST /api/viewer/show``)."""
+
+    trial_id: int = Field(ge=1)
+    t: float
 
 
 # --- per-sample messages (websocket and MCAP) ----------------------------------------------------
 
-#: Physically plausible range of each sensor channel (units in the name). A value outside it, or a
-#: JSON ``NaN`` / ``Infinity``, is treated as missing for that sample, counted and shown in data
-#: health (``Health.implausible``); the rest of the frame is used. Angles within +/-180 deg, angular
-#: velocities within +/-4000 deg/s (the largest full scale of common MEMS gyros), raw heel positions
-#: within +/-3 m of the hip. The estimators state the same bounds (``estimators.pipeline.CHANNEL_LIMITS``).
-SENSOR_LIMITS: Final[dict[str, tuple[float, float]]] = {
-    "foot_angle_deg": (-180.0, 180.0),
-    "foot_vel_dps": (-4000.0, 4000.0),
-    "shank_angle_deg": (-180.0, 180.0),
-    "shank_vel_dps": (-4000.0, 4000.0),
-    "heel_forward_m": (-3.0, 3.0),
-    "heel_up_m": (-3.0, 3.0),
-    "thigh_angle_deg": (-180.0, 180.0),
+#: Where each IMU sits (``IMU_SEGMENTS``), for the channel descriptions.
+_IMU_PLACE: Final = {
+    "pelvis": "pelvis (sacrum)",
+    **{
+        f"{seg}{side}": f"{who} {seg}"
+        for seg in ("thigh", "shank", "foot")
+        for side, who in (("", "ipsilateral"), ("_contra", "contralateral"))
+    },
 }
+
+
+class Channel(NamedTuple):
+    """One sensor channel: its ``unit`` (``"bool"`` for a flag), what it is, and its ``group``
+    (``segment``, ``heel``, ``joint``, ``imu``, ``foot``, ``event``, ``device``, ``treadmill``, ``step``, ``com``)."""
+
+    unit: str
+    description: str
+    group: str
+
+
+def _channel_table() -> dict[str, tuple[Channel, tuple[float, float] | None]]:
+    """Every sensor channel by name (the name ends in its unit): meaning, and plausible range (None: a flag).
+
+    Sign conventions: sagittal angles are seen from the subject's right with forward to the right and
+    counter-clockwise positive; thigh and shank from vertical ((+) distal end ahead of proximal), foot
+    from horizontal ((+) toes up); hip and knee (+) in flexion, ankle (+) in dorsiflexion; ``_contra``
+    channels are the other leg's, same conventions. IMU axes are the segment's (ISB, OpenSim): x anterior,
+    y along the segment toward proximal (for the foot: up when flat), z to the subject's right, so a (+)
+    sagittal rotation is (+) about z; accelerometers read specific force (+9.81 m/s^2 on an axis pointing
+    up at rest). Ranges: angles +/-180 deg; angular rates +/-4000 deg/s (the largest full scale of common
+    MEMS gyros); accelerations +/-157 m/s^2 (16 g, the largest common MEMS full scale); positions +/-3 m.
+    """
+    t: dict[str, tuple[Channel, tuple[float, float] | None]] = {}
+    angle, rate = (-180.0, 180.0), (-4000.0, 4000.0)
+    for side, who in (("", "ipsilateral"), ("_contra", "contralateral")):
+        for seg, how in (
+            ("foot", "from horizontal, (+) toes up"),
+            ("shank", "from vertical"),
+            ("thigh", "from vertical"),
+        ):
+            t[f"{seg}_angle{side}_deg"] = Channel("deg", f"{who} {seg} angle {how}", "segment"), angle
+            t[f"{seg}_vel{side}_dps"] = Channel("deg/s", f"{who} {seg} angular velocity", "segment"), rate
+    t["heel_forward_m"] = (
+        Channel("m", "ipsilateral heel forward of the hip, raw (not high-passed)", "heel"),
+        (-3.0, 3.0),
+    )
+    t["heel_up_m"] = Channel("m", "ipsilateral heel above the hip, raw (not high-passed)", "heel"), (-3.0, 3.0)
+    for side, who in (("", "ipsilateral"), ("_contra", "contralateral")):
+        for joint, how in (("hip", "flexion"), ("knee", "flexion"), ("ankle", "dorsiflexion")):
+            t[f"{joint}_angle{side}_deg"] = Channel("deg", f"{who} {joint} {how} (joint encoder)", "joint"), angle
+    for seg in IMU_SEGMENTS:
+        for axis in "xyz":
+            t[f"imu_{seg}_gyro_{axis}_dps"] = Channel("deg/s", f"{_IMU_PLACE[seg]} IMU, rate about {axis}", "imu"), rate
+        for axis in "xyz":
+            what = f"{_IMU_PLACE[seg]} IMU, specific force along {axis}"
+            t[f"imu_{seg}_accel_{axis}_m_s2"] = Channel("m/s^2", what, "imu"), (-157.0, 157.0)
+    for side, who in (("", "ipsilateral"), ("_contra", "contralateral")):
+        t[f"foot_force{side}_N"] = Channel("N", f"vertical force under the {who} foot", "foot"), (0.0, 5000.0)
+        t[f"foot_contact{side}"] = Channel("bool", f"{who} foot on the ground", "foot"), None
+    t["heel_strike"] = Channel("bool", "an ipsilateral heel strike at this sample", "event"), None
+    t["motor_current_A"] = Channel("A", "device motor current, (+) toward (+) torque", "device"), (-60.0, 60.0)
+    t["commanded_torque_Nm"] = (
+        Channel("N m", "torque the device commands, signed as torque_Nm", "device"),
+        (-200.0, 200.0),
+    )
+    t["belt_speed_m_s"] = Channel("m/s", "treadmill belt speed, when known", "treadmill"), (0.0, 5.0)
+    t["step_length_m"] = (
+        Channel("m", "last step: forward distance between the feet at the last touchdown", "step"),
+        (0.0, 3.0),
+    )
+    for axis, how in (("forward", "forward"), ("lateral", "(+) to the subject's right"), ("up", "up")):
+        t[f"com_{axis}_m"] = Channel("m", f"centre of mass relative to the stance foot, {how}", "com"), (-3.0, 3.0)
+    for axis, how in (("forward", "forward"), ("lateral", "(+) to the subject's right"), ("up", "up")):
+        what = f"centre-of-mass velocity relative to the stance foot, {how}"
+        t[f"com_{axis}_vel_m_s"] = Channel("m/s", what, "com"), (-10.0, 10.0)
+    return t
+
+
+_CHANNEL_TABLE: Final = _channel_table()
+#: Every sensor channel a :class:`SensorFrame` may carry, by name: unit, meaning, group. Estimators
+#: declare the channels they need by these names (:func:`missing_channels`). The stance foot is the foot
+#: that touched down last; centre-of-mass channels are a lab's measurement (motion capture), when it has one.
+CHANNELS: Final[dict[str, Channel]] = {name: ch for name, (ch, _) in _CHANNEL_TABLE.items()}
+#: Physically plausible range of each numeric sensor channel (units in the name). A value outside it, or
+#: a JSON ``NaN`` / ``Infinity``, is treated as missing for that sample, counted and shown in data health
+#: (``Health.implausible``); the rest of the frame is used. Angles within +/-180 deg, angular velocities
+#: within +/-4000 deg/s (the largest full scale of common MEMS gyros), accelerations within +/-16 g,
+#: positions within +/-3 m, forces 0..5000 N. The estimators state the same bounds for the channels they
+#: use (``estimators.pipeline.CHANNEL_LIMITS``).
+SENSOR_LIMITS: Final[dict[str, tuple[float, float]]] = {
+    name: lim for name, (_, lim) in _CHANNEL_TABLE.items() if lim is not None
+}
+_LIMIT_ROWS: Final = tuple((name, lo, hi) for name, (lo, hi) in SENSOR_LIMITS.items())
+#: Below this many given fields :meth:`SensorFrame.plausible` checks only those (faster for sparse frames).
+_FEW_CHANNELS: Final = 24
 #: Largest integer a frame may carry (``seq``, ``sent_ns``): a signed 64-bit integer, as MCAP and SQLite.
 INT64_MAX: Final = 2**63 - 1
+#: Version of :class:`SensorFrame` this code writes. 1: the frame before the channel registry (seven
+#: ipsilateral channels, no ``version`` field); 2: every channel of :data:`CHANNELS`.
+SENSOR_FRAME_VERSION: Final = 2
+
+
+def _ch(name: str) -> Any:
+    """The field of sensor channel ``name``: optional (None when the device does not measure it)."""
+    unit, description, _ = CHANNELS[name]
+    return Field(default=None, description=f"{description} ({unit})" if unit != "bool" else description)
+
+
+def missing_channels(required: Iterable[str], available: SensorFrame | Iterable[str]) -> list[str]:
+    """The channels of ``required`` that ``available`` lacks, in the order asked.
+
+    ``available`` is a frame (its channels that hold a value) or the channel names a source provides.
+
+    Raises:
+        KeyError: a name in ``required`` is not a channel of :data:`CHANNELS` (a typo must not pass as
+            "missing").
+    """
+    if isinstance(available, SensorFrame):
+        have = {n for n in CHANNELS if getattr(available, n) is not None}
+    else:
+        have = set(available)
+    out = []
+    for name in required:
+        if name not in CHANNELS:
+            raise KeyError(f"unknown sensor channel {name!r}")
+        if name not in have:
+            out.append(name)
+    return out
 
 
 class SensorFrame(_Strict):
     """One sample from a device (``/ws/devices/{id}``) or a source; absent channel = None.
 
-    ``t`` is the device's own clock (s) and must be a finite number: a frame without a usable time is
-    refused. Channel values outside :data:`SENSOR_LIMITS` (or NaN / Infinity) are accepted here and
-    treated as missing by :meth:`plausible`, which the estimators run on every frame. ``sent_ns`` is
-    the device's wall clock at send time (ns since the epoch, optional) for end-to-end latency.
+    Every channel of :data:`CHANNELS` is optional; units and sign conventions are in each field's
+    description (and the registry). ``t`` is the device's own clock (s) and must be a finite number: a
+    frame without a usable time is refused. Channel values outside :data:`SENSOR_LIMITS` (or NaN /
+    Infinity) are accepted here and treated as missing by :meth:`plausible`, which the estimators run on
+    every frame. ``sent_ns`` is the device's wall clock at send time (ns since the epoch, optional) for
+    end-to-end latency.
+
+    Versions: a frame without ``version`` is read as the current one. Version 1 frames (recordings,
+    replay files and device clients from before version 2, whose channels keep their names, units and
+    meanings in version 2) are accepted and upgraded on read: the frame read says ``version=2``.
     """
 
     type: Literal["frame"] = "frame"
+    version: Literal[1, 2] = Field(default=SENSOR_FRAME_VERSION, description="schema version; 1 is upgraded on read")
     seq: int = Field(ge=0, le=INT64_MAX)
     t: float = Field(allow_inf_nan=False)
-    foot_angle_deg: float | None = None
-    foot_vel_dps: float | None = None
-    shank_angle_deg: float | None = None
-    shank_vel_dps: float | None = None
-    heel_forward_m: float | None = None
-    heel_up_m: float | None = None
-    thigh_angle_deg: float | None = Field(default=None, description="for the leg view only")
-    heel_strike: bool | None = None
+    # ipsilateral leg (version 1 channels: foot, shank, heel, thigh angle)
+    foot_angle_deg: float | None = _ch("foot_angle_deg")
+    foot_vel_dps: float | None = _ch("foot_vel_dps")
+    shank_angle_deg: float | None = _ch("shank_angle_deg")
+    shank_vel_dps: float | None = _ch("shank_vel_dps")
+    heel_forward_m: float | None = _ch("heel_forward_m")
+    heel_up_m: float | None = _ch("heel_up_m")
+    thigh_angle_deg: float | None = _ch("thigh_angle_deg")
+    thigh_vel_dps: float | None = _ch("thigh_vel_dps")
+    # contralateral leg
+    foot_angle_contra_deg: float | None = _ch("foot_angle_contra_deg")
+    foot_vel_contra_dps: float | None = _ch("foot_vel_contra_dps")
+    shank_angle_contra_deg: float | None = _ch("shank_angle_contra_deg")
+    shank_vel_contra_dps: float | None = _ch("shank_vel_contra_dps")
+    thigh_angle_contra_deg: float | None = _ch("thigh_angle_contra_deg")
+    thigh_vel_contra_dps: float | None = _ch("thigh_vel_contra_dps")
+    # joint encoders
+    hip_angle_deg: float | None = _ch("hip_angle_deg")
+    knee_angle_deg: float | None = _ch("knee_angle_deg")
+    ankle_angle_deg: float | None = _ch("ankle_angle_deg")
+    hip_angle_contra_deg: float | None = _ch("hip_angle_contra_deg")
+    knee_angle_contra_deg: float | None = _ch("knee_angle_contra_deg")
+    ankle_angle_contra_deg: float | None = _ch("ankle_angle_contra_deg")
+    # raw IMUs: gyro (deg/s) and accelerometer (m/s^2), three axes each, per segment
+    imu_pelvis_gyro_x_dps: float | None = _ch("imu_pelvis_gyro_x_dps")
+    imu_pelvis_gyro_y_dps: float | None = _ch("imu_pelvis_gyro_y_dps")
+    imu_pelvis_gyro_z_dps: float | None = _ch("imu_pelvis_gyro_z_dps")
+    imu_pelvis_accel_x_m_s2: float | None = _ch("imu_pelvis_accel_x_m_s2")
+    imu_pelvis_accel_y_m_s2: float | None = _ch("imu_pelvis_accel_y_m_s2")
+    imu_pelvis_accel_z_m_s2: float | None = _ch("imu_pelvis_accel_z_m_s2")
+    imu_thigh_gyro_x_dps: float | None = _ch("imu_thigh_gyro_x_dps")
+    imu_thigh_gyro_y_dps: float | None = _ch("imu_thigh_gyro_y_dps")
+    imu_thigh_gyro_z_dps: float | None = _ch("imu_thigh_gyro_z_dps")
+    imu_thigh_accel_x_m_s2: float | None = _ch("imu_thigh_accel_x_m_s2")
+    imu_thigh_accel_y_m_s2: float | None = _ch("imu_thigh_accel_y_m_s2")
+    imu_thigh_accel_z_m_s2: float | None = _ch("imu_thigh_accel_z_m_s2")
+    imu_shank_gyro_x_dps: float | None = _ch("imu_shank_gyro_x_dps")
+    imu_shank_gyro_y_dps: float | None = _ch("imu_shank_gyro_y_dps")
+    imu_shank_gyro_z_dps: float | None = _ch("imu_shank_gyro_z_dps")
+    imu_shank_accel_x_m_s2: float | None = _ch("imu_shank_accel_x_m_s2")
+    imu_shank_accel_y_m_s2: float | None = _ch("imu_shank_accel_y_m_s2")
+    imu_shank_accel_z_m_s2: float | None = _ch("imu_shank_accel_z_m_s2")
+    imu_foot_gyro_x_dps: float | None = _ch("imu_foot_gyro_x_dps")
+    imu_foot_gyro_y_dps: float | None = _ch("imu_foot_gyro_y_dps")
+    imu_foot_gyro_z_dps: float | None = _ch("imu_foot_gyro_z_dps")
+    imu_foot_accel_x_m_s2: float | None = _ch("imu_foot_accel_x_m_s2")
+    imu_foot_accel_y_m_s2: float | None = _ch("imu_foot_accel_y_m_s2")
+    imu_foot_accel_z_m_s2: float | None = _ch("imu_foot_accel_z_m_s2")
+    imu_thigh_contra_gyro_x_dps: float | None = _ch("imu_thigh_contra_gyro_x_dps")
+    imu_thigh_contra_gyro_y_dps: float | None = _ch("imu_thigh_contra_gyro_y_dps")
+    imu_thigh_contra_gyro_z_dps: float | None = _ch("imu_thigh_contra_gyro_z_dps")
+    imu_thigh_contra_accel_x_m_s2: float | None = _ch("imu_thigh_contra_accel_x_m_s2")
+    imu_thigh_contra_accel_y_m_s2: float | None = _ch("imu_thigh_contra_accel_y_m_s2")
+    imu_thigh_contra_accel_z_m_s2: float | None = _ch("imu_thigh_contra_accel_z_m_s2")
+    imu_shank_contra_gyro_x_dps: float | None = _ch("imu_shank_contra_gyro_x_dps")
+    imu_shank_contra_gyro_y_dps: float | None = _ch("imu_shank_contra_gyro_y_dps")
+    imu_shank_contra_gyro_z_dps: float | None = _ch("imu_shank_contra_gyro_z_dps")
+    imu_shank_contra_accel_x_m_s2: float | None = _ch("imu_shank_contra_accel_x_m_s2")
+    imu_shank_contra_accel_y_m_s2: float | None = _ch("imu_shank_contra_accel_y_m_s2")
+    imu_shank_contra_accel_z_m_s2: float | None = _ch("imu_shank_contra_accel_z_m_s2")
+    imu_foot_contra_gyro_x_dps: float | None = _ch("imu_foot_contra_gyro_x_dps")
+    imu_foot_contra_gyro_y_dps: float | None = _ch("imu_foot_contra_gyro_y_dps")
+    imu_foot_contra_gyro_z_dps: float | None = _ch("imu_foot_contra_gyro_z_dps")
+    imu_foot_contra_accel_x_m_s2: float | None = _ch("imu_foot_contra_accel_x_m_s2")
+    imu_foot_contra_accel_y_m_s2: float | None = _ch("imu_foot_contra_accel_y_m_s2")
+    imu_foot_contra_accel_z_m_s2: float | None = _ch("imu_foot_contra_accel_z_m_s2")
+    # feet
+    foot_force_N: float | None = _ch("foot_force_N")
+    foot_force_contra_N: float | None = _ch("foot_force_contra_N")
+    foot_contact: bool | None = _ch("foot_contact")
+    foot_contact_contra: bool | None = _ch("foot_contact_contra")
+    heel_strike: bool | None = _ch("heel_strike")
+    # device, treadmill, lab
+    motor_current_A: float | None = _ch("motor_current_A")
+    commanded_torque_Nm: float | None = _ch("commanded_torque_Nm")
+    belt_speed_m_s: float | None = _ch("belt_speed_m_s")
+    step_length_m: float | None = _ch("step_length_m")
+    com_forward_m: float | None = _ch("com_forward_m")
+    com_lateral_m: float | None = _ch("com_lateral_m")
+    com_up_m: float | None = _ch("com_up_m")
+    com_forward_vel_m_s: float | None = _ch("com_forward_vel_m_s")
+    com_lateral_vel_m_s: float | None = _ch("com_lateral_vel_m_s")
+    com_up_vel_m_s: float | None = _ch("com_up_vel_m_s")
     sent_ns: int | None = Field(default=None, ge=0, le=INT64_MAX)
+
+    @field_validator("version")
+    @classmethod
+    def _upgrade(cls, version: int) -> int:
+        """Version 1 frames read as version 2: the version 1 channels kept their names, units and meanings,
+        so nothing else changes (an upgrade that renames or rescales a channel goes here)."""
+        return SENSOR_FRAME_VERSION
 
     def plausible(self) -> tuple[SensorFrame, int]:
         """This frame with implausible channel values set to None, and how many were."""
-        bad = {
-            name: None
-            for name, (lo, hi) in SENSOR_LIMITS.items()
-            if (v := getattr(self, name)) is not None and not lo <= v <= hi
-        }
+        values, given = self.__dict__, self.model_fields_set
+        if len(given) < _FEW_CHANNELS:  # a sparse frame: look only at the fields it was given
+            bad = {
+                name: None
+                for name in given
+                if (lim := SENSOR_LIMITS.get(name)) is not None
+                and (v := values[name]) is not None
+                and not lim[0] <= v <= lim[1]
+            }
+        else:
+            bad = {name: None for name, lo, hi in _LIMIT_ROWS if (v := values[name]) is not None and not lo <= v <= hi}
         return (self.model_copy(update=bad), len(bad)) if bad else (self, 0)
 
 
@@ -424,13 +722,39 @@ class TorqueCommand(BaseModel):
     torque_Nm: float
 
 
+class EstimatorOutputs(BaseModel):
+    """One estimator's outputs at one sample, recorded on its own channel (``/estimators/<name>``).
+
+    ``values`` maps each output the estimator declares (``estimators.protocol.Estimator.outputs``) to its
+    value (booleans as 1.0 / 0.0), None for all of them once the estimator has failed.
+    """
+
+    seq: int
+    t: float
+    name: str
+    values: dict[str, float | None]
+    failed: bool = False
+
+
+class EstimatorColumns(BaseModel):
+    """One estimator's outputs over a :class:`StreamBatch`: one column per output, row for row with the
+    batch's states (None where it had failed)."""
+
+    failed: bool = Field(description="it has failed (its outputs are no longer computed)")
+    columns: dict[str, list[float | None]]
+
+
 class StreamBatch(BaseModel):
-    """Server -> browser: the gait states since the last batch (decimated as the client asked)."""
+    """Server -> browser: the gait states since the last batch (decimated as the client asked), and every
+    estimator's outputs at the same samples."""
 
     type: Literal["states"] = "states"
     session_id: int
     states: list[GaitState]
     decimation: int = Field(description="every n-th sample is sent")
+    estimators: dict[str, EstimatorColumns] = Field(
+        default_factory=dict, description="by estimator name, aligned with states"
+    )
 
 
 class Health(BaseModel):
@@ -448,6 +772,11 @@ class Health(BaseModel):
     implausible: int = Field(default=0, description="sensor values outside SENSOR_LIMITS, treated as missing")
     faults: int = Field(default=0, description="filter restarts and resets, and torques forced to 0")
     disk: Literal["ok", "low", "critical"] = Field(default="ok", description="free space for the recording")
+    estimators: list[str] = Field(default_factory=list, description="the session's estimator stack")
+    primary: str | None = Field(
+        default=None, description="the estimator driving the torque now (null: none, the torque is 0)"
+    )
+    failed_estimators: dict[str, str] = Field(default_factory=dict, description="failed estimators and why")
 
 
 class DeviceNotice(BaseModel):
@@ -514,3 +843,22 @@ MCAP_CHANNELS: Final[dict[str, tuple[str, type[BaseModel]]]] = {
     "/settings": ("gaitscope.SessionSettings", SessionSettings),
     "/events": ("foxglove.Event", FoxgloveEvent),
 }
+#: Each estimator of a session's stack records its outputs on ``/estimators/<name>`` with this schema:
+#: channels registered per stack (:func:`estimator_channels`), beside the fixed ones above.
+ESTIMATOR_TOPIC_PREFIX: Final = "/estimators/"
+ESTIMATOR_SCHEMA: Final[tuple[str, type[BaseModel]]] = ("gaitscope.EstimatorOutputs", EstimatorOutputs)
+
+
+def estimator_channels(names: Iterable[str]) -> dict[str, tuple[str, type[BaseModel]]]:
+    """The MCAP channels of a stack's estimators: topic -> (schema name, class), as :data:`MCAP_CHANNELS`."""
+    return {f"{ESTIMATOR_TOPIC_PREFIX}{name}": ESTIMATOR_SCHEMA for name in names}
+
+
+#: Every class that crosses a socket or a file, as ``GET /api/schema`` serves them and ``web/wire.js``
+#: types them (the classes they refer to come along in their JSON schemas' ``$defs``).
+WIRE: Final[tuple[type[BaseModel], ...]] = (
+    SubjectCreate, Subject, SessionCreate, Session, SessionSettings, SettingsChange, Trial, Event,
+    AnnotationCreate, RecordingControl, UploadCreate, Upload, RerunRequest, ModelInfo, ViewerFocus, ViewerShow,
+    SensorFrame, GaitState, TorqueCommand, StreamBatch, Health, EventMessage, SettingsMessage, Hello,
+    FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs,
+)  # fmt: skip

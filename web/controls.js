@@ -2,8 +2,9 @@
 // Every request's refusal is shown in plain words next to its control.
 
 import { api } from "./api.js";
-import { loadLimits, SettingsEditor } from "./settings.js";
+import { SettingsEditor } from "./settings.js";
 import { armedButton, errorBox, h, runAction, showError, ValidationError } from "./ui.js";
+import { FIELD_LIMITS } from "./wire.js";
 
 const ACTOR_KEY = "gaitscope.actor";
 
@@ -29,7 +30,6 @@ export function mountControls(sessionId, hooks) {
 
   // --- settings ----------------------------------------------------------------------------------
   const editor = new SettingsEditor("setting");
-  loadLimits().then(() => editor.applyLimits());
   const applyBtn = h("button", { type: "button", class: "primary", "data-testid": "settings-apply", text: "Apply" });
   const revertBtn = h("button", { type: "button", "data-testid": "settings-revert", text: "Revert edits" });
   const settingsError = errorBox("settings-error");
@@ -56,7 +56,7 @@ export function mountControls(sessionId, hooks) {
     h("div", { class: "buttons" }, applyBtn, revertBtn), settingsError, settingsOk);
 
   // --- recording ---------------------------------------------------------------------------------
-  const recName = h("input", { id: "recording-name", "data-testid": "recording-name", maxlength: 100, placeholder: "trial name (optional)" });
+  const recName = h("input", { id: "recording-name", "data-testid": "recording-name", maxlength: FIELD_LIMITS.RecordingControl.name.maxLength, placeholder: "trial name (optional)" });
   const recStart = h("button", { type: "button", class: "primary", "data-testid": "recording-start", text: "● Start recording" });
   const recStop = h("button", { type: "button", "data-testid": "recording-stop", text: "■ Stop recording", disabled: true });
   const recStatus = h("p", { class: "status-line", "data-testid": "recording-status", "aria-live": "polite", text: "Not recording." });
@@ -105,7 +105,7 @@ export function mountControls(sessionId, hooks) {
     recName, h("div", { class: "buttons" }, recStart, recStop), recStatus, recError);
 
   // --- annotations -------------------------------------------------------------------------------
-  const annText = h("input", { id: "annotation-text", "data-testid": "annotation-text", maxlength: 500, placeholder: "e.g. subject reports discomfort", autocomplete: "off" });
+  const annText = h("input", { id: "annotation-text", "data-testid": "annotation-text", maxlength: FIELD_LIMITS.AnnotationCreate.text.maxLength, placeholder: "e.g. subject reports discomfort", autocomplete: "off" });
   const annAdd = h("button", { type: "submit", class: "primary", "data-testid": "annotation-add", text: "Add" });
   const annError = errorBox("annotation-error");
   const annForm = h("form", { class: "card", "data-testid": "annotation-form", novalidate: true }, h("h2", { text: "Annotation" }),

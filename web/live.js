@@ -1,11 +1,12 @@
 // Live view (`#/sessions/{id}`): the session's stream in plots redrawn once per animation frame, the
-// per-stride overlay, data health, controls, events and the 3D leg view.
+// per-stride overlay, data health, controls, events and the 3D leg view. The phase plot overlays the phase
+// of every estimator of the session's stack (the primary, which drives the torque, drawn widest).
 
 import { api, errorText, openSessionStream } from "./api.js";
 import { actorSelect, mountControls } from "./controls.js";
 import { EventList } from "./events.js";
 import { COLORS, Plot, Ring, StrideOverlay } from "./plots.js";
-import { errorBox, fmt, h, showError } from "./ui.js";
+import { errorBox, fmt, h, runAction, showError } from "./ui.js";
 
 export const WINDOW_S = 10; // seconds of full-rate history the live plots show
 const RING_CAPACITY = 2048; // > 10 s at the 60 Hz the stream is asked for (34 s), bounded memory
@@ -30,6 +31,27 @@ export const PLOT_SPECS = [
 /** A `GaitState` as one row of plot columns (phase in % of the cycle). */
 export function stateRow(s) {
   return { ...s, phase_pct: s.phase * 100, tbe_pct: s.tbe_phase * 100 };
+}
+
+const ESTIMATOR_COLORS = [COLORS.blue, COLORS.orange, COLORS.green, COLORS.purple, COLORS.teal, COLORS.grey];
+
+/** Ring column of an estimator's phase (% of the cycle). */
+const estColumn = (name) => `est_${name}_pct`;
+
+/**
+ * The phase plot's spec for a stack: one line per estimator that estimates a phase (from a batch's
+ * `estimators`), the primary widest and named; `failed` ones marked.
+ * @param {string[]} names @param {string | null} primary @param {Set<string>} failed
+ */
+export function phaseSpec(names, primary, failed) {
+  const label = (n) => `${n}${n === primary ? " (primary: drives the torque)" : ""}${failed.has(n) ? " (failed)" : ""}`;
+  return {
+    key: "phase", yLabel: "% of cycle", yRange: [0, 100],
+    title: primary ? `Phase of every estimator; the torque follows ${primary}` : "Phase of every estimator; no primary: torque 0",
+    cols: names.map(estColumn),
+    series: names.map((n, i) => ({ label: label(n), color: ESTIMATOR_COLORS[i % ESTIMATOR_COLORS.length],
+      width: n === primary ? 3 : 1.5, dash: n === primary ? undefined : [6, 4] })),
+  };
 }
 
 /** Mean +/- SD band plot over the gait cycle. */
@@ -70,7 +92,9 @@ export function legView(focus) {
 }
 
 export function mountLive(root, sessionId) {
-  const ring = new Ring(RING_CAPACITY, COLUMNS);
+  let ring = new Ring(RING_CAPACITY, COLUMNS);
+  // the session's estimators with a phase (known from the first batch), the one driving the torque, failures
+  const stack = { names: [], primary: null, failed: new Map(), key: "" };
   const overlay = new StrideOverlay(["torque_Nm", "foot_angle_deg", "phase_rate", "stride_length_m", "incline_deg"]);
   const events = new EventList("events-list");
   let lastT = -Infinity;
@@ -100,14 +124,28 @@ export function mountLive(root, sessionId) {
   const summary = h("div", { class: "summary", "data-testid": "summary" }, phaseCell, cadCell, slCell, spCell, incCell, pkCell);
 
   const hv = (key) => h("dd", { "data-testid": `health-${key}`, text: "–" });
-  const health = { t: hv("session-time"), rate: hv("rate"), latency: hv("latency"), serverLatency: hv("server-latency"), input: hv("dropped-input"), client: hv("dropped-client"), clients: hv("clients"), samples: hv("samples"), implausible: hv("implausible"), faults: hv("faults"), disk: hv("disk") };
+  const health = { t: hv("session-time"), rate: hv("rate"), latency: hv("latency"), serverLatency: hv("server-latency"), input: hv("dropped-input"), client: hv("dropped-client"), clients: hv("clients"), samples: hv("samples"), implausible: hv("implausible"), faults: hv("faults"), disk: hv("disk"),
+    primary: hv("primary"), failedEstimators: hv("failed-estimators") };
   const healthCard = h("section", { class: "card health", "data-testid": "health" }, h("h2", { text: "Data health" }), indicator,
     h("dl", {}, h("dt", { text: "Session time" }), health.t, h("dt", { text: "Rate" }), health.rate, h("dt", { text: "Device → screen latency p50 / p95" }), health.latency,
       h("dt", { text: "Device → server p50 / p95" }), health.serverLatency,
       h("dt", { text: "Dropped device frames" }), health.input, h("dt", { text: "Dropped batches (this screen)" }), health.client,
       h("dt", { text: "Screens connected" }), health.clients, h("dt", { text: "Samples" }), health.samples,
       h("dt", { text: "Implausible sensor values (ignored)" }), health.implausible,
-      h("dt", { text: "Estimator resets / torque faults" }), health.faults, h("dt", { text: "Recording disk" }), health.disk), conn);
+      h("dt", { text: "Estimator resets / torque faults" }), health.faults, h("dt", { text: "Recording disk" }), health.disk,
+      h("dt", { text: "Torque follows (primary estimator)" }), health.primary,
+      h("dt", { text: "Failed estimators" }), health.failedEstimators), conn);
+  // switching the primary: a setting (validated, rate-limited and logged by the server)
+  const primarySelect = h("select", { id: "primary-select", "data-testid": "primary-select", "aria-label": "Primary estimator" });
+  const primaryBtn = h("button", { type: "button", "data-testid": "primary-apply", text: "Switch" });
+  const primaryError = errorBox("primary-error");
+  primaryBtn.addEventListener("click", () => runAction(primaryBtn, primaryError, async () => {
+    const actor = localStorage.getItem("gaitscope.actor") || "clinician";
+    const session = await api("PATCH", `/api/sessions/${sessionId}/settings`, { primary: primarySelect.value, actor });
+    controls.setSession(session);
+  }));
+  healthCard.append(h("div", { class: "inline", "data-testid": "primary-switch" },
+    h("label", { for: "primary-select", text: "Torque follows " }), primarySelect, primaryBtn), primaryError);
 
   // --- plots --------------------------------------------------------------------------------------
   const plotsBox = h("div", { class: "plots" });
@@ -115,8 +153,35 @@ export function mountLive(root, sessionId) {
   const plots = PLOT_SPECS.map((spec) => {
     const div = h("div", { class: "plot", "data-testid": `plot-${spec.key}` });
     plotsBox.append(div);
-    return { spec, plot: new Plot(div, { ...spec, xRange: follow }) };
+    return { spec, div, plot: new Plot(div, { ...spec, xRange: follow }) };
   });
+  // The stack is known (or changed): a ring with a column per estimator phase and the phase plot redrawn.
+  function showStack() {
+    const failed = new Set(stack.failed.keys());
+    health.primary.textContent = stack.primary || "none: the torque is 0";
+    health.primary.classList.toggle("warn", !stack.primary);
+    health.failedEstimators.textContent = failed.size ? [...stack.failed].map(([n, why]) => `${n}: ${why}`).join("; ") : "none";
+    health.failedEstimators.classList.toggle("warn", failed.size > 0);
+    const key = JSON.stringify([stack.names, stack.primary, [...failed]]);
+    if (key === stack.key || !stack.names.length) return; // the plot waits for the first batch's estimators
+    const cols = stack.names.map(estColumn);
+    if (cols.some((c) => !ring.columns.includes(c))) {
+      ring = new Ring(RING_CAPACITY, [...COLUMNS, ...cols]);
+      lastT = -Infinity;
+    }
+    stack.key = key;
+    const phase = plots[0];
+    phase.plot.destroy();
+    phase.div.replaceChildren();
+    phase.spec = phaseSpec(stack.names, stack.primary, failed);
+    phase.plot = new Plot(phase.div, { ...phase.spec, xRange: follow });
+    dataDirty = true;
+    const options = stack.names.filter((n) => !failed.has(n));
+    if (JSON.stringify(options) !== JSON.stringify([...primarySelect.options].map((o) => o.value))) {
+      primarySelect.replaceChildren(...options.map((n) => h("option", { value: n, text: n })));
+    }
+    if (stack.primary && options.includes(stack.primary)) primarySelect.value = stack.primary;
+  }
   const strideCount = h("span", { class: "hint", "data-testid": "stride-count", text: "waiting for heel strikes…" });
   const bandTorque = h("div", { class: "plot", "data-testid": "overlay-torque" });
   const bandFoot = h("div", { class: "plot", "data-testid": "overlay-foot" });
@@ -188,15 +253,32 @@ export function mountLive(root, sessionId) {
     return `${fmt(q(0.5), 1)} / ${fmt(q(0.95), 1)} ms`;
   }
 
-  function onStates(states) {
+  function onStates(states, estimators) {
     noteLatency(states);
-    for (const s of states) {
+    const est = estimators || {};
+    const phased = Object.keys(est).filter((n) => est[n].columns && est[n].columns.phase);
+    if (phased.length && JSON.stringify(phased) !== JSON.stringify(stack.names)) {
+      stack.names = phased;
+      showStack();
+    }
+    for (const [n, e] of Object.entries(est)) {
+      if (e.failed && !stack.failed.has(n)) {
+        stack.failed.set(n, "failed");
+        showStack();
+      }
+    }
+    for (let i = 0; i < states.length; i++) {
+      const s = states[i];
       if (s.t < lastT) {
         ring.clear(); // the source restarted (a replay looping): keep time increasing in the window
         lastT = -Infinity;
       }
       lastT = s.t;
       const row = stateRow(s);
+      for (const n of stack.names) {
+        const v = est[n] && est[n].columns.phase ? est[n].columns.phase[i] : null;
+        row[estColumn(n)] = v == null ? null : v * 100;
+      }
       ring.push(row);
       if (overlay.push(s.t, row, s.heel_strike)) strideDirty = true;
     }
@@ -223,6 +305,11 @@ export function mountLive(root, sessionId) {
     const disk = { ok: "ok", low: "space low: recording stops when it runs out", critical: "full: recording stopped" }[m.disk ?? "ok"];
     health.disk.textContent = disk;
     health.disk.classList.toggle("warn", (m.disk ?? "ok") !== "ok");
+    if (m.estimators) {
+      stack.primary = m.primary ?? null;
+      stack.failed = new Map(Object.entries(m.failed_estimators || {}));
+      showStack();
+    }
   }
 
   const stream = openSessionStream(sessionId, {
@@ -237,9 +324,10 @@ export function mountLive(root, sessionId) {
             showBaseline(null); // an unreadable stored baseline is dropped, not fatal
           }
           controls.setSession(msg.session);
+          stack.primary = msg.session.settings.primary ?? null; // the health messages then say which drives it
           break;
         case "states":
-          onStates(msg.states);
+          onStates(msg.states, msg.estimators);
           break;
         case "health":
           onHealth(msg);
@@ -250,6 +338,10 @@ export function mountLive(root, sessionId) {
           break;
         case "settings":
           controls.setSettings(msg.settings);
+          if (msg.settings.primary && !stack.failed.has(msg.settings.primary)) {
+            stack.primary = msg.settings.primary; // until the next health message says otherwise
+            showStack();
+          }
           break;
         default:
           break; // message types this view does not use
@@ -310,7 +402,7 @@ export function mountLive(root, sessionId) {
       alive = false;
       cancelAnimationFrame(raf);
       stream.close();
-      for (const { plot } of plots) plot.destroy();
+      for (const p of plots) p.plot.destroy();
       for (const b of bands) b.plot.destroy();
     },
   };

@@ -7,8 +7,9 @@ import { api, errorText, query } from "./api.js";
 import { EVENT_COLORS, EventList } from "./events.js";
 import { bandPlot, legView, PLOT_SPECS } from "./live.js";
 import { COLORS, decimateMinMax, markersPlugin, Plot, StrideOverlay, uPlot } from "./plots.js";
-import { loadLimits, SettingsEditor } from "./settings.js";
+import { SettingsEditor } from "./settings.js";
 import { errorBox, fmt, fmtUtc, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
+import { DEFAULT_SETTINGS } from "./wire.js";
 
 const MAX_POINTS = 2000; // per request, as the server decimates
 const RERUN_POINTS = 10000; // kept of a re-run, decimated again to MAX_POINTS per view
@@ -70,7 +71,7 @@ export function mountReview(root, trialId) {
   // the whole trial. Editing a setting chooses "what if".
   const editor = new SettingsEditor("rerun");
   // SessionSettings' defaults until the trial's recorded settings are loaded.
-  editor.setBaseline({ torque_gain: 1.0, max_torque_Nm: 30.0, measurement_noise_scale: 1.0, process_noise_scale: 1.0 });
+  editor.setBaseline(DEFAULT_SETTINGS);
   const modeChoice = (mode, text) => h("label", { class: "choice" },
     h("input", { type: "radio", name: "rerun-mode", value: mode, "data-testid": `rerun-mode-${mode}`, checked: mode === "recorded" }),
     h("span", { text }));
@@ -289,8 +290,6 @@ export function mountReview(root, trialId) {
       timeline.setData([st.full.t, st.full.torque_Nm]);
       showAll();
       setCursor(T0, true);
-      await loadLimits();
-      editor.applyLimits();
       // The what-if starts from the settings the trial began with (not the session's final ones).
       try {
         st.baseSettings = await api("GET", `/api/trials/${trialId}/settings`);

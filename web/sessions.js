@@ -3,8 +3,16 @@
 import { api } from "./api.js";
 import { mountUpload } from "./upload.js";
 import { errorBox, field, fmt, fmtUtc, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
+import { FIELD_LIMITS } from "./wire.js";
 
-const CODE_RE = /^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$/; // SubjectCreate.code
+// Bounds of the form fields, from the schema (sessions/schema.py via the generated wire.js).
+const CODE_RE = new RegExp(FIELD_LIMITS.SubjectCreate.code.pattern);
+const LEG = FIELD_LIMITS.SubjectCreate.leg_length_m;
+const MASS = FIELD_LIMITS.SubjectCreate.mass_kg;
+const SIM_RATE = FIELD_LIMITS.SimulatedSource.rate_hz;
+const REPLAY_SPEED = FIELD_LIMITS.ReplaySource.speed;
+/** "min-max", as the form's hints show a range. */
+const range = (lim) => `${lim.min}-${lim.max}`;
 
 /** Mounts the sessions page. */
 export function mountSessions(root) {
@@ -86,8 +94,8 @@ export function mountSessions(root) {
 
   // --- new subject ---------------------------------------------------------------------------------
   const code = h("input", { id: "subject-code", "data-testid": "subject-code", autocomplete: "off", maxlength: 32, placeholder: "e.g. S01" });
-  const leg = h("input", { id: "subject-leg", "data-testid": "subject-leg", type: "number", min: 0.5, max: 1.3, step: 0.01, inputmode: "decimal", value: "0.9" });
-  const mass = h("input", { id: "subject-mass", "data-testid": "subject-mass", type: "number", min: 20, max: 250, step: 0.5, inputmode: "decimal", value: "75" });
+  const leg = h("input", { id: "subject-leg", "data-testid": "subject-leg", type: "number", min: LEG.min, max: LEG.max, step: 0.01, inputmode: "decimal", value: "0.9" });
+  const mass = h("input", { id: "subject-mass", "data-testid": "subject-mass", type: "number", min: MASS.min, max: MASS.max, step: 0.5, inputmode: "decimal", value: "75" });
   const side = h("select", { id: "subject-side", "data-testid": "subject-side" },
     h("option", { value: "right", text: "right" }), h("option", { value: "left", text: "left" }));
   const subjectError = errorBox("subject-error");
@@ -96,8 +104,8 @@ export function mountSessions(root) {
   const subjectForm = h("form", { class: "card form", "data-testid": "subject-form", novalidate: true },
     h("h2", { text: "New subject" }),
     field("Code (pseudonym)", code, "1-32 of A-Z a-z 0-9 _ . -"),
-    field("Leg length (m)", leg, "0.5-1.3"),
-    field("Mass (kg)", mass, "20-250"),
+    field("Leg length (m)", leg, range(LEG)),
+    field("Mass (kg)", mass, range(MASS)),
     field("Side of the device", side),
     subjectSubmit, subjectError, subjectOk);
   subjectForm.addEventListener("submit", (ev) => {
@@ -108,8 +116,8 @@ export function mountSessions(root) {
       if (!CODE_RE.test(c)) throw new ValidationError("Code must be 1-32 letters, digits, '_', '.' or '-', starting with a letter or digit.");
       const body = {
         code: c,
-        leg_length_m: readNumber(leg, { label: "Leg length", min: 0.5, max: 1.3 }),
-        mass_kg: readNumber(mass, { label: "Mass", min: 20, max: 250 }),
+        leg_length_m: readNumber(leg, { label: "Leg length", min: LEG.min, max: LEG.max }),
+        mass_kg: readNumber(mass, { label: "Mass", min: MASS.min, max: MASS.max }),
         side: side.value,
       };
       const subject = await api("POST", "/api/subjects", body);
@@ -124,14 +132,14 @@ export function mountSessions(root) {
   const kindRadios = ["simulated", "replay", "device"].map((k) => h("label", { class: "choice" },
     h("input", { type: "radio", name: "source-kind", value: k, "data-testid": `source-${k}`, checked: k === "simulated" }),
     h("span", { text: { simulated: "Simulated walker", replay: "Replay a trial", device: "Live device" }[k] })));
-  const simRate = h("input", { id: "sim-rate", "data-testid": "sim-rate", type: "number", min: 20, max: 1000, step: 1, inputmode: "numeric", placeholder: "200 (default)" });
+  const simRate = h("input", { id: "sim-rate", "data-testid": "sim-rate", type: "number", min: SIM_RATE.min, max: SIM_RATE.max, step: 1, inputmode: "numeric", placeholder: "200 (default)" });
   const replayTrial = h("select", { id: "replay-trial", "data-testid": "replay-trial" });
-  const replaySpeed = h("input", { id: "replay-speed", "data-testid": "replay-speed", type: "number", min: 1, max: 50, step: 0.5, value: "1", inputmode: "decimal" });
+  const replaySpeed = h("input", { id: "replay-speed", "data-testid": "replay-speed", type: "number", min: REPLAY_SPEED.min, max: REPLAY_SPEED.max, step: 0.5, value: "1", inputmode: "decimal" });
   const simBox = h("div", { class: "source-opts", "data-kind": "simulated" },
     h("p", { class: "hint", text: "Walks the default treadmill protocol (seed 000 III-E), looping." }),
-    field("Sample rate (Hz, optional)", simRate, "20-1000"));
+    field("Sample rate (Hz, optional)", simRate, range(SIM_RATE)));
   const replayBox = h("div", { class: "source-opts", "data-kind": "replay", hidden: true },
-    field("Trial", replayTrial), field("Speed (× real time)", replaySpeed, "1-50"));
+    field("Trial", replayTrial), field("Speed (× real time)", replaySpeed, range(REPLAY_SPEED)));
   const deviceBox = h("div", { class: "source-opts", "data-kind": "device", hidden: true },
     h("p", { class: "hint", text: "The device connects to /ws/devices/{session id} and streams sensor frames." }));
   const sessionError = errorBox("session-error");
@@ -154,12 +162,12 @@ export function mountSessions(root) {
       let source;
       if (kind === "simulated") {
         source = { kind };
-        const rate = readNumber(simRate, { label: "Sample rate", min: 20, max: 1000, optional: true });
+        const rate = readNumber(simRate, { label: "Sample rate", min: SIM_RATE.min, max: SIM_RATE.max, optional: true });
         if (rate !== null) source.rate_hz = rate;
       } else if (kind === "replay") {
         const trialId = Number(replayTrial.value);
         if (!trialId) throw new ValidationError("Choose the trial to replay.");
-        source = { kind, trial_id: trialId, speed: readNumber(replaySpeed, { label: "Speed", min: 1, max: 50 }) };
+        source = { kind, trial_id: trialId, speed: readNumber(replaySpeed, { label: "Speed", min: REPLAY_SPEED.min, max: REPLAY_SPEED.max }) };
       } else {
         source = { kind };
       }

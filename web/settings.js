@@ -1,44 +1,26 @@
 // The four clinician-adjustable settings: bounds, and an editor (number box + slider per setting) used by
 // the live view's "Apply" and the review view's "Re-run with settings".
 
-import { api } from "./api.js";
+import { SETTING_LIMITS as WIRE_LIMITS } from "./wire.js";
 import { fmt, h, ValidationError } from "./ui.js";
 
-/**
- * Mirrors SETTING_LIMITS in sessions/schema.py: (min, max, largest change per second). min/max are
- * refreshed from the server's JSON schema of SessionSettings (`GET /api/schema`) by `loadLimits()`;
- * the rate has no JSON-schema form, so it is kept here and the server remains the judge (409).
- */
-export const SETTING_LIMITS = {
-  torque_gain: { label: "Torque gain", unit: "×", min: 0.0, max: 3.0, rate: 0.5, step: 0.05, digits: 2 },
-  max_torque_Nm: { label: "Maximum torque", unit: "N·m", min: 0.0, max: 80.0, rate: 10.0, step: 1, digits: 1 },
-  measurement_noise_scale: {
-    label: "Measurement-noise scale", unit: "×", min: 0.1, max: 10.0, rate: 5.0, step: 0.1, digits: 2,
-  },
-  process_noise_scale: { label: "Process-noise scale", unit: "×", min: 0.1, max: 10.0, rate: 5.0, step: 0.1, digits: 2 },
+/** How each setting is shown; its bounds come from the schema. */
+const PRESENTATION = {
+  torque_gain: { label: "Torque gain", unit: "×", step: 0.05, digits: 2 },
+  max_torque_Nm: { label: "Maximum torque", unit: "N·m", step: 1, digits: 1 },
+  measurement_noise_scale: { label: "Measurement-noise scale", unit: "×", step: 0.1, digits: 2 },
+  process_noise_scale: { label: "Process-noise scale", unit: "×", step: 0.1, digits: 2 },
 };
 
+/**
+ * Each setting: min, max and largest change per second from SETTING_LIMITS in sessions/schema.py (via the
+ * generated wire.js), with how it is shown. The server remains the judge (422, 409).
+ * @type {Readonly<Record<string, {label: string, unit: string, step: number, digits: number, min: number, max: number, rate: number}>>}
+ */
+export const SETTING_LIMITS = Object.freeze(Object.fromEntries(Object.entries(WIRE_LIMITS).map(
+  ([key, lim]) => [key, Object.freeze({ label: key, unit: "", step: 0.1, digits: 3, ...PRESENTATION[key], ...lim })])));
+
 export const SETTING_KEYS = Object.keys(SETTING_LIMITS);
-
-let _limitsLoaded = null;
-
-/** Refreshes min/max from `GET /api/schema` (once per page); keeps the built-in bounds if it fails. */
-export function loadLimits() {
-  if (!_limitsLoaded) {
-    _limitsLoaded = api("GET", "/api/schema")
-      .then((schemas) => {
-        const props = (schemas && schemas.SessionSettings && schemas.SessionSettings.properties) || {};
-        for (const key of SETTING_KEYS) {
-          const p = props[key];
-          if (!p) continue;
-          if (Number.isFinite(p.minimum)) SETTING_LIMITS[key].min = p.minimum;
-          if (Number.isFinite(p.maximum)) SETTING_LIMITS[key].max = p.maximum;
-        }
-      })
-      .catch(() => {});
-  }
-  return _limitsLoaded;
-}
 
 const _EPS = 1e-9;
 
@@ -87,17 +69,6 @@ export class SettingsEditor {
     const r = this.rows[key];
     r.dirty = Math.abs(Number(r.number.value) - this.baseline[key]) > _EPS || r.number.value === "";
     r.row.classList.toggle("dirty", r.dirty);
-  }
-
-  /** Refreshes bounds on the inputs after `loadLimits()`. */
-  applyLimits() {
-    for (const key of SETTING_KEYS) {
-      const lim = SETTING_LIMITS[key];
-      for (const input of [this.rows[key].number, this.rows[key].slider]) {
-        input.min = lim.min;
-        input.max = lim.max;
-      }
-    }
   }
 
   /**

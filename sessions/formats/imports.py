@@ -47,8 +47,9 @@ from sessions.errors import DataFormatError
 from sessions.estimation import FrameEstimator
 from sessions.formats.locohub import read_table
 from sessions.formats.mcap_io import check_mcap, count_messages, read_messages
-from sessions.formats.recording import SAMPLE_PERIOD_KEY, Recorder
+from sessions.formats.recording import ESTIMATORS_KEY, SAMPLE_PERIOD_KEY, Recorder
 from sessions.formats.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, parse_cells
+from sessions.registry import channels_of
 
 __all__ = [
     "BATCH_FRAMES",
@@ -357,13 +358,24 @@ def _record(job: ImportJob, frames: Iterator[schema.SensorFrame]) -> ImportResul
         )
     settings = schema.SessionSettings()
     subject = job.subject
-    estimator = FrameEstimator(job.model, subject.leg_length_m, subject.mass_kg, settings, period)
+    # every estimator the log's channels allow (those of its first batch of frames)
+    estimator = FrameEstimator(
+        job.model, subject.leg_length_m, subject.mass_kg, settings, period, channels=channels_of(first)
+    )
     metadata = {
         "subject": subject.code,
         "source": f"upload {job.filename}",
         SAMPLE_PERIOD_KEY: repr(estimator.sample_period),  # a review re-run reproduces the states
+        ESTIMATORS_KEY: ",".join(estimator.stack.names),
     }
-    with Recorder(job.target, time.time_ns(), metadata, flush_interval_s=math.inf, fsync_interval_s=math.inf) as rec:
+    with Recorder(
+        job.target,
+        time.time_ns(),
+        metadata,
+        flush_interval_s=math.inf,
+        fsync_interval_s=math.inf,
+        channels=estimator.recorded_channels(),
+    ) as rec:
         rec.write("/settings", 0.0, settings)
         for frame in itertools.chain(_drain(first), frames):
             if not estimator.accepts(frame):
@@ -373,6 +385,9 @@ def _record(job: ImportJob, frames: Iterator[schema.SensorFrame]) -> ImportResul
             rec.write("/sensor", state.t, frame.model_copy(update={"t": state.t}))  # session time, as the rest
             rec.write("/gait_state", state.t, state)
             rec.write("/torque", state.t, schema.TorqueCommand(seq=state.seq, t=state.t, torque_Nm=state.torque_Nm))
+            for topic, data in estimator.output_json(state.seq):
+                rec.write_json(topic, state.t, data)
+            estimator.events.clear()  # estimator failures: their outputs say so (failed), no session to tell
     return ImportResult(samples=rec.samples, duration_s=rec.duration_s)
 
 

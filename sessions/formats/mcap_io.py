@@ -276,12 +276,15 @@ def count_messages(path: str | Path, topic: str, starting_at: int | None, ending
 class SeriesBuilder:
     """Builds :data:`SERIES_COLUMNS` from gait states fed one at a time, in memory bounded by
     ``max_points`` and one bucket: with more than ``max_points`` of the ``n`` expected rows, each of
-    ``max_points // 2`` buckets of consecutive rows becomes two rows as :func:`read_series` describes."""
+    ``max_points // 2`` buckets of consecutive rows becomes two rows as :func:`read_series` describes.
+    ``extra`` columns (float or None: estimator outputs) are decimated like the plotted floats."""
 
-    def __init__(self, n: int, max_points: int):
+    def __init__(self, n: int, max_points: int, extra: Sequence[str] = ()):
         if max_points < 2:
             raise ValueError(f"max_points must be at least 2, got {max_points}")
-        self._out: dict[str, list[Any]] = {c: [] for c in SERIES_COLUMNS}
+        self._columns = (*SERIES_COLUMNS, *extra)
+        self._plot = (*_PLOT_COLUMNS, *extra)
+        self._out: dict[str, list[Any]] = {c: [] for c in self._columns}
         self._bucketed = n > max_points
         self._edges = [int(e) for e in np.linspace(0, n, max_points // 2 + 1).round()][1:] if self._bucketed else []
         self._bucket: list[Mapping[str, Any]] = []
@@ -289,7 +292,7 @@ class SeriesBuilder:
 
     def add(self, row: Mapping[str, Any]) -> None:
         if not self._bucketed:
-            for c in SERIES_COLUMNS:
+            for c in self._columns:
                 self._out[c].append(row.get(c))
             return
         self._bucket.append(row)
@@ -300,8 +303,8 @@ class SeriesBuilder:
 
     def _flush(self) -> None:
         if self._bucket:
-            part = _decimate({c: [r.get(c) for r in self._bucket] for c in SERIES_COLUMNS}, 1)
-            for c in SERIES_COLUMNS:
+            part = _decimate({c: [r.get(c) for r in self._bucket] for c in self._columns}, 1, self._plot)
+            for c in self._columns:
                 self._out[c].extend(part[c])
             self._bucket = []
 
@@ -356,10 +359,12 @@ def _log_time_offset(path: str | Path) -> int | None:
     return None
 
 
-def _decimate(columns: dict[str, list[Any]], n_buckets: int) -> dict[str, list[Any]]:
+def _decimate(
+    columns: dict[str, list[Any]], n_buckets: int, plot_columns: Sequence[str] = _PLOT_COLUMNS
+) -> dict[str, list[Any]]:
     n = len(columns["t"])
     edges = [int(e) for e in np.linspace(0, n, n_buckets + 1).round()]  # Python ints: JSON-ready output
-    plot = {c: np.array([np.nan if v is None else float(v) for v in columns[c]], dtype=float) for c in _PLOT_COLUMNS}
+    plot = {c: np.array([np.nan if v is None else float(v) for v in columns[c]], dtype=float) for c in plot_columns}
     out: dict[str, list[Any]] = {c: [] for c in columns}
     for lo, hi in itertools.pairwise(edges):
         for c in columns:

@@ -1,6 +1,7 @@
 """Recording one trial to an MCAP file; the readers and crash recovery live in :mod:`sessions.formats.mcap_io`.
 
-One JSON-schema channel per entry of :data:`~sessions.schema.MCAP_CHANNELS`; every message's log time
+One JSON-schema channel per entry of :data:`~sessions.schema.MCAP_CHANNELS`, plus the channels a session
+registers for its estimator stack (``channels``: ``/estimators/<name>``); every message's log time
 and publish time are ``start_ns + round(t * 1e9)``: integer nanoseconds since the Unix epoch, the
 session's start wall clock plus the sample time ``t`` (s). Lifecycle: construct (writes the header,
 the ``gaitscope`` metadata record and the channels), :meth:`Recorder.write` per message,
@@ -40,6 +41,7 @@ import json
 import os
 import threading
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import IO, TYPE_CHECKING, Final, cast
@@ -53,13 +55,24 @@ from sessions.formats.mcap_io import CHUNK_SIZE
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
 
-__all__ = ["FLUSH_INTERVAL_S", "FSYNC_INTERVAL_S", "METADATA_NAME", "SAMPLE_PERIOD_KEY", "Recorder", "RecordingError"]
+__all__ = [
+    "ESTIMATORS_KEY",
+    "FLUSH_INTERVAL_S",
+    "FSYNC_INTERVAL_S",
+    "METADATA_NAME",
+    "SAMPLE_PERIOD_KEY",
+    "Recorder",
+    "RecordingError",
+]
 
 #: Name of the MCAP metadata record holding the trial's key/values (subject code, session id, ...).
 METADATA_NAME: Final = "gaitscope"
 #: Key in that record of the sample period (s, a float's ``repr``) the live estimator was built with, so
 #: that a review re-run (:mod:`sessions.review.rerun`) builds the same one.
 SAMPLE_PERIOD_KEY: Final = "sample_period_s"
+#: Key of the session's estimator stack (names, comma-separated, in run order), so that a review re-run
+#: runs the same estimators.
+ESTIMATORS_KEY: Final = "estimators"
 #: Default longest time (s, session or wall) a chunk stays open: what ``kill -9`` can lose.
 FLUSH_INTERVAL_S: Final = 0.5
 #: Default longest wall time (s) between two fsyncs of a recording: what a power cut adds to that.
@@ -133,6 +146,8 @@ class Recorder:
             time or has been open this long by the wall clock (see the module docstring).
         fsync_interval_s: the file is fsynced when a chunk is handed over this long (wall clock)
             after the last fsync; 0 fsyncs every chunk, ``math.inf`` only at :meth:`finish`.
+        channels: more channels, as :data:`~sessions.schema.MCAP_CHANNELS` (topic -> schema name and
+            class): a stack's ``/estimators/<name>`` (:func:`~sessions.schema.estimator_channels`).
 
     Attributes:
         samples: number of ``/gait_state`` messages written.
@@ -155,6 +170,7 @@ class Recorder:
         *,
         flush_interval_s: float = FLUSH_INTERVAL_S,
         fsync_interval_s: float = FSYNC_INTERVAL_S,
+        channels: Mapping[str, tuple[str, type[BaseModel]]] | None = None,
     ):
         if not flush_interval_s > 0:
             raise ValueError(f"flush_interval_s must be above 0, got {flush_interval_s}")
@@ -188,12 +204,15 @@ class Recorder:
             self._writer.start(profile="", library="gaitscope")
             self._writer.add_metadata(METADATA_NAME, {**metadata, "start_ns": str(start_ns)})
             self._channels: dict[str, tuple[int, type[BaseModel]]] = {}
-            for topic, (schema_name, cls) in schema.MCAP_CHANNELS.items():
-                schema_id = self._writer.register_schema(
-                    name=schema_name,
-                    encoding="jsonschema",
-                    data=json.dumps(cls.model_json_schema()).encode(),
-                )
+            schema_ids: dict[str, int] = {}  # one schema record per schema, however many channels use it
+            for topic, (schema_name, cls) in {**schema.MCAP_CHANNELS, **(channels or {})}.items():
+                if schema_name not in schema_ids:
+                    schema_ids[schema_name] = self._writer.register_schema(
+                        name=schema_name,
+                        encoding="jsonschema",
+                        data=json.dumps(cls.model_json_schema()).encode(),
+                    )
+                schema_id = schema_ids[schema_name]
                 channel_id = self._writer.register_channel(topic=topic, message_encoding="json", schema_id=schema_id)
                 self._channels[topic] = (channel_id, cls)
             self._commit()  # the header and the metadata; schemas and channels open the first chunk
@@ -227,7 +246,8 @@ class Recorder:
         self._writer.add_message(
             channel_id=channel_id,
             log_time=log_time,
-            data=message.model_dump_json().encode(),
+            # a sensor frame's absent channels (None) are left out: most devices send a few of dozens
+            data=message.model_dump_json(exclude_none=isinstance(message, schema.SensorFrame)).encode(),
             publish_time=log_time,
         )
         if topic == "/gait_state":
@@ -235,6 +255,10 @@ class Recorder:
             if self._first_t is None:
                 self._first_t = t
             self.duration_s = t - self._first_t
+        self._after_write(t)
+
+    def _after_write(self, t: float) -> None:
+        """Close the chunk when it is full or due (see the module docstring)."""
         self._open_t = t if self._open_t is None else max(self._open_t, t)
         if self._sink.has_data():  # the Writer closed the chunk at CHUNK_SIZE
             self._chunk_closed()
@@ -243,6 +267,26 @@ class Recorder:
             self._chunk_closed()
         elif self._chunk_t0 is None:
             self._chunk_t0, self._chunk_wall0 = t, time.monotonic()
+
+    def write_json(self, topic: str, t: float, data: bytes) -> None:
+        """Write ``data``, already the JSON of the topic's class, at session time ``t`` (s): for the hot
+        path of estimator outputs (:meth:`~sessions.estimation.FrameEstimator.output_json`), which would
+        spend more on building and dumping a model than on the write. Not validated here; tests check
+        that what the hot path builds is what the class would dump.
+
+        Raises:
+            As :meth:`write`.
+        """
+        if self._finished:
+            raise ValueError(f"recorder of {self.path} is finished")
+        if topic not in self._channels:
+            raise ValueError(f"unknown MCAP topic {topic!r}; expected one of {sorted(self._channels)}")
+        self._raise_if_failed()
+        log_time = self.log_time_ns(t)
+        self._writer.add_message(
+            channel_id=self._channels[topic][0], log_time=log_time, data=data, publish_time=log_time
+        )
+        self._after_write(t)
 
     def write_event(self, event: schema.Event) -> None:
         """Write ``event`` on ``/events`` as a ``foxglove.Event`` at its ``t``.

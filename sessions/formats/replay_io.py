@@ -14,9 +14,12 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Final
+from types import TracebackType
+from typing import BinaryIO, Final
 
 import numpy as np
 import pandas as pd
@@ -24,8 +27,9 @@ import pandas as pd
 from sessions import schema
 from sessions.errors import DataFormatError
 from sessions.files import atomic_output
+from sessions.formats import _fastcsv
 
-__all__ = ["ReplayInput", "read_replay_csv", "write_replay_output"]
+__all__ = ["ReplayInput", "ReplayOutput", "read_replay_csv", "write_replay_output"]
 
 _MIN_ROWS: Final = 2
 #: Median sample periods accepted (s): 10 kHz to 1 Hz. Outside, the times are not in seconds, or
@@ -53,6 +57,10 @@ class ReplayInput:
 def read_replay_csv(path: str | Path) -> ReplayInput:
     """Read and validate a replay CSV.
 
+    A plain file (ASCII, unquoted, every cell a finite number, ...) is parsed by Arrow's C++ reader;
+    any other, and any file with a problem, by a validating Python reader that finds the earliest bad
+    cell. Both return the same arrays for a file both accept (``tests/.../test_replay_io_properties.py``).
+
     Raises:
         DataFormatError: empty file; missing ``time_s``; no angle column; a repeated column name; a
             row with the wrong number of fields; an empty, non-numeric, NaN or infinite cell in a
@@ -61,21 +69,92 @@ def read_replay_csv(path: str | Path) -> ReplayInput:
             bad, the earliest line is reported.
     """
     name = str(path)
-    header, rows, lines = _read_rows(Path(path), name)
+    fast = _read_plain(Path(path), name)
+    return fast if fast is not None else _read_validated(Path(path), name)
 
-    known = {schema.REPLAY_TIME, *schema.REPLAY_SIGNALS, schema.REPLAY_HEEL_STRIKE}
-    where: dict[str, int] = {}
-    for j, column in enumerate(header):
-        if column not in known:
-            continue
-        if column in where:
-            raise DataFormatError("column name appears twice", file=name, column=column, row=1)
-        where[column] = j
-    if schema.REPLAY_TIME not in where:
-        raise DataFormatError("missing required column", file=name, column=schema.REPLAY_TIME, row=1)
-    if not any(angle in where for angle in schema.REPLAY_ANGLES):
-        expected = " or ".join(repr(a) for a in schema.REPLAY_ANGLES)
-        raise DataFormatError(f"no angle column; expected {expected}", file=name, row=1)
+
+def write_replay_output(path: str | Path, columns: Mapping[str, np.ndarray]) -> None:
+    """Write the replay output CSV atomically, in one part (see :class:`ReplayOutput`).
+
+    Args:
+        path: the output CSV.
+        columns: exactly the :data:`~sessions.schema.REPLAY_OUTPUT` names, each (n,) numeric;
+            ``heel_strike`` bool or 0/1.
+
+    Raises:
+        ValueError: missing or extra column names, arrays that are not 1-D or differ in length, or a
+            ``heel_strike`` value other than 0/1.
+    """
+    with ReplayOutput(path) as output:
+        output.add(columns)
+
+
+class ReplayOutput:
+    """The replay output CSV, written atomically in consecutive parts; a context manager.
+
+    Columns are written in the order of :data:`~sessions.schema.REPLAY_OUTPUT` under a header row:
+    floats at full (shortest round-trip) precision as Python's ``repr`` writes them (NaN as ``nan``),
+    ``heel_strike`` as 0/1. The file is written beside ``path``; leaving the ``with`` block normally
+    moves it over ``path``, an exception deletes it and leaves ``path`` as it was.
+
+    :meth:`add` checks a part and formats it on a background thread (in Arrow and compiled code,
+    outside the GIL), so the caller computes the next part meanwhile; parts are written in order.
+    """
+
+    def __init__(self, path: str | Path):
+        self._path = Path(path)
+        self._stack: ExitStack | None = None
+        self._file: BinaryIO | None = None
+        self._pool: ThreadPoolExecutor | None = None
+        self._pending: Future[memoryview] | None = None
+
+    def __enter__(self) -> ReplayOutput:
+        with ExitStack() as stack:
+            tmp = stack.enter_context(atomic_output(self._path))
+            pd.DataFrame(columns=list(schema.REPLAY_OUTPUT)).to_csv(tmp, index=False, lineterminator="\n")
+            self._file = stack.enter_context(tmp.open("ab"))
+            self._pool = stack.enter_context(ThreadPoolExecutor(1, thread_name_prefix="replay-output"))
+            self._stack = stack.pop_all()
+        return self
+
+    def add(self, columns: Mapping[str, np.ndarray]) -> None:
+        """Append rows: ``columns`` as for :func:`write_replay_output`.
+
+        Raises:
+            ValueError: as :func:`write_replay_output`.
+        """
+        if self._pool is None:
+            raise RuntimeError("ReplayOutput.add outside its with block")
+        values = _output_values(columns)
+        self._write_pending()
+        self._pending = self._pool.submit(_fastcsv.format_rows, values)
+
+    def _write_pending(self) -> None:
+        if self._pending is not None and self._file is not None:
+            rows, self._pending = self._pending.result(), None
+            self._file.write(rows)
+
+    def __exit__(self, kind: type[BaseException] | None, err: BaseException | None, tb: TracebackType | None) -> bool:
+        stack, self._stack, self._pool = self._stack, None, None
+        if stack is None:
+            return False
+        if kind is None:
+            try:
+                self._write_pending()
+            except BaseException as failed:  # delete the partial file, then raise
+                if not stack.__exit__(type(failed), failed, failed.__traceback__):
+                    raise
+                return False
+        return bool(stack.__exit__(kind, err, tb))
+
+
+# --- private helpers -----------------------------------------------------------------------------
+
+
+def _read_validated(path: Path, name: str) -> ReplayInput:
+    """The validating reader: Python's ``csv`` module, every cell checked, the earliest problem named."""
+    header, rows, lines = _read_rows(path, name)
+    where, used = _columns(header, name)
 
     for row, line in zip(rows, lines, strict=True):
         if len(row) != len(header):
@@ -83,9 +162,6 @@ def read_replay_csv(path: str | Path) -> ReplayInput:
     if len(rows) < _MIN_ROWS:
         raise DataFormatError(f"need at least {_MIN_ROWS} data rows, found {len(rows)}", file=name)
 
-    used = [schema.REPLAY_TIME, *(s for s in schema.REPLAY_SIGNALS if s in where)]
-    if schema.REPLAY_HEEL_STRIKE in where:
-        used.append(schema.REPLAY_HEEL_STRIKE)
     cells = {column: [row[where[column]] for row in rows] for column in used}
 
     values: dict[str, np.ndarray] = {}
@@ -114,7 +190,7 @@ def read_replay_csv(path: str | Path) -> ReplayInput:
         )
 
     period = float(np.median(step))
-    if not MIN_PERIOD_S <= period <= MAX_PERIOD_S:
+    if not _period_ok(period):
         raise DataFormatError(
             f"the median time step is {period:.3g} s; gaitscope takes sample periods from {MIN_PERIOD_S:g} s "
             f"to {MAX_PERIOD_S:g} s (10 kHz to 1 Hz): is the column in seconds?",
@@ -122,30 +198,12 @@ def read_replay_csv(path: str | Path) -> ReplayInput:
             column=schema.REPLAY_TIME,
         )
 
-    heel_strike = values.get(schema.REPLAY_HEEL_STRIKE)
-    return ReplayInput(
-        time_s=time_s,
-        signals={s: values[s] for s in schema.REPLAY_SIGNALS if s in values},
-        heel_strike=None if heel_strike is None else heel_strike == 1.0,
-    )
+    return _replay_input(values)
 
 
-def write_replay_output(path: str | Path, columns: Mapping[str, np.ndarray]) -> None:
-    """Write the replay output CSV atomically.
-
-    Columns are written in the order of :data:`~sessions.schema.REPLAY_OUTPUT` under a header row:
-    floats at full (shortest round-trip) precision with NaN as ``nan``, ``heel_strike`` as 0/1. The
-    file is written beside ``path`` and moved over it only when complete.
-
-    Args:
-        path: the output CSV.
-        columns: exactly the :data:`~sessions.schema.REPLAY_OUTPUT` names, each (n,) numeric;
-            ``heel_strike`` bool or 0/1.
-
-    Raises:
-        ValueError: missing or extra column names, arrays that are not 1-D or differ in length, or a
-            ``heel_strike`` value other than 0/1.
-    """
+def _output_values(columns: Mapping[str, np.ndarray]) -> list[np.ndarray]:
+    """The output columns in :data:`~sessions.schema.REPLAY_OUTPUT` order, checked; floats as float64,
+    ``heel_strike`` as int64."""
     missing = [c for c in schema.REPLAY_OUTPUT if c not in columns]
     extra = [c for c in columns if c not in schema.REPLAY_OUTPUT]
     if missing or extra:
@@ -154,20 +212,79 @@ def write_replay_output(path: str | Path, columns: Mapping[str, np.ndarray]) -> 
     shapes = {c: a.shape for c, a in arrays.items()}
     if any(a.ndim != 1 for a in arrays.values()) or len(set(shapes.values())) != 1:
         raise ValueError(f"replay output columns must be 1-D and of equal length, got shapes {shapes}")
-
-    frame: dict[str, np.ndarray] = {}
+    values: list[np.ndarray] = []
     for column, array in arrays.items():
         if column == schema.REPLAY_HEEL_STRIKE:
             if not np.isin(array, (0, 1)).all():
                 raise ValueError(f"replay output column {column!r} must hold only 0/1")
-            frame[column] = array.astype(np.int64)
+            values.append(array.astype(np.int64))
         else:
-            frame[column] = array.astype(np.float64)
-    with atomic_output(Path(path)) as tmp:
-        pd.DataFrame(frame).to_csv(tmp, index=False, na_rep="nan", lineterminator="\n")
+            values.append(array.astype(np.float64))
+    return values
 
 
-# --- private helpers -----------------------------------------------------------------------------
+def _columns(header: list[str], name: str) -> tuple[dict[str, int], list[str]]:
+    """Position of each known column, and the used ones (time, signals in schema order, heel strike)."""
+    known = {schema.REPLAY_TIME, *schema.REPLAY_SIGNALS, schema.REPLAY_HEEL_STRIKE}
+    where: dict[str, int] = {}
+    for j, column in enumerate(header):
+        if column not in known:
+            continue
+        if column in where:
+            raise DataFormatError("column name appears twice", file=name, column=column, row=1)
+        where[column] = j
+    if schema.REPLAY_TIME not in where:
+        raise DataFormatError("missing required column", file=name, column=schema.REPLAY_TIME, row=1)
+    if not any(angle in where for angle in schema.REPLAY_ANGLES):
+        expected = " or ".join(repr(a) for a in schema.REPLAY_ANGLES)
+        raise DataFormatError(f"no angle column; expected {expected}", file=name, row=1)
+    used = [schema.REPLAY_TIME, *(s for s in schema.REPLAY_SIGNALS if s in where)]
+    if schema.REPLAY_HEEL_STRIKE in where:
+        used.append(schema.REPLAY_HEEL_STRIKE)
+    return where, used
+
+
+def _period_ok(period: float) -> bool:
+    return MIN_PERIOD_S <= period <= MAX_PERIOD_S
+
+
+def _replay_input(values: dict[str, np.ndarray]) -> ReplayInput:
+    heel_strike = values.get(schema.REPLAY_HEEL_STRIKE)
+    return ReplayInput(
+        time_s=values[schema.REPLAY_TIME],
+        signals={s: values[s] for s in schema.REPLAY_SIGNALS if s in values},
+        heel_strike=None if heel_strike is None else heel_strike == 1.0,
+    )
+
+
+def _read_plain(path: Path, name: str) -> ReplayInput | None:
+    """The fast path of :func:`read_replay_csv`: the input of a plain, valid file, else None (then the
+    validating reader runs and names the problem)."""
+    try:
+        raw = path.read_bytes()
+    except OSError:
+        return None  # the validating reader raises the same error
+    split = _fastcsv.simple_body(raw)
+    if split is None:
+        return None
+    header_line, body = split
+    header = [h.strip() for h in header_line.split(",")]
+    if not any(header):
+        return None
+    try:
+        where, used = _columns(header, name)
+    except DataFormatError:
+        return None
+    values = _fastcsv.read_numbers(body, len(header), {c: where[c] for c in used})
+    if values is None or values[schema.REPLAY_TIME].size < _MIN_ROWS:
+        return None
+    heel_strike = values.get(schema.REPLAY_HEEL_STRIKE)
+    if heel_strike is not None and not ((heel_strike == 0.0) | (heel_strike == 1.0)).all():
+        return None
+    step = np.diff(values[schema.REPLAY_TIME])
+    if not (step > 0.0).all() or not _period_ok(float(np.median(step))):
+        return None
+    return _replay_input(values)
 
 
 def _read_rows(path: Path, name: str) -> tuple[list[str], list[list[str]], list[int]]:

@@ -113,25 +113,36 @@ class SessionManager:
         raise SessionStateError(f"session {session.id} holds an uploaded log ({spec.filename}); it does not run")
 
     def start(self, session_id: int) -> schema.Session:
-        """Start a created session; if it cannot start, it is left ``failed`` with an event saying why."""
+        """Start a created session; if it cannot start, it is left ``failed`` with an event saying why.
+
+        Raises:
+            SessionStateError: not ``created``, or its estimator stack cannot run on its source (the
+                message names the missing channels).
+        """
         session = self.store.get_session(session_id)
         if session.state != "created":
             raise SessionStateError(f"session {session_id} is {session.state}; only a created session can start")
         subject = self.store.get_subject(session.subject_id)
         model, _ = self.models.get(session.settings.model)
         source = self._source(session)
-        session = self.store.set_session_state(session_id, "running")
-        runtime = SessionRuntime(
-            session,
-            subject,
-            model,
-            source,
-            self.store,
-            self.data_dir,
-            self.on_state,
-            disk_check=self.disk_check,
-            on_end=self._ended,
-        )
+        try:
+            runtime = SessionRuntime(
+                session,
+                subject,
+                model,
+                source,
+                self.store,
+                self.data_dir,
+                self.on_state,
+                disk_check=self.disk_check,
+                on_end=self._ended,
+            )
+        except ValueError as e:  # the estimator stack: unknown names, missing channels (MissingChannels)
+            with contextlib.suppress(Exception):
+                self.store.add_event(session_id, t=0.0, kind="system", text=f"session refused to start: {e}")
+            self.store.set_session_state(session_id, "failed")
+            raise SessionStateError(f"session {session_id} cannot start: {e}") from e
+        session = runtime.session = self.store.set_session_state(session_id, "running")
         try:
             runtime.start()
         except Exception as e:

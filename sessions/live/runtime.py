@@ -1,4 +1,4 @@
-"""A running session: source -> estimator pipeline -> recording and subscribers.
+"""A running session: source -> estimator stack -> recording and subscribers.
 
 One :class:`SessionRuntime` per running session, driven by one asyncio task on the server's loop.
 Each sensor frame is processed synchronously (pipeline step, MCAP record, fan-out), so anything else
@@ -10,7 +10,8 @@ oldest entries (counted) when the client does not keep up.
 Safety:
 
 - the torque that leaves the runtime is always a finite number in ``[0, max_torque_Nm]``
-  (:func:`safe_torque`), whatever the estimators did;
+  (:func:`safe_torque`), whatever the estimators did; an estimator that fails is isolated by the stack
+  (:mod:`sessions.stack`), its failure is a system event and data health lists it;
 - a change of settings is stored with its events in one transaction first and applied only then, so
   that what runs is always what the database (and the rate limits) say;
 - every task of the session is supervised: an error ends the session as ``failed`` with an event,
@@ -37,7 +38,7 @@ from estimators.pipeline import TrainedModel
 from sessions import schema
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused
 from sessions.formats.mcap_io import recover
-from sessions.formats.recording import SAMPLE_PERIOD_KEY, Recorder
+from sessions.formats.recording import ESTIMATORS_KEY, SAMPLE_PERIOD_KEY, Recorder
 from sessions.live.disk import DiskLevel
 from sessions.live.sources import FrameSource, LiveDevice
 from sessions.live.subscribers import SUBSCRIBER_CAPACITY, Subscriber
@@ -88,7 +89,7 @@ class SessionRuntime:
         session: the stored session.
         subject: its subject (leg length and mass parameterise the pipeline).
         model: the trained models.
-        source: where frames come from.
+        source: where frames come from (its ``channels``, when it says, are checked against the stack).
         store: the database.
         data_dir: where recordings go (``recordings/`` below it).
         on_state: called with every gait state (the leg view takes what it needs).
@@ -96,6 +97,10 @@ class SessionRuntime:
             before a recording starts and once a second.
         on_end: called once when the session ends by itself (source finished, fault, disk full), after
             the runtime stopped, with the session's final state; the manager stores it.
+
+    Raises:
+        ValueError: the settings name an unknown estimator, or a primary the stack cannot run.
+        sessions.registry.MissingChannels: an estimator asked for whose required channels the source lacks.
     """
 
     def __init__(
@@ -119,7 +124,14 @@ class SessionRuntime:
         self.on_state = on_state
         period = 1.0 / source.rate_hz if source.rate_hz else DEFAULT_PERIOD
         self.sample_period = period  # recorded, so that a review re-run builds the same estimator
-        self.estimator = FrameEstimator(model, subject.leg_length_m, subject.mass_kg, session.settings, period)
+        self.estimator = FrameEstimator(
+            model,
+            subject.leg_length_m,
+            subject.mass_kg,
+            session.settings,
+            period,
+            channels=getattr(source, "channels", None),
+        )
         self.subscribers: set[Subscriber] = set()
         self.recorder: Recorder | None = None
         self.trial: schema.Trial | None = None
@@ -243,8 +255,12 @@ class SessionRuntime:
         if torque != state.torque_Nm:
             self.torque_faults += 1
             state = state.model_copy(update={"torque_Nm": torque, "fault": True})
+        if self.estimator.events:
+            self._estimator_events()
         if self.estimator.notes:
             self._notes()
+        sample = self.estimator.last
+        outputs = sample.outputs if sample is not None else []
         t = state.t
         self.samples += 1
         self._recent_recv.append(recv_ns)
@@ -255,13 +271,22 @@ class SessionRuntime:
                 self.recorder.write("/sensor", t, frame.model_copy(update={"t": t}))  # session time, as the rest
                 self.recorder.write("/gait_state", t, state)
                 self.recorder.write("/torque", t, schema.TorqueCommand(seq=frame.seq, t=t, torque_Nm=state.torque_Nm))
+                for topic, data in self.estimator.output_json(frame.seq):
+                    self.recorder.write_json(topic, t, data)
             except (OSError, ValueError) as e:
                 self._recording_failed(e)
         for sub in self.subscribers:
-            sub.offer(state)
+            sub.offer(state, outputs)
         if self.on_state is not None:
             self.on_state(self.session.id, state, self.subject.leg_length_m)
         return state
+
+    def _estimator_events(self) -> None:
+        """Estimator failures and primary switches: each one a system event (they are rare: each estimator
+        fails at most once)."""
+        for text in self.estimator.events:
+            self._event("system", text)
+        self.estimator.events.clear()
 
     def _notes(self) -> None:
         """Turn the estimator's notes into system events, at most one per NOTE_INTERVAL_S."""
@@ -299,7 +324,8 @@ class SessionRuntime:
     def subscribe(self, max_rate_hz: float) -> Subscriber:
         rate = self.source.rate_hz or 1.0 / DEFAULT_PERIOD
         decimation = 1 if max_rate_hz <= 0 else max(1, math.ceil(rate / max_rate_hz))
-        sub = Subscriber(decimation=decimation)
+        stack = self.estimator.stack
+        sub = Subscriber(decimation=decimation, layout=list(zip(stack.names, stack.outputs, strict=True)))
         self.subscribers.add(sub)
         return sub
 
@@ -323,6 +349,9 @@ class SessionRuntime:
             implausible=self.estimator.implausible,
             faults=self.estimator.faults + self.torque_faults,
             disk=self.disk,
+            estimators=list(self.estimator.stack.names),
+            primary=self.estimator.primary,
+            failed_estimators=dict(self.estimator.stack.failed),
         )
 
     def broadcast_health(self) -> None:
@@ -350,6 +379,9 @@ class SessionRuntime:
         }
         now = time.monotonic()
         for name, value in updates.items():
+            if name == "primary":
+                self._check_primary(value, now)
+                continue
             _, _, per_second = schema.SETTING_LIMITS[name]
             step = abs(value - getattr(current, name))
             if step > per_second + 1e-12:
@@ -372,7 +404,9 @@ class SessionRuntime:
             {
                 "t": t,
                 "kind": "setting",
-                "text": f"{name} {getattr(current, name):g} -> {value:g}" + (f" ({reason})" if reason else ""),
+                "text": f"{name} {_shown(getattr(current, name))} -> {_shown(value)}"
+                + (f", the torque blends over {self.estimator.stack.blend_s:g} s" if name == "primary" else "")
+                + (f" ({reason})" if reason else ""),
                 "field": name,
                 "before": getattr(current, name),
                 "after": value,
@@ -402,6 +436,25 @@ class SessionRuntime:
         for event in stored:
             self._broadcast(schema.EventMessage(event=event))
         return self.session
+
+    def _check_primary(self, name: str, now: float) -> None:
+        """A switch of the primary: to an estimator of the stack that estimates a phase and has not failed,
+        at most once per ``PRIMARY_SWITCH_INTERVAL_S``.
+
+        Raises:
+            SettingRejected: why not; nothing changed.
+        """
+        try:
+            self.estimator.stack.check_primary(name)
+        except ValueError as e:
+            raise SettingRejected(f"primary {name}: {e}") from e
+        last = self._last_change.get("primary")
+        interval = schema.PRIMARY_SWITCH_INTERVAL_S
+        if last is not None and now - last < interval:
+            raise SettingRejected(
+                f"primary changed {now - last:.2f} s ago; switches are at least {interval:g} s apart "
+                f"(try again in {interval - (now - last):.2f} s)"
+            )
 
     def annotate(self, text: str, actor: str) -> schema.Event:
         event = self._event("annotation", text, actor=actor)
@@ -451,7 +504,9 @@ class SessionRuntime:
                 "subject": self.subject.code,
                 "source": self.session.source.kind,
                 SAMPLE_PERIOD_KEY: repr(self.sample_period),
+                ESTIMATORS_KEY: ",".join(self.estimator.stack.names),
             },
+            channels=self.estimator.recorded_channels(),
         )
         try:
             self.trial = self.store.create_trial(self.session.id, name or f"trial {number}", rel)
@@ -498,6 +553,11 @@ class SessionRuntime:
     def last_t(self) -> float:
         """Session time of the last sample processed."""
         return self.estimator.last_t
+
+
+def _shown(value: object) -> str:
+    """A setting's value in an event's text: numbers as ``%g``."""
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def _describe(e: BaseException) -> str:

@@ -17,7 +17,7 @@ import asyncio
 import itertools
 import math
 import time
-from collections.abc import AsyncIterator, Callable, Sequence
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import Protocol
 
@@ -29,25 +29,51 @@ from sessions.schema import SensorFrame
 
 
 class FrameSource(Protocol):
-    """What a session runtime consumes."""
+    """What a session runtime consumes.
+
+    A source may also say which channels its frames carry (``channels``, ``SensorFrame`` field names),
+    so that the session's estimator stack is checked against them before it starts; without it (a live
+    device, which declares none) every estimator may run and a channel that never comes stays missing.
+    """
 
     rate_hz: float | None
 
     def frames(self) -> AsyncIterator[SensorFrame]: ...
 
 
+class FrameTable:
+    """The sensor frames of a replay-CSV-like table, made one at a time (:meth:`frame`).
+
+    Columns named as channels of :data:`~sessions.schema.CHANNELS` are carried (flags as 0/1 or bool),
+    other columns ignored; a non-finite value is an absent channel. The values are kept as one array: a
+    fraction of the memory of a list of frames that carry every channel.
+    """
+
+    def __init__(self, table: pd.DataFrame):
+        self.names = [c for c in schema.CHANNELS if c in table.columns]
+        self.flags = frozenset(c for c in self.names if schema.CHANNELS[c].unit == "bool")
+        self.t = table[schema.REPLAY_TIME].to_numpy(np.float64)
+        self.values = table[self.names].to_numpy(np.float64)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def frame(self, k: int) -> SensorFrame:
+        """Frame ``k``, with ``seq=k``."""
+        fields: dict[str, object] = {
+            name: (v > 0.5 if name in self.flags else v)
+            for name, v in zip(self.names, self.values[k].tolist(), strict=True)
+            if math.isfinite(v)
+        }
+        fields.update(seq=k, t=float(self.t[k]))
+        return SensorFrame.model_validate(fields)
+
+
 def frames_from_table(table: pd.DataFrame) -> list[SensorFrame]:
-    """Sensor frames from a replay-CSV-like table (``time_s``, replay signals, optional extras)."""
-    cols = [c for c in (*schema.REPLAY_SIGNALS, "thigh_angle_deg") if c in table.columns]
-    t = table[schema.REPLAY_TIME].to_numpy(np.float64)
-    values = {c: table[c].to_numpy(np.float64) for c in cols}
-    hs = table[schema.REPLAY_HEEL_STRIKE].to_numpy() if schema.REPLAY_HEEL_STRIKE in table.columns else None
-    out = []
-    for k in range(len(t)):
-        fields: dict[str, object] = {c: float(v[k]) for c, v in values.items() if math.isfinite(v[k])}
-        fields.update(seq=k, t=float(t[k]), heel_strike=None if hs is None else bool(hs[k] > 0.5))
-        out.append(SensorFrame.model_validate(fields))
-    return out
+    """Sensor frames from a replay-CSV-like table: ``time_s`` and any channels of
+    :data:`~sessions.schema.CHANNELS` (the replay signals, ``heel_strike``, schema version 2's others)."""
+    rows = FrameTable(table)
+    return [rows.frame(k) for k in range(len(rows))]
 
 
 async def _paced(
@@ -80,36 +106,39 @@ async def _paced(
         offset = last_t + period
 
 
-async def _from_list(frames: Sequence[SensorFrame]) -> AsyncIterator[SensorFrame]:
-    for f in frames:
-        yield f
+async def _from_table(rows: FrameTable) -> AsyncIterator[SensorFrame]:
+    for k in range(len(rows)):
+        yield rows.frame(k)
 
 
 class SimulatedDevice:
     """A virtual subject on a treadmill (``SimulatedSource``), with simulated sensor noise.
 
-    The walk is generated once (deterministic from the spec's seed) and looped if asked.
+    The walk is generated once (deterministic from the spec's seed) and looped if asked; its frames
+    (every channel of the sensor frame) are made as they are sent.
     """
 
     def __init__(self, spec: schema.SimulatedSource):
         self.spec = spec
         self.rate_hz: float | None = spec.rate_hz
-        self._frames: list[SensorFrame] | None = None
+        #: The simulated sensors send every channel (the true heel strikes included).
+        self.channels: frozenset[str] | None = frozenset(schema.CHANNELS)
+        self._rows: FrameTable | None = None
 
-    def _generate(self) -> list[SensorFrame]:
+    def _generate(self) -> FrameTable:
         from sessions.synth.trials import sensor_trial
 
         schedule = [(p.speed_m_s, p.incline_deg, p.strides) for p in self.spec.protocol]
         sensors, _, _ = sensor_trial(
             schedule, subject=self.spec.cohort_subject, rate_hz=self.spec.rate_hz, seed=self.spec.seed
         )
-        return frames_from_table(sensors)
+        return FrameTable(sensors)
 
     async def frames(self) -> AsyncIterator[SensorFrame]:
-        if self._frames is None:
-            self._frames = await asyncio.to_thread(self._generate)
-        frames = self._frames
-        async for f in _paced(lambda: _from_list(frames), 1.0, self.spec.loop):
+        if self._rows is None:
+            self._rows = await asyncio.to_thread(self._generate)
+        rows = self._rows
+        async for f in _paced(lambda: _from_table(rows), 1.0, self.spec.loop):
             yield f
 
     def subject_body(self) -> tuple[float, float]:
@@ -129,11 +158,29 @@ class ReplayDevice:
 
     BATCH = 2000
 
+    #: Frames read at construction to learn the trial's channels.
+    PROBE = 200
+
     def __init__(self, path: Path, speed: float = 1.0, loop: bool = False):
+        from sessions.errors import DataFormatError
+        from sessions.formats.mcap_io import iter_sensor_frames
+        from sessions.registry import channels_of
+
         self.path = path
         self.speed = speed
         self.loop = loop
         self.rate_hz: float | None = None
+        # The channels of the trial's first frames, for the session's estimator stack. A file that cannot
+        # be read says nothing here (None: every estimator may run): playing it fails the session, as
+        # it always did, with an event saying why.
+        self.channels: frozenset[str] | None = None
+        probe = iter_sensor_frames(path)
+        try:
+            self.channels = frozenset(channels_of(f for _, f in itertools.islice(probe, self.PROBE)))
+        except (DataFormatError, OSError):
+            pass
+        finally:
+            getattr(probe, "close", lambda: None)()  # a generator: close its file now
 
     async def _read(self) -> AsyncIterator[SensorFrame]:
         from sessions.formats.mcap_io import iter_sensor_frames
@@ -172,6 +219,7 @@ class LiveDevice:
         if not (math.isfinite(rate_hz) and rate_hz > 0):
             raise ValueError(f"rate_hz must be a positive number, got {rate_hz}")
         self.rate_hz: float | None = rate_hz
+        self.channels: frozenset[str] | None = None  # a device declares none: every estimator may run
         self._fill = rate_hz * headroom
         self._capacity = max(1.0, self._fill * burst_s)
         self._tokens = self._capacity

@@ -2,8 +2,10 @@
 
 Reads the input with full validation (:mod:`sessions.formats.replay_io`), derives missing angular velocities
 from the angles (``numpy.gradient`` in time), high-passes the raw heel positions over the whole trial
-(seed 000 II-B, discretised at the median sample period), runs :class:`GaitStatePipeline` sample by
-sample exactly as a live device would, and writes the output atomically.
+(seed 000 II-B, discretised at the median sample period), runs :class:`GaitStatePipeline` over the
+whole trial in one compiled call (:meth:`~GaitStatePipeline.run`, the same outputs as stepping it sample
+by sample as a live device does; ``batch=False`` steps it, for comparison) and writes the output
+atomically.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from estimators.basis import Array
 from estimators.highpass import HighPassFilter
 from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
 from sessions import schema
-from sessions.formats.replay_io import ReplayInput, read_replay_csv, write_replay_output
+from sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv
 
 _VELOCITY_OF = {"foot_vel_dps": "foot_angle_deg", "shank_vel_dps": "shank_angle_deg"}
 
@@ -88,38 +90,43 @@ def measurements(data: ReplayInput) -> Array:
     return z
 
 
-def run(data: ReplayInput, model: TrainedModel, config: PipelineConfig) -> tuple[dict[str, Array], int]:
-    """Run the pipeline over a whole trial; returns the output columns and the backup's reset count."""
-    z = measurements(data)
-    dt = float(np.median(np.diff(data.time_s)))
-    pipe = GaitStatePipeline(model, config, sample_period=dt)
-    n = data.time_s.size
-    out = {k: np.empty(n) for k in schema.REPLAY_OUTPUT}
-    out["time_s"][:] = data.time_s
-    hs_in = data.heel_strike
-    resets = 0
-    for k in range(n):
-        hs = None if hs_in is None else bool(hs_in[k])
-        e = pipe.step(float(data.time_s[k]), z[k], hs, heel_filtered=True)
-        out["phase"][k] = e.phase
-        out["phase_rate"][k] = e.phase_rate
-        out["stride_length_m"][k] = e.stride_length_m
-        out["incline_deg"][k] = e.incline_deg
-        out["torque_Nm"][k] = e.torque_Nm
-        out["heel_strike"][k] = e.heel_strike
-        out["tbe_phase"][k] = e.tbe_phase
-        resets += e.backup_reset
-    return out, resets
+#: Samples per part of a replay: the output of one part is formatted while the next is estimated.
+PART = 8192
+
+
+def run(
+    data: ReplayInput, model: TrainedModel, config: PipelineConfig, batch: bool = True
+) -> tuple[dict[str, Array], int]:
+    """Run the pipeline over a whole trial; returns the output columns and the backup's reset count.
+
+    ``batch`` runs it in one compiled call; False calls :meth:`GaitStatePipeline.step` per sample (the
+    same numbers, several times slower: for benchmarks and tests).
+    """
+    pipe, z, out = _start(data, model, config)
+    return out, _estimate(pipe, data, z, out, 0, data.time_s.size, batch)
 
 
 def replay_file(
-    input_path: str | Path, output_path: str | Path, model: TrainedModel, config: PipelineConfig
+    input_path: str | Path,
+    output_path: str | Path,
+    model: TrainedModel,
+    config: PipelineConfig,
+    batch: bool = True,
 ) -> ReplaySummary:
-    """Replay ``input_path`` into ``output_path``; nothing is written if the input is invalid."""
+    """Replay ``input_path`` into ``output_path``; nothing is written if the input is invalid.
+
+    ``batch``: see :func:`run`. The output is written in parts of :data:`PART` samples, each formatted
+    while the next is estimated."""
     start = time.perf_counter()
     data = read_replay_csv(input_path)
-    out, resets = run(data, model, config)
-    write_replay_output(output_path, out)
+    pipe, z, out = _start(data, model, config)
+    n = data.time_s.size
+    resets = 0
+    with ReplayOutput(output_path) as output:
+        for a in range(0, n, PART):
+            b = min(a + PART, n)
+            resets += _estimate(pipe, data, z, out, a, b, batch)
+            output.add({k: v[a:b] for k, v in out.items()})
     wall = time.perf_counter() - start
     return ReplaySummary(
         samples=data.time_s.size,
@@ -134,3 +141,40 @@ def replay_file(
         channels=tuple(sorted(data.signals)),
         wall_s=wall,
     )
+
+
+def _start(
+    data: ReplayInput, model: TrainedModel, config: PipelineConfig
+) -> tuple[GaitStatePipeline, Array, dict[str, Array]]:
+    """The pipeline for a trial (heel filter at its median sample period), its measurements and the
+    output columns to fill (``time_s`` filled)."""
+    z = measurements(data)
+    pipe = GaitStatePipeline(model, config, sample_period=float(np.median(np.diff(data.time_s))))
+    out = {k: np.empty(data.time_s.size) for k in schema.REPLAY_OUTPUT}
+    out["time_s"][:] = data.time_s
+    return pipe, z, out
+
+
+def _estimate(
+    pipe: GaitStatePipeline, data: ReplayInput, z: Array, out: dict[str, Array], a: int, b: int, batch: bool
+) -> int:
+    """Samples ``a`` to ``b`` through the pipeline into ``out``; returns the backup's resets among them."""
+    hs_in = data.heel_strike
+    if batch:
+        est = pipe.run(data.time_s[a:b], z[a:b], None if hs_in is None else hs_in[a:b], heel_filtered=True)
+        for column in schema.REPLAY_OUTPUT[1:]:
+            out[column][a:b] = est[column]
+        return int(est["backup_reset"].sum())
+    resets = 0
+    for k in range(a, b):
+        hs = None if hs_in is None else bool(hs_in[k])
+        e = pipe.step(float(data.time_s[k]), z[k], hs, heel_filtered=True)
+        out["phase"][k] = e.phase
+        out["phase_rate"][k] = e.phase_rate
+        out["stride_length_m"][k] = e.stride_length_m
+        out["incline_deg"][k] = e.incline_deg
+        out["torque_Nm"][k] = e.torque_Nm
+        out["heel_strike"][k] = e.heel_strike
+        out["tbe_phase"][k] = e.tbe_phase
+        resets += e.backup_reset
+    return resets

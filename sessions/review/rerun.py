@@ -8,6 +8,13 @@ Two modes (:class:`~sessions.schema.RerunRequest`):
   round-off: the baseline ("what ran") a clinician compares a what-if with.
 * **what if** (``settings`` given): those settings, model included, held constant over the whole trial.
 
+Which estimators (:mod:`sessions.registry`): ``estimators`` when given (any subset of the registered ones
+whose channels the trial has), else the trial's recorded stack (``ESTIMATORS_KEY`` in its metadata; a
+recording made before stacks had one ran the phase EKF and its timing-based estimate), else every
+estimator the trial's channels allow. Each one's outputs come back as ``<name>.<output>`` columns beside
+the gait state's, so the review overlays them. The primary is the settings' when the subset has it,
+else its first estimator with a phase; a recorded switch to one the subset lacks is not applied.
+
 The estimator is built as the live one was (:class:`~sessions.live.runtime.SessionRuntime`): the model named
 in the settings, the subject's leg length and mass, the sample period in the recording's metadata record
 (:data:`~sessions.formats.recording.SAMPLE_PERIOD_KEY`) and the recording's session clock, so the states come
@@ -24,9 +31,10 @@ filter that had been running, so its first strides can differ from what ran unti
 
 from __future__ import annotations
 
+import itertools
 import math
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -36,13 +44,19 @@ from mcap.reader import make_reader
 from estimators.pipeline import TrainedModel
 from sessions.errors import DataFormatError
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
-from sessions.formats.mcap_io import SeriesBuilder, count_messages, read_messages, series_window
-from sessions.formats.recording import METADATA_NAME, SAMPLE_PERIOD_KEY
+from sessions.formats.mcap_io import SeriesBuilder, count_messages, iter_sensor_frames, read_messages, series_window
+from sessions.formats.recording import ESTIMATORS_KEY, METADATA_NAME, SAMPLE_PERIOD_KEY
 from sessions.live.runtime import safe_torque
+from sessions.registry import channels_of
 from sessions.schema import SensorFrame, SessionSettings
 
-__all__ = ["recorded_settings", "rerun_series"]
+__all__ = ["recorded_settings", "recorded_stack", "rerun_series"]
 
+#: What ran before the stack was recorded: the phase EKF (with its detector) and the timing-based estimate.
+_BEFORE_STACKS: Final = ("phase_ekf", "tbe")
+
+#: Frames read to learn a trial's channels.
+_PROBE: Final = 200
 _NO_SETTINGS: Final = (
     "the settings in force at the trial's first frame are not recorded (no /settings message before it), "
     "so what ran cannot be reproduced; re-run it with chosen settings ('what if')"
@@ -69,8 +83,10 @@ def rerun_series(
     t0: float | None = None,
     t1: float | None = None,
     max_points: int = 2000,
+    estimators: Sequence[str] | None = None,
 ) -> dict[str, list[Any]]:
-    """Series (as :func:`~sessions.formats.mcap_io.read_series`) of the trial re-estimated.
+    """Series (as :func:`~sessions.formats.mcap_io.read_series`) of the trial re-estimated, and the
+    outputs of each estimator as ``<name>.<output>`` columns (None where it had failed).
 
     Args:
         path: the trial's MCAP file.
@@ -80,16 +96,25 @@ def rerun_series(
             (what if).
         t0, t1: session times (s) of the states returned (None: unbounded).
         max_points: decimation bound, as :func:`~sessions.formats.mcap_io.read_series`.
+        estimators: the estimators to run (None: the recorded stack; see the module docstring).
 
     Raises:
         DataFormatError: a bad file; as recorded, a file without the settings of its first frame, or
-            whose recorded model changes mid-trial.
+            whose recorded model changes mid-trial; an unknown estimator, or one whose channels the
+            trial lacks.
     """
     window = series_window(path, t0, t1)
     if window is None:
         return SeriesBuilder(0, max_points).result()
     lo, hi = window
-    builder = SeriesBuilder(count_messages(path, "/sensor", lo, hi), max_points)
+    n = count_messages(path, "/sensor", lo, hi)
+    builder: SeriesBuilder | None = None
+    names: Sequence[str] | None = estimators
+    if names is None and settings is not None:
+        names = settings.estimators
+    ran = names is None and (names := recorded_stack(path)) is not None
+    # the channels are checked unless the stack is the recorded one (it ran: on a device, whatever came)
+    channels = None if ran else channels_of(f for _, f in itertools.islice(iter_sensor_frames(path), _PROBE))
     current = settings
     estimator: FrameEstimator | None = None
     topics = ["/sensor", "/settings"] if settings is None else ["/sensor"]
@@ -106,7 +131,10 @@ def rerun_series(
                     file=str(path),
                 )
             if estimator is not None and recorded != current:
-                estimator.retune(recorded)
+                try:
+                    estimator.retune(recorded)
+                except ValueError:
+                    pass  # a switch to a primary this re-run does not have: the others apply
             current = recorded
             continue
         frame = _frame(path, log_time, msg)
@@ -117,7 +145,23 @@ def rerun_series(
             origin = _time_origin(path, frame)
             # The frames are on the session clock already (resynchronised live if need be): never again.
             model = models(current.model)
-            estimator = FrameEstimator(model, leg_length, mass_kg, current, period, origin, max_jump_s=math.inf)
+            try:
+                estimator = FrameEstimator(
+                    model,
+                    leg_length,
+                    mass_kg,
+                    current,
+                    period,
+                    origin,
+                    max_jump_s=math.inf,
+                    estimators=names,
+                    channels=channels,
+                )
+            except ValueError as exc:  # unknown estimators, missing channels
+                raise DataFormatError(str(exc), file=str(path)) from exc
+            stack = estimator.stack
+            columns = [f"{name}.{o}" for name, outs in zip(stack.names, stack.outputs, strict=True) for o in outs]
+            builder = SeriesBuilder(n, max_points, columns)
         if not estimator.accepts(frame):
             continue  # reordered or repeated, skipped as live (not in gaitscope's own recordings)
         state = estimator.step(frame, 0)
@@ -125,8 +169,25 @@ def rerun_series(
         if torque != state.torque_Nm:
             state = state.model_copy(update={"torque_Nm": torque, "fault": True})
         if lo is None or log_time >= lo:
-            builder.add(state.model_dump())
-    return builder.result()
+            assert builder is not None
+            row = state.model_dump()
+            last = estimator.last
+            if last is not None:
+                for name, outs, y in zip(estimator.stack.names, estimator.stack.outputs, last.outputs, strict=True):
+                    for i, o in enumerate(outs):
+                        row[f"{name}.{o}"] = None if y is None else float(y[i])
+            builder.add(row)
+    return (builder or SeriesBuilder(0, max_points)).result()
+
+
+def recorded_stack(path: Path) -> tuple[str, ...] | None:
+    """The estimator stack a trial was recorded with (its metadata), ``("phase_ekf", "tbe")`` for a
+    gaitscope recording made before stacks were recorded, None for another tool's log."""
+    meta = _metadata(path)
+    text = meta.get(ESTIMATORS_KEY)
+    if text is not None:
+        return tuple(n for n in text.split(",") if n)
+    return _BEFORE_STACKS if SAMPLE_PERIOD_KEY in meta else None
 
 
 def _settings(path: Path, log_time: int, msg: object) -> SessionSettings:

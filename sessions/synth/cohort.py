@@ -17,7 +17,10 @@ generator. The realism argument, with every source and every modelling choice, i
 
 Output is a LocoHub-style table (column names from :mod:`sessions.schema`), angles in radians, one
 row per sample, ``samples_per_stride`` samples per stride including both ends. Signals are clean;
-:func:`simulate_sensors` adds sensor noise.
+:func:`simulate_sensors` adds sensor noise. For schema version 2 of the sensor frame the table also
+holds the reported contralateral leg (with the subject's between-leg asymmetry), the pelvis, the feet's
+vertical loads, the centre of mass relative to the stance foot and each IMU's acceleration
+(:mod:`sessions.synth.body`); their randomness has its own streams, so the columns above are unchanged.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ import pandas as pd
 from scipy.interpolate import CubicSpline
 
 from sessions import schema as s
+from sessions.synth.body import Kinematics, body_columns
 from sessions.synth.normative import ANKLE, HIP, KNEE, MOMENT, PELVIS, at_speed, curve_spline, normative
 from sessions.synth.sensors import SensorNoise, resample_walk, simulate_sensors
 
@@ -63,6 +67,10 @@ THIGH_GAIN, SHANK_GAIN = (1.1, 0.3), (0.55, 0.15)
 BUMP_KAPPA = 6.0  # width of the heel-strike bump exp(kappa (cos 2 pi p - 1)): ~0.1 cycle
 #: Fractional change of the plantarflexor moment per deg of slope (choice; sign from seed 000 Fig. 6).
 MOMENT_PER_DEG = 0.02
+#: Between-leg asymmetry of the knee and ankle excursions: ranges of the normalised symmetry index over
+#: the gait cycle in 25 healthy adults (PMC8919661): knee -3.0..3.1 %, ankle -12..9.2 % (the hip's,
+#: -1.5..1.1 %, is left out: the contralateral hip column predates the asymmetry and is kept as it was).
+CONTRA_EXCURSION_RANGE = ((-0.030, 0.031), (-0.12, 0.092))
 #: Orendurff et al. 2004: CoM peak-to-peak excursion (m) at 0.7 and 1.6 m/s.
 COM_SPEEDS, COM_VERTICAL, COM_LATERAL = (0.7, 1.6), (0.027, 0.048), (0.070, 0.039)
 #: Forward-speed fluctuation as a share of the ideal pendulum's g dz / v (choice).
@@ -106,6 +114,9 @@ class SubjectParams:
         stride_amplitude_cv: stride-to-stride sd of the joint-excursion and moment scales.
         stride_offset_deg: stride-to-stride sd of segment-angle offsets.
         stride_timing_sd: stride-to-stride sd of the timing warp (cycle fraction).
+        contra_knee_excursion, contra_ankle_excursion: between-leg asymmetry, the contralateral knee's
+            and ankle's excursion about their cycle means relative to the ipsilateral ones (0.02 = 2 %
+            larger); drawn from their own stream (``docs/cohort.md``, schema version 2).
     """
 
     code: str
@@ -133,6 +144,8 @@ class SubjectParams:
     stride_amplitude_cv: float = 0.03
     stride_offset_deg: float = 0.5
     stride_timing_sd: float = 0.01
+    contra_knee_excursion: float = 0.0
+    contra_ankle_excursion: float = 0.0
 
     @property
     def metadata(self) -> str:
@@ -155,6 +168,9 @@ def make_subjects(spec: CohortSpec) -> list[SubjectParams]:
         leg = float(np.clip(rng.normal(0.88, 0.045), 0.78, 0.98))
         bmi = float(np.clip(rng.normal(24.0, 2.5), 18.0, 32.0))
         z = rng.standard_normal(13)
+        # Parameters added with schema version 2 come from their own stream, so the ones above keep theirs.
+        extra = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(i, 2)))
+        knee_asym, ankle_asym = (float(extra.uniform(lo, hi)) for lo, hi in CONTRA_EXCURSION_RANGE)
         h = leg / HIP_HEIGHT_FRAC
         out.append(
             SubjectParams(
@@ -179,6 +195,8 @@ def make_subjects(spec: CohortSpec) -> list[SubjectParams]:
                 foot_offset_deg=float(1.0 * z[8]),
                 hip_posture_deg=float(POSTURE_SD_DEG[0] * z[11]),
                 knee_posture_deg=float(POSTURE_SD_DEG[1] * z[12]),
+                contra_knee_excursion=knee_asym,
+                contra_ankle_excursion=ankle_asym,
             )
         )
     return out
@@ -388,6 +406,16 @@ def _walk_columns(
     thigh_c, shank_c, foot_c = leg(
         ch(C_HIP_D_C), ch(C_KNEE_D_C), ch(C_ANKLE_D_C), ch(C_PELVIS_C), ch(C_TH_INC_C), ch(C_SH_INC_C)
     )
+    # The contralateral leg as reported: the subject's between-leg asymmetry on knee and ankle excursions
+    # (thigh_c, shank_c, foot_c stay symmetric: the ground contact of the existing heel signals uses them).
+    thigh_ca, shank_ca, foot_ca = leg(
+        ch(C_HIP_D_C),
+        (1 + subject.contra_knee_excursion) * ch(C_KNEE_D_C),
+        (1 + subject.contra_ankle_excursion) * ch(C_ANKLE_D_C),
+        ch(C_PELVIS_C),
+        ch(C_TH_INC_C),
+        ch(C_SH_INC_C),
+    )
     thigh = thigh_t + subject.thigh_offset_deg  # reported angles carry the subject's constant bias
     shank = shank_t + subject.shank_offset_deg
     foot = foot_t + subject.foot_offset_deg
@@ -411,7 +439,8 @@ def _walk_columns(
     points = ((heel_x, heel_z), (fore_x, fore_z), points_c[:2], points_c[2:])
     height = np.max([x * slope - z for x, z in points], axis=0)
     heel_x = com_x + heel_x
-    heel_z = heel_z + height - height.mean()
+    hip_z = height - height.mean()
+    heel_z = heel_z + hip_z
 
     hs, to, hs_c = np.zeros((n, n_per)), np.zeros((n, n_per)), np.zeros((n, n_per))
     hs[:, 0] = hs[:, -1] = 1.0  # both copies of the shared boundary instant carry the event
@@ -420,6 +449,17 @@ def _walk_columns(
     contra = np.array([conds[b].contra for b in block])
     hs_c[rows, np.argmin(np.abs(p[None, :] - contra[:, None]), axis=1)] = 1.0
     step_len = np.concatenate([[stride_len[0] * (1 - contra[0])], stride_len[:-1] * (1 - contra[:-1])])
+    body = body_columns(
+        Kinematics(
+            t=t, p=p, q=q, qc=qc, foot_off=np.array([conds[b].foot_off for b in block]), contra=contra,
+            period=period, speed=speed, incline=incline, thigh=thigh_t, shank=shank_t, foot=foot_t,
+            thigh_c=thigh_ca, shank_c=shank_ca, foot_c=foot_ca, pelvis=ch(C_PELVIS), hip_x=com_x, hip_z=hip_z,
+            heel_x=heel_x, heel_z=heel_z, com_x=com_x, com_y=com_y, com_z=com_z, z_amp=ch(C_Z_AMP),
+            thigh_length=subject.thigh_length_m, shank_length=subject.shank_length_m,
+            heel_back=subject.heel_back_m, ankle_height=subject.ankle_height_m, height=subject.height_m,
+            mass=subject.mass_kg,
+        )
+    )  # fmt: skip
 
     def per_sample(x: np.ndarray) -> np.ndarray:
         return np.repeat(x, n_per)
@@ -461,6 +501,14 @@ def _walk_columns(
         s.STRIDE_LENGTH: per_sample(stride_len),
         s.INCLINE: per_sample(incline),
         s.SPEED: per_sample(speed),
+        # schema version 2 (docs/cohort.md): the other leg as reported, pelvis, feet, centre of mass, IMUs
+        s.THIGH_ANGLE_CONTRA: rad(thigh_ca + subject.thigh_offset_deg),
+        s.SHANK_ANGLE_CONTRA: rad(shank_ca + subject.shank_offset_deg),
+        s.FOOT_ANGLE_CONTRA: rad(foot_ca + subject.foot_offset_deg),
+        s.KNEE_ANGLE_CONTRA: rad((thigh_ca + subject.thigh_offset_deg) - (shank_ca + subject.shank_offset_deg)),
+        s.ANKLE_ANGLE_CONTRA: rad((foot_ca + subject.foot_offset_deg) - (shank_ca + subject.shank_offset_deg)),
+        s.PELVIS_ANGLE: rad(ch(C_PELVIS)),
+        **body,
     }
     return {
         k: (v if v.dtype == object or v.dtype == np.int64 else v.astype(np.float64).reshape(-1))

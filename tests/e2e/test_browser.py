@@ -20,7 +20,7 @@ from urllib.parse import urlsplit
 
 import pytest
 
-from server.launch import LOOPBACK, free_port, start_server
+from server.bench.launch import LOOPBACK, free_port, start_server
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 
@@ -261,6 +261,18 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(setting_row).to_have_count(2)
     expect(setting_row.first.get_by_test_id("event-change")).to_have_text("max_torque_Nm: 30.0 → 35.0")
     expect(setting_row.first.get_by_test_id("event-actor")).to_have_text("by experimenter")
+
+    # --- every estimator's phase overlaid, the primary named; switching it is a logged setting -----------
+    expect(page.get_by_test_id("health-primary")).to_have_text("phase_ekf")
+    expect(page.get_by_test_id("health-failed-estimators")).to_have_text("none")
+    for label in ("phase_ekf (primary: drives the torque)", "tbe"):
+        expect(page.get_by_test_id("plot-phase")).to_contain_text(label)
+    page.get_by_test_id("primary-select").select_option("tbe")
+    page.get_by_test_id("primary-apply").click()
+    expect(page.get_by_test_id("health-primary")).to_have_text("tbe", timeout=5_000)
+    expect(page.get_by_test_id("plot-phase")).to_contain_text("tbe (primary: drives the torque)")
+    expect(setting_row).to_have_count(3)
+    expect(setting_row.first.get_by_test_id("event-change")).to_have_text("primary: phase_ekf → tbe")
 
     # --- an annotation ---------------------------------------------------------------------------------
     page.get_by_test_id("annotation-add").click()

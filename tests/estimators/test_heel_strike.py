@@ -43,7 +43,7 @@ def test_detector_finds_each_heel_strike_once() -> None:
     t = np.arange(0, 11.05, 0.01)
     angle, vel = _foot(t)
     det = HeelStrikeDetector()
-    found = [tk for tk, a, v in zip(t, angle, vel, strict=True) if det.step(tk, 0.01, a, v)]
+    found = [tk for tk, a, v in zip(t, angle, vel, strict=True) if det.detect(tk, 0.01, a, v)]
     assert len(found) == 10
     assert np.abs(np.array(found) - 1.1 * np.arange(1, 11)).max() < 0.03
 
@@ -52,7 +52,7 @@ def test_detector_respects_angle_bound_and_refractory_period() -> None:
     det = HeelStrikeDetector(DetectorConfig(max_foot_angle_deg=10.0))
     t = np.arange(0, 5, 0.01)
     angle, vel = _foot(t)
-    assert not any(det.step(tk, 0.01, a, v) for tk, a, v in zip(t, angle, vel, strict=True))
+    assert not any(det.detect(tk, 0.01, a, v) for tk, a, v in zip(t, angle, vel, strict=True))
     det = HeelStrikeDetector(DetectorConfig(refractory_s=2.0))
-    found = [tk for tk, a, v in zip(t, angle, vel, strict=True) if det.step(tk, 0.01, a, v)]
+    found = [tk for tk, a, v in zip(t, angle, vel, strict=True) if det.detect(tk, 0.01, a, v)]
     assert np.all(np.diff(found) > 2.0)

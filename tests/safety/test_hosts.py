@@ -29,9 +29,12 @@ from websockets.typing import Origin, Subprotocol
 
 import server.leg_view
 from server.app import create_app
-from server.launch import LOOPBACK, free_port, start_server
+from server.bench.launch import LOOPBACK, free_port, start_server
 from server.leg_view import LegView
 from server.settings import Settings
+
+#: A real server over real sockets: seconds per test, and timing depends on the machine's load.
+pytestmark = pytest.mark.slow
 
 EVIL = "evil.example"
 NOT_ALLOWED = f"host '{EVIL}' is not allowed (add it to GAITSCOPE_ALLOWED_HOSTS to serve it)"

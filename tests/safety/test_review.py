@@ -18,7 +18,7 @@ from mcap.reader import make_reader
 
 from sessions import schema
 from sessions.estimation import DEFAULT_PERIOD, estimate
-from sessions.formats.mcap_io import SERIES_COLUMNS
+from sessions.formats.mcap_io import SERIES_COLUMNS, read_messages
 from sessions.formats.recording import METADATA_NAME, SAMPLE_PERIOD_KEY, Recorder
 from sessions.live.runtime import SessionRuntime
 from sessions.live.sources import LiveDevice, frames_from_table
@@ -239,3 +239,24 @@ def test_bounds_that_are_not_finite_times_are_422(client: TestClient) -> None:
             [error] = r.json()["detail"]
             assert error["loc"] in (["query", "t0"], ["query", "t1"])
             assert error["msg"] in ("Input should be a finite number", f"Input should be less than or equal to {10**9}")
+
+
+def test_default_rerun_reproduces_every_estimators_recorded_outputs(client: TestClient) -> None:
+    """Each estimator of the stack is recorded on ``/estimators/<name>``; the default re-run gives them
+    back exactly (``<name>.<output>`` columns), and any subset can be re-run and overlaid."""
+    tid, _ = _driven_trial(client)
+    path = client.app.state.ctx.settings.data_dir / client.get(f"/api/trials/{tid}").json()["path"]  # type: ignore[attr-defined]
+    again = _rerun(client, tid)
+    stack = ("hs_detector", "phase_ekf", "tbe")  # the default stack (hs_backup is opt-in)
+    for name in stack:
+        recorded = [m for _, _, m in read_messages(path, [f"/estimators/{name}"])]
+        assert len(recorded) == len(again["t"]) > 1000
+        for output in recorded[0]["values"]:
+            assert again[f"{name}.{output}"] == [m["values"][output] for m in recorded], (name, output)
+    assert again["tbe_phase"] == again["tbe.phase"] and again["phase"] == again["phase_ekf.phase"]
+    # A subset: the timing-based estimate alone drives the torque of this re-run.
+    tbe = _rerun(client, tid, {"estimators": ["tbe"]})
+    assert tbe["phase"] == tbe["tbe.phase"] and not any(k.startswith("phase_ekf.") for k in tbe)
+    assert tbe["t"] == again["t"] and max(tbe["torque_Nm"]) > 5.0
+    r = client.post(f"/api/trials/{tid}/rerun", json={"estimators": ["nope"]})
+    assert r.status_code == 422 and "unknown estimator nope" in r.json()["detail"]

@@ -1,7 +1,8 @@
 """Property: whatever the sensors send, the torque is a finite number within [0, max torque].
 
 Drives the estimator stack (the pipeline replay runs, and the frame estimator the live path and
-re-runs use) with arbitrary floats: NaN, infinities, huge and denormal values, arbitrary time steps.
+re-runs use) with arbitrary floats: NaN, infinities, huge and denormal values, arbitrary time steps;
+and a session's stack with estimators that break (raise, return NaN, diverge), the primary among them.
 The live websocket and the replay command are driven the same way in ``test_live_faults.py`` and
 ``test_replay_faults.py``.
 """
@@ -18,6 +19,7 @@ from hypothesis import strategies as st
 from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
 from sessions.estimation import FrameEstimator, FrameRefused
 from sessions.schema import SENSOR_LIMITS, SensorFrame, SessionSettings
+from tests.estimator_doubles import Scripted
 
 ANY_FLOAT = st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True)
 CHANNEL = st.one_of(ANY_FLOAT, st.floats(-200.0, 200.0), st.just(math.nan))
@@ -61,10 +63,7 @@ def test_pipeline_torque_is_finite_and_bounded(
     frames=st.lists(
         st.fixed_dictionaries(
             {"t": st.one_of(st.floats(-1e12, 1e12, allow_subnormal=True), st.floats(0.0, 5.0))},
-            optional={
-                name: CHANNEL
-                for name in SENSOR_LIMITS
-            },
+            optional={name: CHANNEL for name in SENSOR_LIMITS},
         ),
         min_size=1,
         max_size=40,
@@ -82,6 +81,61 @@ def test_frame_estimator_torque_is_finite_and_bounded(small_model: TrainedModel,
         assert _finite_state([state.t, state.phase, state.phase_rate, state.stride_length_m, state.incline_deg])
         assert state.t >= 0.0 and math.isfinite(state.foot_pred_deg)
         state.model_dump_json()  # serialisable, no NaN for JSON to turn into null
+
+
+FRAMES = st.lists(
+    st.fixed_dictionaries(
+        {"t": st.one_of(st.floats(-1e12, 1e12, allow_subnormal=True), st.floats(0.0, 5.0))},
+        optional={name: CHANNEL for name in ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps")}
+        | {"heel_strike": st.booleans()},
+    ),
+    min_size=1,
+    max_size=40,
+)
+BREAKS = st.lists(
+    st.tuples(st.sampled_from(["raise_after", "nan_after", "diverge_after"]), st.integers(0, 40)), max_size=3
+)
+
+
+@SAFE
+@given(
+    frames=FRAMES,
+    breaks=BREAKS,
+    primary=st.sampled_from(["phase_ekf", "tbe", "b0", "b1"]),
+    switch=st.tuples(st.integers(0, 40), st.sampled_from(["phase_ekf", "tbe", "hs_backup", "b0", "b1", "b2"])),
+    blend_s=st.sampled_from([0.0, 0.005, 0.5]),
+)
+def test_a_stack_with_broken_estimators_keeps_the_torque_finite_and_bounded(
+    small_model: TrainedModel,
+    frames: list[dict],
+    breaks: list[tuple[str, int]],
+    primary: str,
+    switch: tuple[int, str],
+    blend_s: float,
+) -> None:
+    """Estimators that raise, return NaN or diverge (the primary among them), arbitrary frames and
+    primary switches: the torque stays a finite number within the bound, the gait state finite."""
+    extra = [Scripted(f"b{i}", shift=0.3 * i, **{how: n}) for i, (how, n) in enumerate(breaks)]
+    names = {"phase_ekf", "tbe", "hs_detector", "hs_backup"} | {e.name for e in extra}
+    settings = SessionSettings(
+        torque_gain=3.0, max_torque_Nm=MAX_TORQUE, primary=primary if primary in names else "phase_ekf"
+    )
+    est = FrameEstimator(small_model, 0.9, 75.0, settings, 0.005, extra=extra, blend_s=blend_s)
+    for k, fields in enumerate(frames):
+        if k == switch[0]:
+            try:
+                est.retune(settings.model_copy(update={"primary": switch[1]}))
+            except ValueError:
+                pass  # not in the stack, or failed: refused, nothing changes
+        frame = SensorFrame.model_validate({"seq": k, **fields})
+        try:
+            state = est.step(frame, 0)
+        except FrameRefused:
+            continue
+        assert 0.0 <= state.torque_Nm <= MAX_TORQUE
+        assert _finite_state([state.phase, state.phase_rate, state.stride_length_m, state.incline_deg, state.tbe_phase])
+        state.model_dump_json()
+    assert set(est.stack.failed) <= {e.name for e in extra}  # only the broken ones ever fail
 
 
 def test_a_huge_velocity_does_not_poison_the_filter(small_model: TrainedModel) -> None:

@@ -1,4 +1,4 @@
-"""Uploads (``server/uploads.py``, ``sessions/imports.py``) against the real app and a real SQLite file.
+"""Uploads (``server/routes/uploads.py``, ``sessions/imports.py``) against the real app and a real SQLite file.
 
 What is checked: the format is decided by the file's name and content; every bad file is refused with
 422 and a reason that names the user's file and no server path; nothing is stored by a refused or

@@ -76,11 +76,42 @@ def test_bad_input_exits_2_naming_the_place_and_leaves_no_output(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv"]
 
 
-def test_bad_settings_exit_2(tmp_path: Path, trial_csv, capsys) -> None:
+@pytest.mark.parametrize(
+    ("flag", "value", "message"),
+    [
+        ("--max-torque", "900", "max torque 900.0 N m is outside 0..80 N m"),
+        ("--max-torque", "80.5", "max torque 80.5 N m is outside 0..80 N m"),
+        ("--torque-gain", "nan", "torque gain nan is outside 0..3"),
+        ("--leg-length", "1.4", "leg length 1.4 m is outside 0.5..1.3 m"),
+        ("--mass", "300", "mass 300.0 kg is outside 20..250 kg"),
+    ],
+)
+def test_bad_settings_exit_2(tmp_path: Path, trial_csv, capsys, flag: str, value: str, message: str) -> None:
     src, _ = trial_csv
-    assert main(["replay", str(src), "--out", str(tmp_path / "o.csv"), "--max-torque", "900"]) == 2
-    assert "max torque 900.0 N m is outside 0..200" in capsys.readouterr().err
+    assert main(["replay", str(src), "--out", str(tmp_path / "o.csv"), flag, value]) == 2
+    err = capsys.readouterr().err
+    assert message in err and f"file {flag}" in err
     assert not (tmp_path / "o.csv").exists()
+
+
+def test_pipeline_bounds_are_the_dashboards(capsys) -> None:
+    """The replay options are bounded as the dashboard's subjects and settings are (one statement of each)."""
+    with pytest.raises(SystemExit):
+        main(["replay", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    lo, hi, _ = schema.SETTING_LIMITS["max_torque_Nm"]
+    assert f"torque bound, {lo:g}..{hi:g} N m" in text
+    lo, hi = schema.field_bounds(schema.SubjectCreate, "leg_length_m")
+    assert f"leg length, {lo:g}..{hi:g} m" in text
+
+
+def test_loadbench_and_wire_commands_are_there(capsys) -> None:
+    for command in ("loadbench", "wire"):
+        with pytest.raises(SystemExit) as done:
+            main([command, "--help"])
+        assert done.value.code == 0
+    out = capsys.readouterr().out
+    assert "--soak" in out and "--out" in out
 
 
 def test_train_from_a_locohub_file(tmp_path: Path, small_cohort: pd.DataFrame) -> None:

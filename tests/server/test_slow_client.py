@@ -14,9 +14,13 @@ import time
 import urllib.request
 from pathlib import Path
 
+import pytest
 import websockets
 
-from server.launch import start_server
+from server.bench.launch import start_server
+
+#: A real server over real sockets: seconds per test, and timing depends on the machine's load.
+pytestmark = pytest.mark.slow
 
 
 def _post(url: str, body: dict) -> dict:

@@ -7,7 +7,6 @@ import json
 import pytest
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from server.api import _WIRE
 from sessions import schema
 
 EXAMPLES: dict[type[BaseModel], dict] = {
@@ -37,7 +36,7 @@ def test_every_mcap_channel_class_has_a_schema_and_every_server_message_is_liste
     assert kinds == {"hello", "states", "health", "event", "settings"}
     msg = adapter.validate_python(json.loads('{"type": "torque", "seq": 1, "t": 0.5, "torque_Nm": 2.0}'))
     assert isinstance(msg, schema.TorqueCommand)
-    assert set(_WIRE) >= {cls for _, cls in schema.MCAP_CHANNELS.values()}
+    assert set(schema.WIRE) >= {cls for _, cls in schema.MCAP_CHANNELS.values()}
 
 
 def test_unknown_fields_and_bad_values_are_refused() -> None:
@@ -47,3 +46,71 @@ def test_unknown_fields_and_bad_values_are_refused() -> None:
         schema.SettingsChange.model_validate({"max_torque_Nm": 81})
     with pytest.raises(ValidationError, match="string_pattern_mismatch"):
         schema.SubjectCreate.model_validate({"code": "../x", "leg_length_m": 0.9, "mass_kg": 70})
+
+
+# --- the sensor frame, version 2 -----------------------------------------------------------------
+
+#: A frame as version 1 devices sent it and version 1 recordings hold it: no ``version`` field.
+V1_FRAME = (
+    '{"type": "frame", "seq": 7, "t": 12.5, "foot_angle_deg": 12.25, "foot_vel_dps": -103.5, "shank_angle_deg": 5.5,'
+    ' "shank_vel_dps": 87.0, "heel_forward_m": 0.125, "heel_up_m": -0.0625, "thigh_angle_deg": 20.0,'
+    ' "heel_strike": false, "sent_ns": 1712345678901234567}'
+)
+FRAME_META = {"type", "version", "seq", "t", "sent_ns"}
+
+
+def test_a_version_1_frame_reads_as_version_2_with_the_same_values() -> None:
+    frame = schema.SensorFrame.model_validate_json(V1_FRAME)
+    assert frame.version == 2 == schema.SENSOR_FRAME_VERSION
+    assert frame.model_dump(exclude_none=True, exclude={"version"}) == json.loads(V1_FRAME)
+    declared = schema.SensorFrame.model_validate_json(V1_FRAME.replace('"seq"', '"version": 1, "seq"'))
+    assert declared == frame  # a frame that says it is version 1 is upgraded on read
+    assert json.loads(frame.model_dump_json())["version"] == 2  # and written back as version 2
+    with pytest.raises(ValidationError, match="literal_error"):
+        schema.SensorFrame.model_validate_json(V1_FRAME.replace('"seq"', '"version": 3, "seq"'))
+
+
+def test_every_channel_is_an_optional_field_with_its_unit_and_bounds() -> None:
+    fields = schema.SensorFrame.model_fields
+    assert set(schema.CHANNELS) == set(fields) - FRAME_META
+    for name, channel in schema.CHANNELS.items():
+        assert fields[name].default is None and fields[name].description
+        flag = channel.unit == "bool"
+        assert (fields[name].annotation == (bool | None)) is flag, name
+        assert (name in schema.SENSOR_LIMITS) is not flag, name
+        if not flag:
+            assert channel.unit in (fields[name].description or ""), name
+    assert {c.group for c in schema.CHANNELS.values()} == {
+        "segment", "heel", "joint", "imu", "foot", "event", "device", "treadmill", "step", "com"
+    }  # fmt: skip
+    assert sum(c.group == "imu" for c in schema.CHANNELS.values()) == 6 * len(schema.IMU_SEGMENTS)
+    for name in ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps", "heel_forward_m", "heel_up_m"):
+        assert name in schema.REPLAY_SIGNALS and name in schema.CHANNELS  # version 1 names kept
+    limits = schema.SENSOR_LIMITS
+    assert limits["foot_force_N"] == (0.0, 5000.0) and limits["imu_pelvis_accel_z_m_s2"] == (-157.0, 157.0)
+    assert limits["imu_foot_contra_gyro_x_dps"] == (-4000.0, 4000.0) and limits["belt_speed_m_s"] == (0.0, 5.0)
+    assert limits["com_forward_m"] == (-3.0, 3.0) and limits["thigh_angle_deg"] == (-180.0, 180.0)
+
+
+@pytest.mark.parametrize("extra", [0, 40], ids=["sparse", "dense"])
+def test_implausible_values_of_any_channel_are_treated_as_missing(extra: int) -> None:
+    bad = {"foot_force_N": -1.0, "imu_thigh_accel_y_m_s2": 200.0, "motor_current_A": float("nan")}
+    filler = {n: 0.5 for n in [n for n in schema.SENSOR_LIMITS if n not in bad][:extra]}
+    frame = schema.SensorFrame.model_validate({"seq": 0, "t": 0.0, **filler, **bad, "foot_contact": True})
+    clean, n = frame.plausible()
+    assert n == 3 and all(getattr(clean, k) is None for k in bad)
+    assert clean.foot_contact is True and all(getattr(clean, k) == 0.5 for k in filler)
+    edge = schema.SensorFrame(seq=0, t=0.0, foot_force_N=0.0, imu_pelvis_gyro_z_dps=-4000.0)
+    assert edge.plausible() == (edge, 0)  # the bounds themselves are plausible
+
+
+def test_missing_channels_names_what_a_frame_or_a_source_lacks_in_the_order_asked() -> None:
+    frame = schema.SensorFrame.model_validate_json(V1_FRAME)
+    need = ["hip_angle_deg", "thigh_angle_deg", "foot_contact", "heel_strike", "com_forward_m"]
+    assert schema.missing_channels(need, frame) == ["hip_angle_deg", "foot_contact", "com_forward_m"]
+    assert schema.missing_channels(need, ["com_forward_m", "hip_angle_deg"]) == [
+        "thigh_angle_deg", "foot_contact", "heel_strike"
+    ]  # fmt: skip
+    assert schema.missing_channels([], frame) == [] and schema.missing_channels(need, schema.CHANNELS) == []
+    with pytest.raises(KeyError, match="hip_angel_deg"):
+        schema.missing_channels(["hip_angel_deg"], schema.CHANNELS)

@@ -13,13 +13,16 @@ import pytest
 from fastapi.testclient import TestClient
 
 from server.app import create_app
-from server.launch import start_server
+from server.bench.launch import start_server
 from server.settings import Settings
 from sessions import schema
 from sessions.errors import DataFormatError
 from sessions.formats.mcap_io import check_mcap, read_messages
 from sessions.formats.recording import Recorder
 from sessions.store import Store
+
+#: A real server over real sockets: seconds per test, and timing depends on the machine's load.
+pytestmark = pytest.mark.slow
 
 #: Trial statuses that nothing changes any more (``recording`` is the only other one).
 FINAL = {"finished", "recovered", "uploaded", "damaged"}

@@ -35,8 +35,23 @@ SIGNALS = (
     *s.COM_POSITION,
     *s.COM_VELOCITY,
 )
+#: Clean columns added with schema version 2 of the sensor frame (tests/sessions/synth/test_body.py).
+V2_COLUMNS = (
+    s.THIGH_ANGLE_CONTRA,
+    s.SHANK_ANGLE_CONTRA,
+    s.FOOT_ANGLE_CONTRA,
+    s.KNEE_ANGLE_CONTRA,
+    s.ANKLE_ANGLE_CONTRA,
+    s.PELVIS_ANGLE,
+    s.VERTICAL_GRF,
+    s.VERTICAL_GRF_CONTRA,
+    *s.COM_STANCE_POSITION,
+    *(c for pair in s.IMU_POINT_ACCELERATION.values() for c in pair),
+    s.STEP_LENGTH_CONTRA,
+)
 FLOATS = (
     *SIGNALS,
+    *V2_COLUMNS,
     s.PHASE_IPSI,
     s.TIME_S,
     s.HEEL_STRIKE,
@@ -220,7 +235,7 @@ def test_heel_moves_with_the_belt_in_foot_flat() -> None:
 def test_simulate_sensors_drops_duplicates_and_keeps_truth(cohort: pd.DataFrame) -> None:
     walk = cohort[(cohort[s.SUBJECT] == "VC02") & (cohort[s.TASK_ID] == "s0.8_i10.0")]
     out = simulate_sensors(walk, SensorNoise(), np.random.default_rng(0))
-    assert list(out.columns) == [
+    assert list(out.columns[:14]) == [
         s.REPLAY_TIME,
         *s.REPLAY_SIGNALS,
         s.REPLAY_HEEL_STRIKE,
@@ -231,6 +246,7 @@ def test_simulate_sensors_drops_duplicates_and_keeps_truth(cohort: pd.DataFrame)
         "gt_speed_m_s",
         "thigh_angle_deg",
     ]
+    assert set(out.columns[14:]) == set(s.CHANNELS) - {*s.REPLAY_SIGNALS, "heel_strike", "thigh_angle_deg"}
     assert len(out) == len(walk) - 4 and np.all(np.diff(out[s.REPLAY_TIME]) > 0)
     assert out[s.REPLAY_HEEL_STRIKE].dtype == np.int64 and out[s.REPLAY_HEEL_STRIKE].sum() == 6
     assert (out.loc[out[s.REPLAY_HEEL_STRIKE] == 1, "gt_phase"].to_numpy()[:-1] == 0.0).all()

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from server.launch import start_server
+from server.bench.launch import start_server
 from sessions.synth.trials import replay_input, sensor_trial
 
 TARGET_P95_MS = 50.0

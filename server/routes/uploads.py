@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Annotated, Final
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response
 
-from server.api import Ctx
+from server.routes.common import Ctx
 from server.settings import Settings
 from sessions import schema
 from sessions.formats.imports import ImportJob, ImportRefused, ImportResult, run_import

@@ -1,4 +1,9 @@
-"""Websockets: live streams to browsers and the live-device ingest. Protocol in ``docs/api.md``."""
+"""Websockets: live streams to browsers and the live-device ingest. Protocol in ``docs/api.md``.
+
+Every message sent is a class of :mod:`sessions.schema` (``BrowserMessage`` to browsers,
+``DeviceMessage`` to devices), serialised by :func:`_dump`, so that ``GET /api/schema`` and the
+browser's ``web/wire.js`` describe each one.
+"""
 
 from __future__ import annotations
 
@@ -29,6 +34,15 @@ NOT_FOUND, POLICY, TRY_AGAIN = 4404, 1008, 1013
 #: A device that sends this many malformed frames in a row is disconnected.
 MAX_BAD_FRAMES = 50
 
+#: What a session stream sends a browser, and what the ingest sends a device.
+BrowserMessage = schema.Hello | schema.StreamBatch | schema.Health | schema.EventMessage | schema.SettingsMessage
+DeviceMessage = schema.TorqueCommand | schema.DeviceNotice
+
+
+def _dump(message: BrowserMessage | DeviceMessage) -> str:
+    """The JSON text of a schema message: the only thing a socket here sends."""
+    return message.model_dump_json()
+
 
 async def _runtime(ws: WebSocket, session_id: int) -> SessionRuntime | None:
     c: AppContext = ws.app.state.ctx
@@ -58,11 +72,8 @@ async def session_stream(
         return
     sub = runtime.subscribe(max_rate_hz)
     try:
-        await ws.send_text(
-            schema.Hello(
-                session=runtime.session, subject=runtime.subject, source_rate_hz=runtime.source.rate_hz
-            ).model_dump_json()
-        )
+        hello = schema.Hello(session=runtime.session, subject=runtime.subject, source_rate_hz=runtime.source.rate_hz)
+        await ws.send_text(_dump(hello))
         tasks = {asyncio.create_task(_pump(ws, runtime, sub, batch_ms / 1000.0)), asyncio.create_task(_drain(ws))}
         _, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
         for task in pending:
@@ -97,9 +108,9 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
     behind_since: float | None = None
     last_dropped = 0
 
-    async def send(text: str) -> None:
+    async def send(message: BrowserMessage) -> None:
         try:
-            await asyncio.wait_for(ws.send_text(text), timeout=limit)
+            await asyncio.wait_for(ws.send_text(_dump(message)), timeout=limit)
         except TimeoutError:
             raise _SlowClient(f"client too slow: a send took over {limit:g} s, {sub.dropped} samples dropped") from None
 
@@ -110,15 +121,11 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
             if batch_s > 0:
                 await asyncio.sleep(batch_s)
             while sub.messages:
-                await send(sub.messages.popleft().model_dump_json())
+                message = sub.messages.popleft()
+                assert isinstance(message, BrowserMessage), f"not a browser message: {type(message).__name__}"
+                await send(message)
             if sub.pending:
-                states = list(sub.pending)
-                sub.pending.clear()
-                await send(
-                    schema.StreamBatch(
-                        session_id=runtime.session.id, states=states, decimation=sub.decimation
-                    ).model_dump_json()
-                )
+                await send(sub.batch(runtime.session.id))  # the states, and every estimator's outputs
             if sub.closed:
                 await ws.close(code=1000, reason=f"session {runtime.session.id} stopped")
                 return
@@ -179,7 +186,7 @@ async def device_ingest(ws: WebSocket, session_id: int) -> None:
                     last_rate_notice = now
                     detail = f"over the declared rate of {source.rate_hz:g} Hz: {over_rate} frames dropped"
                     notice = schema.DeviceNotice(kind="rate", detail=detail, dropped=over_rate)
-                    await ws.send_text(notice.model_dump_json())
+                    await ws.send_text(_dump(notice))
                     over_rate = 0
                 if source.dropped % 32 == 0:
                     await asyncio.sleep(0)  # a flood must not hold the loop
@@ -197,7 +204,7 @@ async def device_ingest(ws: WebSocket, session_id: int) -> None:
                     if isinstance(e, _Binary)
                     else schema.DeviceNotice(kind="invalid", detail=_errors(e))
                 )
-                await ws.send_text(notice.model_dump_json())
+                await ws.send_text(_dump(notice))
                 if bad >= MAX_BAD_FRAMES:
                     await ws.close(code=POLICY, reason=f"{bad} malformed frames in a row")
                     return
@@ -207,16 +214,14 @@ async def device_ingest(ws: WebSocket, session_id: int) -> None:
                 state = runtime.process(frame, recv)
             except FrameRefused as e:
                 runtime.dropped_input += 1
-                await ws.send_text(schema.DeviceNotice(kind="order", detail=str(e), seq=frame.seq).model_dump_json())
+                await ws.send_text(_dump(schema.DeviceNotice(kind="order", detail=str(e), seq=frame.seq)))
                 continue
             except Exception as e:
                 log.exception("session %d: processing a device frame failed", session_id)
                 await runtime.end("failed", f"processing a device frame failed: {e}")
                 await ws.close(code=1011, reason=f"session {session_id} failed"[:120])
                 return
-            await ws.send_text(
-                schema.TorqueCommand(seq=frame.seq, t=state.t, torque_Nm=state.torque_Nm).model_dump_json()
-            )
+            await ws.send_text(_dump(schema.TorqueCommand(seq=frame.seq, t=state.t, torque_Nm=state.torque_Nm)))
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from server.launch import start_server
+from server.bench.launch import start_server
 from sessions.formats.mcap_io import read_messages
 from sessions.synth.trials import replay_input, sensor_trial
 

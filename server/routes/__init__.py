@@ -1,0 +1,25 @@
+"""The HTTP and websocket routes, one module per resource; thin: validation by ``sessions.schema``,
+logic in ``sessions``. See ``docs/api.md``.
+
+``ROUTERS`` in the order the app includes them; ``install_error_handlers`` turns domain errors into
+HTTP statuses (``common.ERROR_STATUS``).
+"""
+
+from fastapi import APIRouter
+
+from server.routes import meta, models, sessions, streams, subjects, trials, uploads, viewer
+from server.routes.common import install_error_handlers
+from server.routes.uploads import Uploads
+
+ROUTERS: tuple[APIRouter, ...] = (
+    meta.router,
+    subjects.router,
+    sessions.router,
+    trials.router,
+    models.router,
+    viewer.router,
+    uploads.router,
+    streams.router,
+)
+
+__all__ = ["ROUTERS", "Uploads", "install_error_handlers"]

@@ -1,0 +1,15 @@
+"""``/api/models``: the models in the model store, with what each was trained on."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from server.routes.common import Ctx
+from sessions import schema
+
+router = APIRouter(prefix="/api")
+
+
+@router.get("/models")
+def list_models(c: Ctx) -> list[schema.ModelInfo]:
+    return [schema.ModelInfo(name=n, provenance=c.models.get(n)[1]) for n in c.models.names()]

@@ -1,0 +1,81 @@
+"""``/api/sessions``: create, start and stop sessions; change their settings while they run; their
+events, annotations and recordings. Thin: validation by the schema, logic in ``sessions.live``."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, HTTPException
+
+from server.routes.common import Ctx, OptionalId, trained_model
+from sessions import schema
+from sessions.live.manager import SessionStateError
+
+router = APIRouter(prefix="/api")
+
+
+@router.get("/sessions")
+def list_sessions(c: Ctx, subject_id: OptionalId = None) -> list[schema.Session]:
+    return c.store.list_sessions(subject_id)
+
+
+@router.post("/sessions", status_code=201)
+async def create_session(body: schema.SessionCreate, c: Ctx) -> schema.Session:
+    trained_model(c, body.settings.model)
+    if isinstance(body.source, schema.ReplaySource):
+        trial = c.store.get_trial(body.source.trial_id)
+        if trial.status in ("recording", "damaged"):
+            why = "is still recording" if trial.status == "recording" else "has a damaged recording"
+            raise SessionStateError(f"trial {trial.id} {why}; it cannot be replayed")
+    session = c.store.create_session(body)
+    return c.manager.start(session.id) if body.start else session
+
+
+@router.get("/sessions/{session_id}")
+def get_session(session_id: int, c: Ctx) -> schema.Session:
+    return c.store.get_session(session_id)
+
+
+@router.post("/sessions/{session_id}/start")
+async def start_session(session_id: int, c: Ctx) -> schema.Session:
+    return c.manager.start(session_id)
+
+
+@router.post("/sessions/{session_id}/stop")
+async def stop_session(session_id: int, c: Ctx) -> schema.Session:
+    return await c.manager.stop(session_id)
+
+
+@router.patch("/sessions/{session_id}/settings")
+async def change_settings(session_id: int, body: schema.SettingsChange, c: Ctx) -> schema.Session:
+    runtime = c.manager.get(session_id)
+    if runtime is None:
+        c.store.get_session(session_id)
+        raise SessionStateError(f"session {session_id} is not running; settings change only while it runs")
+    return runtime.change_settings(body)
+
+
+@router.get("/sessions/{session_id}/events")
+def session_events(session_id: int, c: Ctx) -> list[schema.Event]:
+    c.store.get_session(session_id)
+    return c.store.list_events(session_id)
+
+
+@router.post("/sessions/{session_id}/annotations", status_code=201)
+async def annotate(session_id: int, body: schema.AnnotationCreate, c: Ctx) -> schema.Event:
+    runtime = c.manager.get(session_id)
+    if runtime is not None:
+        return runtime.annotate(body.text, body.actor)
+    c.store.get_session(session_id)
+    return c.store.add_event(session_id, t=0.0, kind="annotation", text=body.text, actor=body.actor)
+
+
+@router.post("/sessions/{session_id}/recording")
+async def recording(session_id: int, body: schema.RecordingControl, c: Ctx) -> schema.Trial:
+    runtime = c.manager.get(session_id)
+    if runtime is None:
+        raise HTTPException(409, f"session {session_id} is not running")
+    if body.action == "start":
+        return runtime.start_recording(body.name)
+    trial = runtime.stop_recording()
+    if trial is None:
+        raise HTTPException(409, f"session {session_id} is not recording")
+    return trial

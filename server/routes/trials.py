@@ -1,0 +1,91 @@
+"""``/api/trials``: recorded and uploaded trials: their events, decimated series, MCAP download,
+recorded settings, and re-runs through the estimators."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, Query
+from fastapi.responses import FileResponse
+
+from estimators.pipeline import TrainedModel
+from server.routes.common import Ctx, OptionalId, reviewable_trial, trained_model
+from sessions import schema
+
+router = APIRouter(prefix="/api")
+
+#: Session time bounds of a series (s): finite (FastAPI reads "nan", "inf" and "1e400" as floats) and
+#: within about 30 years, so that ``t * 1e9`` is an integer nanosecond time.
+_SeriesTime = Annotated[
+    float | None, Query(allow_inf_nan=False, ge=-1e9, le=1e9, description="session time (s); none: unbounded")
+]
+_MaxPoints = Annotated[int, Query(ge=10, le=20000)]
+
+
+@router.get("/trials")
+def list_trials(c: Ctx, session_id: OptionalId = None) -> list[schema.Trial]:
+    return c.store.list_trials(session_id)
+
+
+@router.get("/trials/{trial_id}")
+def get_trial(trial_id: int, c: Ctx) -> schema.Trial:
+    return c.store.get_trial(trial_id)
+
+
+@router.get("/trials/{trial_id}/events")
+def trial_events(trial_id: int, c: Ctx) -> list[schema.Event]:
+    c.store.get_trial(trial_id)
+    return c.store.trial_events(trial_id)
+
+
+@router.get("/trials/{trial_id}/series")
+async def trial_series(
+    trial_id: int, c: Ctx, t0: _SeriesTime = None, t1: _SeriesTime = None, max_points: _MaxPoints = 2000
+) -> dict[str, list[Any]]:
+    from sessions.formats.mcap_io import read_series
+
+    _, path = reviewable_trial(c, trial_id)
+    return await asyncio.to_thread(read_series, path, t0, t1, max_points)
+
+
+@router.get("/trials/{trial_id}/download")
+def download(trial_id: int, c: Ctx) -> FileResponse:
+    trial, path = reviewable_trial(c, trial_id)
+    return FileResponse(path, media_type="application/octet-stream", filename=f"gaitscope_trial{trial.id}.mcap")
+
+
+@router.get("/trials/{trial_id}/settings")
+async def trial_settings(trial_id: int, c: Ctx) -> schema.SessionSettings:
+    """The settings in force at the trial's first frame, as recorded (its changes are on ``/events``)."""
+    from sessions.review.rerun import recorded_settings
+
+    _, path = reviewable_trial(c, trial_id)
+    return await asyncio.to_thread(recorded_settings, path)
+
+
+@router.post("/trials/{trial_id}/rerun")
+async def rerun(
+    trial_id: int,
+    c: Ctx,
+    body: Annotated[schema.RerunRequest | None, Body()] = None,
+    t0: _SeriesTime = None,
+    t1: _SeriesTime = None,
+    max_points: _MaxPoints = 2000,
+) -> dict[str, list[Any]]:
+    """The trial's raw frames through the estimators again (series like ``/series``, plus each estimator's
+    outputs as ``<name>.<output>`` columns): as recorded by default, or with the body's settings over the
+    whole trial (what if), and the recorded stack or the body's ``estimators``; see ``RerunRequest``."""
+    from sessions.review.rerun import rerun_series
+
+    trial, path = reviewable_trial(c, trial_id)
+    subject = c.store.get_subject(c.store.get_session(trial.session_id).subject_id)
+    settings = None if body is None else body.settings
+    estimators = None if body is None else body.estimators
+
+    def model(name: str) -> TrainedModel:
+        return trained_model(c, name)
+
+    return await asyncio.to_thread(
+        rerun_series, path, model, subject.leg_length_m, subject.mass_kg, settings, t0, t1, max_points, estimators
+    )

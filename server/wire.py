@@ -1,0 +1,226 @@
+"""The browser's wire types, generated from :mod:`sessions.schema`: ``gaitscope wire --out web/wire.js``.
+
+``web/wire.js`` is the browser's one statement of the schema: a JSDoc ``@typedef`` for every class in
+``schema.WIRE`` and every class their JSON schemas refer to (fields and types from
+``model_json_schema()``, which ``GET /api/schema`` serves too), and the bounds the browser checks
+before the server does (``SETTING_LIMITS``, ``SENSOR_LIMITS``, every field's ``FIELD_LIMITS``) with
+the default ``SessionSettings``. The file is committed (the UI has no build step);
+``tests/server/test_wire.py`` fails when it differs from what :func:`render` makes of the schema.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any, Final
+
+from sessions import schema
+
+__all__ = ["COMMAND", "render", "write"]
+
+#: How to regenerate the file (in its header and in the drift test's message).
+COMMAND: Final = "gaitscope wire --out web/wire.js"
+#: JSON-schema keywords that bound a value, and their names in ``FIELD_LIMITS``.
+_LIMIT_KEYS: Final = {
+    "minimum": "min",
+    "maximum": "max",
+    "exclusiveMinimum": "exclusiveMin",
+    "exclusiveMaximum": "exclusiveMax",
+    "minLength": "minLength",
+    "maxLength": "maxLength",
+    "pattern": "pattern",
+    "minItems": "minItems",
+    "maxItems": "maxItems",
+}
+_IDENTIFIER: Final = re.compile(r"^[A-Za-z_$][A-Za-z0-9_$]*$")
+_WIDTH: Final = 110
+
+_HEADER: Final = f"""\
+// GENERATED from sessions/schema.py by `{COMMAND}`: do not edit by hand. Change the
+// schema and run the command again; tests/server/test_wire.py fails while this file differs from it.
+//
+// JSDoc types of every wire message (the JSON schemas `GET /api/schema` serves, as types), and the
+// bounds the browser checks before the server does. The server stays the judge (422, 409).
+"""
+
+
+def render() -> str:
+    """The text of ``web/wire.js`` for the schema as it is now (deterministic: the same schema, the same text)."""
+    classes = _classes()
+    parts = [_HEADER]
+    parts += [_typedef(name, sch) for name, sch in classes.items()]
+    parts.append(
+        "/** Freezes an object and every object in it. */\n"
+        "function deepFreeze(o) {\n"
+        '  for (const v of Object.values(o)) if (v && typeof v === "object") deepFreeze(v);\n'
+        "  return Object.freeze(o);\n"
+        "}\n"
+    )
+    settings = {k: {"min": lo, "max": hi, "rate": rate} for k, (lo, hi, rate) in schema.SETTING_LIMITS.items()}
+    parts.append(
+        _const(
+            "SETTING_LIMITS",
+            settings,
+            "Bounds of every clinician-adjustable setting (`SETTING_LIMITS`): minimum, maximum, and the largest\n"
+            "change per second (the server also spaces two changes of a field by `step / rate` seconds).",
+            "Readonly<Record<string, {min: number, max: number, rate: number}>>",
+        )
+    )
+    sensors = {k: {"min": lo, "max": hi} for k, (lo, hi) in schema.SENSOR_LIMITS.items()}
+    parts.append(
+        _const(
+            "SENSOR_LIMITS",
+            sensors,
+            "Physically plausible range of each sensor channel (`SENSOR_LIMITS`); a value outside it is treated\n"
+            "as missing for that sample.",
+            "Readonly<Record<string, {min: number, max: number}>>",
+        )
+    )
+    parts.append(
+        _const(
+            "DEFAULT_SETTINGS",
+            schema.SessionSettings().model_dump(mode="json"),
+            "A session's settings when none are given (`SessionSettings()`).",
+            "Readonly<SessionSettings>",
+        )
+    )
+    limits = {name: lim for name, sch in classes.items() if (lim := _field_limits(sch))}
+    parts.append(
+        _const(
+            "FIELD_LIMITS",
+            limits,
+            "Bounds of every bounded field, per class: `min`, `max` (inclusive), `exclusiveMin`, `exclusiveMax`,\n"
+            "`minLength`, `maxLength`, `pattern` (a regular expression source), `minItems`, `maxItems`.",
+            "Readonly<Record<string, Record<string, Record<string, number | string>>>>",
+        )
+    )
+    return "\n".join(parts)
+
+
+def write(path: Path) -> bool:
+    """Write :func:`render`'s text to ``path``; whether the file changed."""
+    text = render()
+    if path.is_file() and path.read_text(encoding="utf-8") == text:
+        return False
+    path.write_text(text, encoding="utf-8")
+    return True
+
+
+def _classes() -> dict[str, dict[str, Any]]:
+    """Every class's JSON schema by name: ``schema.WIRE`` in its order, then the classes they refer to by
+    name. A class met twice must have the same schema both times."""
+    found: dict[str, dict[str, Any]] = {}
+    nested: dict[str, dict[str, Any]] = {}
+
+    def add(into: dict[str, dict[str, Any]], name: str, sch: dict[str, Any]) -> None:
+        sch = {k: v for k, v in sch.items() if k != "$defs"}
+        for seen in (found.get(name), nested.get(name)):
+            if seen is not None and seen != sch:
+                raise ValueError(f"two different JSON schemas are both called {name}")
+        into.setdefault(name, sch)
+
+    for cls in schema.WIRE:
+        sch = cls.model_json_schema()
+        add(found, cls.__name__, sch)
+        for name, sub in sch.get("$defs", {}).items():
+            add(nested, name, sub)
+    return found | {name: sch for name, sch in sorted(nested.items()) if name not in found}
+
+
+def _typedef(name: str, sch: dict[str, Any]) -> str:
+    lines = [line.rstrip() for line in sch.get("description", "").splitlines()]
+    lines.append(f"@typedef {{object}} {name}")
+    required = set(sch.get("required", ()))
+    for field, prop in sch.get("properties", {}).items():
+        label = field if field in required else f"[{field}{_default(prop)}]"
+        note = " ".join(p for p in (prop.get("description", ""), _bounds(prop)) if p)
+        lines.append(f"@property {{{_type(prop)}}} {label}{' ' + note if note else ''}")
+    return _comment(lines)
+
+
+def _comment(lines: list[str]) -> str:
+    """A JSDoc block of these lines (a ``*/`` in them escaped, so that it cannot end the comment)."""
+    body = "\n".join((" * " + line.replace("*/", "*\\/")).rstrip() for line in lines)
+    return f"/**\n{body}\n */\n"
+
+
+def _type(sch: dict[str, Any]) -> str:
+    """A JSON schema as a JSDoc (TypeScript-flavoured) type."""
+    if "$ref" in sch:
+        return str(sch["$ref"]).rsplit("/", 1)[-1]
+    if "const" in sch:
+        return json.dumps(sch["const"])
+    if "enum" in sch:
+        return " | ".join(json.dumps(v) for v in sch["enum"])
+    for key in ("anyOf", "oneOf"):
+        if key in sch:
+            return " | ".join(_type(s) for s in sch[key])
+    kind = sch.get("type")
+    if isinstance(kind, list):
+        return " | ".join(_type({**sch, "type": k}) for k in kind)
+    if kind == "array":
+        if "prefixItems" in sch:
+            return "[" + ", ".join(_type(s) for s in sch["prefixItems"]) + "]"
+        return f"Array<{_type(sch.get('items', {}))}>"
+    if kind == "object":
+        extra = sch.get("additionalProperties", True)
+        return f"Object<string, {_type(extra) if isinstance(extra, dict) else '*'}>"
+    return {"string": "string", "integer": "number", "number": "number", "boolean": "boolean", "null": "null"}.get(
+        str(kind), "*"
+    )
+
+
+def _default(prop: dict[str, Any]) -> str:
+    """``=value`` for a scalar default (lists and objects are left to the schema)."""
+    if "default" not in prop or isinstance(prop["default"], list | dict):
+        return ""
+    return "=" + json.dumps(prop["default"])
+
+
+def _limits(prop: dict[str, Any]) -> dict[str, Any]:
+    """A property's bounds; of a nullable property (``anyOf`` with null), those of its other branch."""
+    found = {k: v for k, v in prop.items() if k in _LIMIT_KEYS}
+    for branch in prop.get("anyOf", ()):
+        found |= {k: v for k, v in branch.items() if k in _LIMIT_KEYS}
+    return {name: found[k] for k, name in _LIMIT_KEYS.items() if k in found}
+
+
+def _bounds(prop: dict[str, Any]) -> str:
+    """The numeric bounds of a property in words, e.g. ``(0.5..1.3)``, ``(>= 1)``."""
+    lim = _limits(prop)
+    lo, hi = lim.get("min"), lim.get("max")
+    if lo is not None and hi is not None:
+        return f"({lo:g}..{hi:g})" if max(abs(lo), abs(hi)) < 1e15 else f"({lo}..{hi})"
+    if lo is not None:
+        return f"(>= {lo:g})"
+    if hi is not None:
+        return f"(<= {hi:g})"
+    return ""
+
+
+def _field_limits(sch: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {field: lim for field, prop in sch.get("properties", {}).items() if (lim := _limits(prop))}
+
+
+def _const(name: str, value: Any, doc: str, type_: str) -> str:
+    comment = _comment([*doc.splitlines(), f"@type {{{type_}}}"])
+    return f"{comment}export const {name} = deepFreeze({_js(value, 0)});\n"
+
+
+def _js(value: Any, indent: int) -> str:
+    """A JavaScript literal of JSON data: on one line if it fits, else one key per line."""
+    if not isinstance(value, dict):
+        return json.dumps(value)
+    if not value:
+        return "{}"
+    items = [f"{_key(k)}: {_js(v, indent + 2)}" for k, v in value.items()]
+    flat = "{ " + ", ".join(items) + " }"
+    if "\n" not in flat and indent + len(flat) <= _WIDTH:
+        return flat
+    pad = " " * (indent + 2)
+    return "{\n" + "".join(f"{pad}{item},\n" for item in items) + " " * indent + "}"
+
+
+def _key(key: str) -> str:
+    return key if _IDENTIFIER.match(key) else json.dumps(key)

@@ -1,0 +1,186 @@
+"""Which estimators a session runs: the registry, and a stack chosen against a source's channels.
+
+A session's stack is chosen at its start (:func:`resolve`): the estimators its settings name, or by
+default every registered one (:data:`ESTIMATORS`, less the :data:`OPT_IN` ones) whose required channels
+the source sends. A named
+one the source cannot feed refuses the start, naming the missing channels (:class:`MissingChannels`).
+The order of :data:`ESTIMATORS` is the order a stack runs them in: a channel an estimator derives
+(``heel_strike``) reaches only those after it. :func:`build_stack` wraps the chosen estimators in a
+:class:`~sessions.stack.EstimatorStack`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Collection, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Final
+
+from estimators.detector import HeelStrikeDetector
+from estimators.heel_strike import HeelStrikeBackup
+from estimators.phase_ekf_estimator import PhaseEKFEstimator
+from estimators.pipeline import PipelineConfig, TrainedModel
+from estimators.protocol import ANGLE_CHANNELS, Estimator, output_names
+from estimators.tbe import TimingBasedEstimator
+from sessions.schema import CHANNELS, PRIMARY_BLEND_S, SensorFrame, missing_channels
+from sessions.stack import EstimatorStack
+
+__all__ = [
+    "ESTIMATORS",
+    "MissingChannels",
+    "StackContext",
+    "build_stack",
+    "channels_of",
+    "choose_primary",
+    "resolve",
+]
+
+_CHANNELS: Final = frozenset(CHANNELS)
+
+
+@dataclass(frozen=True)
+class StackContext:
+    """What an estimator of a session is built from: the trained models, the subject, the sample period."""
+
+    model: TrainedModel
+    leg_length: float
+    mass_kg: float
+    sample_period: float
+
+
+#: Every estimator a session can stack, by name, in the order a stack runs them (a channel an
+#: estimator derives reaches only those after it).
+ESTIMATORS: Final[dict[str, Callable[[StackContext], Estimator]]] = {
+    "hs_detector": lambda c: HeelStrikeDetector(),
+    "phase_ekf": lambda c: PhaseEKFEstimator(
+        c.model, PipelineConfig(leg_length=c.leg_length, body_mass_kg=c.mass_kg), c.sample_period
+    ),
+    "tbe": lambda c: TimingBasedEstimator(),
+    "hs_backup": lambda c: HeelStrikeBackup.standalone(
+        c.model.coef, c.model.noise, c.leg_length, channel_mask=c.model.channel_mask
+    ),
+}
+
+
+#: Registered but run only when a session names them: the standalone heel-strike backup duplicates the
+#: one inside ``phase_ekf`` (which uses it to reset the filter) and costs about half of the stack's
+#: time per sample; it is there to be inspected and compared, in review or by choice.
+OPT_IN: Final = frozenset({"hs_backup"})
+
+
+class MissingChannels(ValueError):
+    """An estimator asked for whose required channels the source does not send; the message names them."""
+
+
+def _provided(channels: Collection[str] | None) -> set[str] | None:
+    """The channels a source provides: those it sends, plus the velocity of every angle it sends (the frame
+    estimator differentiates it). None: unknown (a live device), anything goes."""
+    if channels is None:
+        return None
+    out = set(channels)
+    out.update(vel for angle, vel in ANGLE_CHANNELS.items() if angle in out)
+    return out
+
+
+def resolve(names: Sequence[str] | None, channels: Collection[str] | None, ctx: StackContext) -> list[Estimator]:
+    """Build a session's stack.
+
+    Args:
+        names: the estimators asked for (run in :data:`ESTIMATORS` order), or None for every one the
+            source's channels allow but the :data:`OPT_IN` ones.
+        channels: the channels the source sends (``SensorFrame`` field names), None when unknown.
+        ctx: what the estimators are built from.
+
+    Raises:
+        ValueError: an unknown or repeated name.
+        KeyError: an estimator declares a channel that is not in :data:`~sessions.schema.CHANNELS`.
+        MissingChannels: a named estimator whose required channels the source lacks.
+    """
+    if names is not None:
+        unknown = [n for n in names if n not in ESTIMATORS]
+        if unknown:
+            raise ValueError(f"unknown estimator {', '.join(unknown)}; gaitscope has {', '.join(ESTIMATORS)}")
+        if len(set(names)) != len(names):
+            raise ValueError(f"an estimator is named twice in {list(names)}")
+    available = _provided(channels)
+    stack: list[Estimator] = []
+    missing: list[str] = []
+    for name, make in ESTIMATORS.items():
+        if (names is not None and name not in names) or (names is None and name in OPT_IN):
+            continue
+        est = make(ctx)
+        lacking = [] if available is None else missing_channels(est.inputs, available)
+        if lacking:
+            if names is not None:
+                missing.append(f"{name} needs {', '.join(lacking)}")
+            continue
+        stack.append(est)
+        if available is not None:
+            available.update(n for n in output_names(est) if n in _CHANNELS)
+    if missing:
+        raise MissingChannels(f"the source does not send what the stack needs: {'; '.join(missing)}")
+    if not stack:
+        raise MissingChannels(
+            f"the source's channels ({', '.join(sorted(channels or ())) or 'none'}) feed no estimator"
+        )
+    return stack
+
+
+def choose_primary(wanted: str, stack: Sequence[Estimator]) -> str:
+    """``wanted`` if the stack has it, else (a registered estimator the source's channels left out, or one
+    a review re-run of a subset does not run) the stack's first estimator with a phase.
+
+    Raises:
+        ValueError: ``wanted`` is neither registered nor in the stack, or estimates no phase; or no
+            estimator of the stack estimates a phase.
+    """
+    names = [e.name for e in stack]
+    phased = [e.name for e in stack if "phase" in output_names(e)]
+    if wanted in phased:
+        return wanted
+    if wanted in names:
+        raise ValueError(f"{wanted} estimates no phase, so it cannot drive the torque")
+    if wanted not in names and wanted not in ESTIMATORS:
+        raise ValueError(f"unknown estimator {wanted}; gaitscope has {', '.join(ESTIMATORS)}")
+    if not phased:
+        raise ValueError(f"no estimator of the stack ({', '.join(names)}) estimates a phase")
+    return phased[0]
+
+
+def build_stack(
+    ctx: StackContext,
+    *,
+    names: Sequence[str] | None,
+    channels: Collection[str] | None,
+    primary: str,
+    torque_gain: float,
+    max_torque: float,
+    blend_s: float = PRIMARY_BLEND_S,
+    extra: Sequence[Estimator] = (),
+) -> EstimatorStack:
+    """:func:`resolve` the stack (plus ``extra`` estimators, run last: test doubles, experiments) and wrap
+    it in an :class:`EstimatorStack` whose primary is ``primary``, else :func:`choose_primary`'s pick."""
+    stack = [*resolve(names, channels, ctx), *extra]
+    out = EstimatorStack(
+        stack,
+        ctx.model.torque,
+        ctx.leg_length,
+        ctx.mass_kg,
+        primary=choose_primary(primary, stack),
+        torque_gain=torque_gain,
+        max_torque=max_torque,
+        blend_s=blend_s,
+    )
+    out.requested = primary
+    if out.primary != primary:
+        out._pending.append(
+            f"primary {primary} is not in the stack ({', '.join(out.names)}): the torque follows {out.primary}"
+        )
+    return out
+
+
+def channels_of(frames: Iterable[SensorFrame]) -> set[str]:
+    """The channels (of :data:`~sessions.schema.CHANNELS`) a log's frames send, for :func:`resolve`."""
+    found: set[str] = set()
+    for frame in frames:
+        found.update(n for n in CHANNELS if n not in found and getattr(frame, n) is not None)
+    return found

@@ -1,0 +1,362 @@
+"""A session's estimator stack: several estimators on one sensor stream, one of them driving the torque.
+
+Every estimator implements :class:`estimators.protocol.Estimator`; which ones a session runs is chosen at
+its start (:mod:`sessions.registry`). Per sample each estimator gets its declared input channels and
+returns its declared outputs; an output that is itself a channel (``heel_strike`` of the detector or the
+phase EKF) fills that channel for the estimators after it when the source does not send it.
+
+The **primary** estimator's phase (and its stride length and incline when it has them, else
+:data:`NOMINAL_STRIDE` leg lengths on level ground) drives the torque profile. Switching the primary
+(:meth:`EstimatorStack.set_primary`) blends the command from the old primary's to the new one's over
+``blend_s`` seconds, so the torque never steps.
+
+Isolation: an estimator that raises, returns a non-finite output (or the wrong number of them), or
+whose covariance is non-finite or has a variance outside ``[0, max_variance]`` is marked failed, with
+the reason; it is not stepped again, and the others and the torque go on. A failed primary hands the
+torque to the fallback (:data:`FALLBACK`, the timing-based estimate) if it is healthy, else to zero
+torque, blending from the last command in the same way. Every such change is reported in
+:attr:`StackSample.events` for the session's event log.
+
+Pure computation (no I/O, no clocks); the torque is always a finite number in ``[0, max_torque]``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators.phase_ekf import EKFConfig
+from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, input_names, output_names
+from estimators.torque import TorqueProfile
+from sessions.schema import CHANNELS, PRIMARY_BLEND_S
+
+__all__ = ["FALLBACK", "MAX_VARIANCE", "NOMINAL_STRIDE", "EstimatorStack", "StackSample"]
+
+#: Takes the torque when the primary fails (if it is in the stack and healthy; else the torque is 0).
+FALLBACK: Final = "tbe"
+#: Stride length (leg lengths) the torque profile assumes for a primary that does not estimate it: the
+#: phase EKF's initial value (seed 000: 1.3); the incline is then 0 (level ground).
+NOMINAL_STRIDE: Final = EKFConfig().initial_stride_length
+#: Largest variance a healthy estimator's covariance may hold (as the phase EKF's health limit).
+MAX_VARIANCE: Final = 1e3
+#: Outputs named as a sensor channel fill that channel for the estimators after them (``heel_strike``).
+_CHANNELS: Final = frozenset(CHANNELS)
+_DIVERGED: Final = 2.0  # estimators.protocol.FAULTS.index("diverged")
+
+
+@dataclass
+class StackSample:
+    """What the stack made of one sample.
+
+    Attributes:
+        outputs: per estimator in stack order, its outputs (None once it has failed).
+        torque_Nm: the command, finite and within ``[0, max_torque]``.
+        primary: the estimator driving it (None: none, the torque blends to 0).
+        phase, phase_rate, stride_length_m, incline_deg: the primary's (stride length and incline:
+            what the torque profile used, nominal when the primary does not estimate them).
+        tbe_phase: the ``tbe`` estimator's phase (0 without a healthy one).
+        heel_strike: the heel-strike channel (the source's, else the first estimator's to derive it).
+        backup_reset, foot_pred_deg, shank_pred_deg: the primary's when it has them (the predictions: else
+            the first healthy estimator's that has them, else 0).
+        fault: ``""``; ``"gap"`` (samples further apart than ``max_gap_s``: the estimators restarted);
+            ``"diverged"`` (the primary reset its state: torque 0); ``"failed"`` (the primary failed here);
+            ``"torque"`` (the command was not a finite number within the bound and was forced to 0).
+        resets: estimators that reset a diverged state at this sample.
+        events: what happened that belongs in the session's event log (failures, primary switches).
+    """
+
+    outputs: list[NDArray[np.float64] | None]
+    torque_Nm: float
+    primary: str | None
+    phase: float
+    phase_rate: float
+    stride_length_m: float
+    incline_deg: float
+    tbe_phase: float
+    heel_strike: bool
+    backup_reset: bool
+    foot_pred_deg: float
+    shank_pred_deg: float
+    fault: str = ""
+    resets: list[str] = field(default_factory=list)
+    events: list[str] = field(default_factory=list)
+
+
+class EstimatorStack:
+    """Runs a session's estimators on each sample and computes the torque from the primary's outputs.
+
+    Args:
+        estimators: the stack, in run order (names unique).
+        torque: the torque profile.
+        leg_length, mass_kg: the subject's (m, kg).
+        primary: the estimator whose phase drives the torque (it must estimate a phase).
+        torque_gain, max_torque: assistance (:meth:`retune_torque` changes them).
+        blend_s: how long a switch of the primary blends the command (s; 0: at once).
+        fallback: takes the torque from a failed primary (if healthy), else the torque goes to 0.
+        max_variance: a covariance with a larger variance counts as diverged.
+        max_gap_s: samples further apart count as a gap (``fault="gap"``).
+
+    Attributes:
+        names: the estimators' names in run order; outputs: each one's output names.
+        failed: failed estimators and why (they are not stepped again).
+        primary: the estimator driving the torque now (None: none).
+    """
+
+    def __init__(
+        self,
+        estimators: Sequence[Estimator],
+        torque: TorqueProfile,
+        leg_length: float,
+        mass_kg: float,
+        *,
+        primary: str,
+        torque_gain: float = 1.0,
+        max_torque: float = 30.0,
+        blend_s: float = PRIMARY_BLEND_S,
+        fallback: str = FALLBACK,
+        max_variance: float = MAX_VARIANCE,
+        max_gap_s: float = MAX_GAP_S,
+    ):
+        self.estimators = list(estimators)
+        self.names = tuple(e.name for e in self.estimators)
+        if len(set(self.names)) != len(self.names):
+            raise ValueError(f"estimator names must be unique, got {self.names}")
+        if not (math.isfinite(blend_s) and blend_s >= 0):
+            raise ValueError(f"blend_s must be a number of seconds >= 0, got {blend_s}")
+        self.outputs = tuple(output_names(e) for e in self.estimators)
+        self._inputs = [input_names(e) for e in self.estimators]
+        self._index = [{n: i for i, n in enumerate(outs)} for outs in self.outputs]
+        self._derived = [[(i, n) for i, n in enumerate(outs) if n in _CHANNELS] for outs in self.outputs]
+        self._position = {n: k for k, n in enumerate(self.names)}
+        self.torque = torque
+        self.leg_length = leg_length
+        self.mass_kg = mass_kg
+        self.blend_s = blend_s
+        self.fallback = fallback
+        self.max_variance = max_variance
+        self.max_gap_s = max_gap_s
+        self.failed: dict[str, str] = {}
+        self.torque_gain = 0.0
+        self.max_torque = 0.0
+        self.retune_torque(torque_gain, max_torque)
+        self.check_primary(primary)
+        self.primary: str | None = primary
+        #: The primary asked for (the session's setting); ``primary`` differs once it failed.
+        self.requested = primary
+        self._blend: tuple[str | None, float, float] | None = None  # (from, held command, start time)
+        self._t: float | None = None
+        self._last_torque = 0.0
+        self._pending: list[str] = []
+
+    # --- settings -------------------------------------------------------------------------------
+    def retune_torque(self, gain: float, bound: float) -> None:
+        """Assistance from the next sample on: gain (x the profile) and bound (N m)."""
+        if not (math.isfinite(gain) and gain >= 0 and math.isfinite(bound) and 0 <= bound <= 200):
+            raise ValueError(f"torque gain {gain} and bound {bound} N m must be >= 0 and <= 200 N m")
+        self.torque_gain, self.max_torque = gain, bound
+
+    def retune(self, **params: float) -> None:
+        """Give each healthy estimator the parameters it declares tunable; one that raises has failed."""
+        for est in self.estimators:
+            mine = {k: v for k, v in params.items() if k in est.tunables}
+            if mine and est.name not in self.failed:
+                try:
+                    est.retune(**mine)
+                except Exception as e:  # isolation: its failure must not stop the others
+                    self._fail(est.name, f"retune raised {type(e).__name__}: {e}")
+
+    def check_primary(self, name: str) -> None:
+        """Raise ValueError unless ``name`` can drive the torque (in the stack, a phase, not failed)."""
+        if name not in self._position:
+            raise ValueError(f"{name} is not in the session's stack ({', '.join(self.names)})")
+        if "phase" not in self._index[self._position[name]]:
+            raise ValueError(f"{name} estimates no phase, so it cannot drive the torque")
+        if name in self.failed:
+            raise ValueError(f"{name} has failed ({self.failed[name]}); it cannot drive the torque")
+
+    def set_primary(self, name: str) -> None:
+        """Hand the torque to ``name`` from the next sample on, blending over ``blend_s``.
+
+        Raises:
+            ValueError: not in the stack, no phase output, or failed; nothing changed.
+        """
+        self.check_primary(name)
+        self.requested = name
+        if name != self.primary:
+            self._switch(name)
+
+    def take_events(self) -> list[str]:
+        """Events of failures outside :meth:`step` (a retune that raised), once."""
+        events, self._pending = self._pending, []
+        return events
+
+    def _switch(self, to: str | None) -> None:
+        """Blend from the command now (the old primary's, live, when healthy and no blend is running;
+        else the last command, held and fading out) to ``to``'s."""
+        old = self.primary
+        live = old is not None and old not in self.failed and self._blend is None
+        start = self._t if self._t is not None else 0.0
+        self._blend = (old if live else None, self._last_torque, start) if self.blend_s > 0 else None
+        self.primary = to
+
+    # --- per sample -----------------------------------------------------------------------------
+    def step(self, t: float, channels: dict[str, float]) -> StackSample:
+        """One sample at session time ``t`` (s, increasing).
+
+        Args:
+            channels: the source's channel values by name (NaN or absent: missing); derived channels
+                are added to it.
+        """
+        gap = self._t is not None and t - self._t > self.max_gap_s
+        outputs: list[NDArray[np.float64] | None] = []
+        resets: list[str] = []
+        primary_failed = False
+        for k, est in enumerate(self.estimators):
+            name = self.names[k]
+            if name in self.failed:
+                outputs.append(None)
+                continue
+            z = np.array([channels.get(c, math.nan) for c in self._inputs[k]], dtype=np.float64)
+            try:
+                y = np.asarray(est.step(t, z), dtype=np.float64)
+                reason = self._unhealthy(k, y)
+            except Exception as e:  # isolation: an estimator's bug must not stop the others or the torque
+                y, reason = np.empty(0), f"raised {type(e).__name__}: {e}"
+            if reason:
+                primary_failed = primary_failed or name == self.primary
+                self._fail(name, reason, t)
+                outputs.append(None)
+                continue
+            outputs.append(y)
+            for i, channel in self._derived[k]:
+                if math.isnan(channels.get(channel, math.nan)):
+                    channels[channel] = float(y[i])
+            fault = self._index[k].get("fault")
+            if fault is not None and y[fault] == _DIVERGED:
+                resets.append(name)
+        sample = self._sample(t, outputs, channels)
+        sample.events, self._pending = self._pending, []
+        sample.resets = resets
+        if primary_failed:
+            sample.fault = "failed"
+        elif self.primary in resets:
+            sample.fault = "diverged"
+        elif gap:
+            sample.fault = "gap"
+        if not math.isfinite(sample.torque_Nm):
+            sample.torque_Nm, sample.fault = 0.0, sample.fault or "torque"
+        # within the bound: a blend from a command made under a higher bound is clamped, not zeroed
+        sample.torque_Nm = min(max(sample.torque_Nm, 0.0), self.max_torque)
+        self._last_torque = sample.torque_Nm
+        self._t = t
+        return sample
+
+    def _unhealthy(self, k: int, y: NDArray[np.float64]) -> str:
+        """Why estimator ``k``'s step result or covariance counts as a failure ("" if it does not)."""
+        names = self.outputs[k]
+        if y.shape != (len(names),):
+            return f"returned {y.size} values for its {len(names)} outputs"
+        # On a handful of numbers, Python's sum of a list is several times cheaper than numpy's
+        # reductions; a sum is finite only if every term is (it may also overflow near 1e308: such
+        # values count as failed too).
+        values = y.tolist()
+        if not math.isfinite(sum(values)):
+            bad = [n for n, v in zip(names, values, strict=True) if not math.isfinite(v)] or list(names)
+            return f"returned a non-finite {', '.join(bad)}"
+        P = self.estimators[k].covariance
+        if P is not None:
+            flat = P.ravel().tolist()
+            if not math.isfinite(sum(flat)):
+                return "its covariance is not finite"
+            d = flat[:: P.shape[0] + 1]
+            lo, hi = min(d), max(d)
+            if lo < 0 or hi > self.max_variance:
+                return f"its covariance diverged (variances {lo:.3g} .. {hi:.3g})"
+        return ""
+
+    def _fail(self, name: str, reason: str, t: float | None = None) -> None:
+        """Mark ``name`` failed; a failed primary hands the torque to the fallback, else to none."""
+        self.failed[name] = reason
+        at = "" if t is None else f" at {t:.3f} s"
+        self._pending.append(f"estimator {name} failed{at}: {reason}")
+        if name == self.primary:
+            fb = self.fallback
+            healthy = fb in self._position and fb not in self.failed and "phase" in self._index[self._position[fb]]
+            self._switch(fb if healthy else None)
+            then = f"the torque now follows {fb}" if healthy else "no fallback, the torque ramps down to 0"
+            self._pending.append(f"primary estimator {name} failed{at}: {then}")
+
+    def _command(self, name: str, outputs: list[NDArray[np.float64] | None]) -> float:
+        """The torque profile at estimator ``name``'s outputs (0 where it reset a diverged state)."""
+        k = self._position[name]
+        y, idx = outputs[k], self._index[k]
+        if y is None:
+            return 0.0
+        fault = idx.get("fault")
+        if fault is not None and y[fault] == _DIVERGED:
+            return 0.0
+        stride = idx.get("stride_length_m")
+        incline = idx.get("incline_deg")
+        l_norm = NOMINAL_STRIDE if stride is None else float(y[stride]) / self.leg_length
+        r = 0.0 if incline is None else float(y[incline])
+        return self.torque.torque_at(
+            float(y[idx["phase"]]), l_norm, r, self.mass_kg * self.torque_gain, self.max_torque
+        )
+
+    def _sample(self, t: float, outputs: list[NDArray[np.float64] | None], channels: dict[str, float]) -> StackSample:
+        primary = self.primary
+        new = 0.0 if primary is None else self._command(primary, outputs)
+        torque = new
+        if self._blend is not None:
+            old, held, t0 = self._blend
+            w = (t - t0) / self.blend_s
+            if w >= 1.0 or not math.isfinite(w):
+                self._blend = None
+            else:
+                before = held if old is None or old in self.failed else self._command(old, outputs)
+                torque = (1.0 - w) * before + w * new
+        hs = channels.get(HEEL_STRIKE, math.nan)
+        out = StackSample(
+            outputs=outputs,
+            torque_Nm=torque,
+            primary=primary,
+            phase=0.0,
+            phase_rate=0.0,
+            stride_length_m=NOMINAL_STRIDE * self.leg_length,
+            incline_deg=0.0,
+            tbe_phase=self._value("tbe", "phase", outputs, 0.0),
+            heel_strike=bool(hs > 0.5),
+            backup_reset=False,
+            foot_pred_deg=self._first("foot_pred_deg", primary, outputs),
+            shank_pred_deg=self._first("shank_pred_deg", primary, outputs),
+        )
+        if primary is not None:
+            out.phase = self._value(primary, "phase", outputs, 0.0)
+            out.phase_rate = self._value(primary, "phase_rate", outputs, 0.0)
+            out.stride_length_m = self._value(primary, "stride_length_m", outputs, out.stride_length_m)
+            out.incline_deg = self._value(primary, "incline_deg", outputs, 0.0)
+            out.backup_reset = self._value(primary, "backup_reset", outputs, 0.0) > 0.5
+        return out
+
+    def _value(self, name: str, output: str, outputs: list[NDArray[np.float64] | None], default: float) -> float:
+        k = self._position.get(name)
+        if k is None:
+            return default
+        y, i = outputs[k], self._index[k].get(output)
+        return default if y is None or i is None else float(y[i])
+
+    def _first(self, output: str, primary: str | None, outputs: list[NDArray[np.float64] | None]) -> float:
+        """``output`` of the primary if it has one, else of the first healthy estimator that has it."""
+        order: Iterable[str] = self.names if primary is None else (primary, *self.names)
+        for name in order:
+            k = self._position[name]
+            i = self._index[k].get(output)
+            y = outputs[k]
+            if i is not None and y is not None:
+                return float(y[i])
+        return 0.0

@@ -1,0 +1,88 @@
+"""``gaitscope replay`` end to end: the golden trial, batch against streaming, output written in parts.
+
+The golden files in ``tests/data/golden/`` are a 20 s, 100 Hz trial of the virtual cohort (subject
+VC01; how it was made: ``tests/data/golden/README.md``) and its replay output. A change of any replayed
+number beyond 1e-9 fails here, so that it is seen in review and the output regenerated deliberately.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from estimators.pipeline import GaitStatePipeline, PipelineConfig
+from server.cli import main
+from sessions import schema
+from sessions.formats.models import default_model_path, load_model
+from sessions.offline import replay
+
+GOLDEN = Path(__file__).parents[2] / "data" / "golden"
+TRIAL, EXPECTED = GOLDEN / "trial_20s.csv", GOLDEN / "trial_20s_replay.csv"
+SUBJECT = ["--leg-length", "0.8778", "--mass", "64.37"]  # VC01 of the default cohort
+ROOT = GOLDEN.parents[2]
+REGENERATE = f"gaitscope replay {TRIAL.relative_to(ROOT)} --out {EXPECTED.relative_to(ROOT)} {' '.join(SUBJECT)}"
+TOL = 1e-9
+
+
+def test_replay_of_the_golden_trial_matches_the_committed_output(tmp_path: Path) -> None:
+    out = tmp_path / "replay.csv"
+    assert main(["replay", str(TRIAL), "--out", str(out), *SUBJECT]) == 0
+    got, expected = pd.read_csv(out), pd.read_csv(EXPECTED)
+    assert list(got.columns) == list(expected.columns) == list(schema.REPLAY_OUTPUT)
+    assert len(got) == len(expected) == 2000
+    for column in schema.REPLAY_OUTPUT:
+        a, b = got[column].to_numpy(float).tolist(), expected[column].to_numpy(float).tolist()
+        diff = np.abs(np.subtract(a, b))
+        worst = int(np.argmax(diff))
+        assert diff[worst] <= TOL, (
+            f"replay output column {column!r} differs from the golden output by {diff[worst]:.3g} at row "
+            f"{worst + 2} ({a[worst]!r} instead of {b[worst]!r}). If the change is intended, regenerate the "
+            f"golden output from the repository root with\n    {REGENERATE}\n"
+            "and commit it together with the change that caused it."
+        )
+
+
+def test_batch_and_streaming_replays_write_the_same_bytes(tmp_path: Path) -> None:
+    model, _ = load_model(default_model_path())
+    config = PipelineConfig(leg_length=0.8778, body_mass_kg=64.37)
+    batch, stream = tmp_path / "batch.csv", tmp_path / "stream.csv"
+    fast = replay.replay_file(TRIAL, batch, model, config)
+    slow = replay.replay_file(TRIAL, stream, model, config, batch=False)
+    assert replace(fast, wall_s=0.0) == replace(slow, wall_s=0.0) and fast.heel_strikes == 18
+    assert batch.read_bytes() == stream.read_bytes()
+
+
+def test_parts_join_seamlessly(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    model, _ = load_model(default_model_path())
+    config = PipelineConfig(leg_length=0.8778, body_mass_kg=64.37)
+    whole, parts = tmp_path / "whole.csv", tmp_path / "parts.csv"
+    replay.replay_file(TRIAL, whole, model, config)
+    monkeypatch.setattr(replay, "PART", 333)  # parts cut strides, heel strikes and the filters' state
+    replay.replay_file(TRIAL, parts, model, config)
+    assert parts.read_bytes() == whole.read_bytes()
+
+
+def test_a_failure_during_the_replay_leaves_no_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    model, _ = load_model(default_model_path())
+    out = tmp_path / "out.csv"
+    out.write_text("an older output\n")
+    calls = []
+
+    def fail_on_the_third_part(self: GaitStatePipeline, *args: Any, **kwargs: Any) -> Any:
+        calls.append(1)
+        if len(calls) == 3:
+            raise RuntimeError("estimator fault")
+        return original(self, *args, **kwargs)
+
+    original = GaitStatePipeline.run
+    monkeypatch.setattr(replay, "PART", 500)
+    monkeypatch.setattr(GaitStatePipeline, "run", fail_on_the_third_part)
+    with pytest.raises(RuntimeError, match="estimator fault"):
+        replay.replay_file(TRIAL, out, model, PipelineConfig())
+    assert out.read_text() == "an older output\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]

@@ -1,0 +1,323 @@
+"""A session's estimator stack: which estimators run, the primary switch without a torque step, and
+isolation of a broken estimator (the others and the torque go on; a failed primary hands over)."""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from estimators.pipeline import TrainedModel
+from sessions import registry, schema
+from sessions.estimation import FrameEstimator
+from sessions.formats.mcap_io import read_messages
+from sessions.live.runtime import SessionRuntime, SettingRejected
+from sessions.live.sources import LiveDevice, frames_from_table
+from sessions.registry import ESTIMATORS, MissingChannels, StackContext, resolve
+from sessions.schema import PRIMARY_BLEND_S, GaitState, SensorFrame, SessionSettings
+from sessions.synth.trials import replay_columns, sensor_trial
+from tests.estimator_doubles import Scripted
+
+PERIOD = 0.01
+SETTINGS = SessionSettings(torque_gain=2.0, max_torque_Nm=40.0)
+#: Largest torque change per sample a blend adds to the primaries' own (N m): bound x dt / blend time.
+BLEND_STEP = SETTINGS.max_torque_Nm * PERIOD / PRIMARY_BLEND_S
+
+
+@pytest.fixture(scope="module")
+def walk() -> tuple[list[SensorFrame], float, float]:
+    sensors, leg, mass = sensor_trial([(1.2, 0.0, 14)], subject=0, rate_hz=1 / PERIOD)
+    return frames_from_table(sensors), leg, mass
+
+
+def _run(
+    model: TrainedModel,
+    walk: tuple[list[SensorFrame], float, float],
+    settings: SessionSettings = SETTINGS,
+    switch: tuple[int, str] | None = None,
+    **kw: Any,
+) -> tuple[list[GaitState], FrameEstimator]:
+    frames, leg, mass = walk
+    est = FrameEstimator(model, leg, mass, settings, PERIOD, soft_start=False, **kw)
+    out = []
+    for k, frame in enumerate(frames):
+        if switch is not None and k == switch[0]:
+            est.retune(settings.model_copy(update={"primary": switch[1]}))
+        out.append(est.step(frame, 0))
+    return out, est
+
+
+def _torque(states: list[GaitState]) -> np.ndarray:
+    return np.array([s.torque_Nm for s in states])
+
+
+# --- which estimators --------------------------------------------------------------------------------
+def test_the_default_stack_is_every_estimator_the_channels_allow(small_model: TrainedModel) -> None:
+    ctx = StackContext(small_model, 0.9, 70.0, PERIOD)
+
+    def names(channels: set[str] | None, asked: list[str] | None = None) -> list[str]:
+        return [e.name for e in resolve(asked, channels, ctx)]
+
+    assert list(ESTIMATORS) == ["hs_detector", "phase_ekf", "tbe", "hs_backup"]
+    assert names(None) == ["hs_detector", "phase_ekf", "tbe"]  # hs_backup is opt-in (OPT_IN)
+    assert names(None, ["phase_ekf", "hs_backup"]) == ["phase_ekf", "hs_backup"]
+    # a foot angle alone: its velocity is derived, heel strikes detected (the detector feeds the TBE)
+    assert names({"foot_angle_deg"}) == ["hs_detector", "phase_ekf", "tbe"]
+    assert names({"shank_angle_deg", "heel_strike"}) == ["tbe"]
+    assert names({"foot_angle_deg"}, ["tbe", "phase_ekf"]) == ["phase_ekf", "tbe"]  # run in registry order
+    with pytest.raises(MissingChannels, match="phase_ekf needs foot_angle_deg; tbe needs heel_strike"):
+        resolve(["phase_ekf", "tbe"], {"shank_angle_deg"}, ctx)
+    with pytest.raises(MissingChannels, match=r"channels \(shank_angle_deg\) feed no estimator"):
+        resolve(None, {"shank_angle_deg"}, ctx)
+    with pytest.raises(ValueError, match="unknown estimator nope"):
+        resolve(["nope"], None, ctx)
+    assert registry.choose_primary("phase_ekf", resolve(None, {"shank_angle_deg", "heel_strike"}, ctx)) == "tbe"
+
+
+def test_the_default_stack_keeps_the_gait_state_of_the_phase_ekf(small_model: TrainedModel, walk) -> None:
+    """The primary's outputs are the gait state; the other estimators change nothing of it."""
+    full, est = _run(small_model, walk)
+    alone, _ = _run(small_model, walk, estimators=["phase_ekf", "tbe"])
+    assert est.stack.names == ("hs_detector", "phase_ekf", "tbe") and est.primary == "phase_ekf"
+    for a, b in zip(full, alone, strict=True):
+        assert a.model_dump() == b.model_dump()
+    tbe = est.stack.outputs[2].index("phase")
+    assert est.last is not None and full[-1].tbe_phase == est.last.outputs[2][tbe]  # type: ignore[index]
+    assert sum(s.heel_strike for s in full) >= 12 and max(s.torque_Nm for s in full) > 10.0
+
+
+# --- primary switch ----------------------------------------------------------------------------------
+def test_switching_the_primary_while_walking_does_not_step_the_torque(small_model: TrainedModel, walk) -> None:
+    def shifted() -> Scripted:
+        return Scripted("shifted", shift=0.35)  # a phase a third of a cycle off: a very different torque
+
+    ekf = _torque(_run(small_model, walk, extra=[shifted()])[0])
+    other = _torque(_run(small_model, walk, SETTINGS.model_copy(update={"primary": "shifted"}), extra=[shifted()])[0])
+    settle = 200
+    normal = max(np.abs(np.diff(ekf[settle:])).max(), np.abs(np.diff(other[settle:])).max())
+    k = settle + int(np.argmax(np.abs(ekf - other)[settle:-100]))  # switch where they differ most
+    assert abs(ekf[k] - other[k]) > 10.0
+
+    states, est = _run(small_model, walk, switch=(k, "shifted"), extra=[shifted()])
+    blended = _torque(states)
+    steps = np.abs(np.diff(blended))
+    assert steps[k - 1 : k + 60].max() <= normal + BLEND_STEP + 1e-9
+    np.testing.assert_array_equal(blended[:k], ekf[:k])  # the old primary's up to the switch
+    done = k + round(PRIMARY_BLEND_S / PERIOD) + 1
+    np.testing.assert_array_equal(blended[done:], other[done:])  # the new one's once blended
+    assert est.primary == "shifted" and est.last is not None and est.last.outputs[-1] is not None
+    assert states[-1].phase == est.last.outputs[-1][0]
+
+    abrupt = _torque(_run(small_model, walk, switch=(k, "shifted"), extra=[shifted()], blend_s=0.0)[0])
+    assert abs(abrupt[k] - abrupt[k - 1]) > normal + BLEND_STEP  # without the blend it would step
+
+
+def test_a_primary_must_be_in_the_stack_estimate_a_phase_and_be_healthy(small_model: TrainedModel, walk) -> None:
+    frames, leg, mass = walk
+    est = FrameEstimator(small_model, leg, mass, SETTINGS, PERIOD, extra=[Scripted("broken", raise_after=0)])
+    for name, why in (("nope", "not in the session's stack"), ("hs_detector", "estimates no phase")):
+        with pytest.raises(ValueError, match=why):
+            est.stack.set_primary(name)
+    est.step(frames[0], 0)
+    with pytest.raises(ValueError, match=r"broken has failed \(raised RuntimeError: boom\)"):
+        est.stack.set_primary("broken")
+    assert est.primary == "phase_ekf"
+
+
+# --- isolation -----------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("broken", "reason"),
+    [
+        (Scripted("broken", raise_after=300), "raised RuntimeError: boom"),
+        (Scripted("broken", nan_after=300), "returned a non-finite phase"),
+        (Scripted("broken", diverge_after=300), "its covariance diverged"),
+    ],
+    ids=["raises", "nan", "diverges"],
+)
+def test_a_broken_estimator_is_isolated(small_model: TrainedModel, walk, broken: Scripted, reason: str) -> None:
+    reference, _ = _run(small_model, walk)
+    states, est = _run(small_model, walk, extra=[broken])
+    assert list(est.stack.failed) == ["broken"] and reason in est.stack.failed["broken"]
+    [event] = est.events
+    assert event.startswith("estimator broken failed at ") and reason in event
+    for a, b in zip(states, reference, strict=True):  # the others and the torque went on, untouched
+        assert a.model_dump() == b.model_dump()
+    assert est.last is not None and est.last.outputs[-1] is None
+    assert all(y is not None for y in est.last.outputs[:-1])
+    assert broken.samples < 310 < len(states)  # not stepped again once failed
+
+
+def test_a_failed_primary_hands_the_torque_to_the_tbe(small_model: TrainedModel, walk) -> None:
+    k = 500
+    settings = SETTINGS.model_copy(update={"primary": "broken"})
+    states, est = _run(small_model, walk, settings, extra=[Scripted("broken", shift=0.3, raise_after=k)])
+    tbe, _ = _run(small_model, walk, SETTINGS.model_copy(update={"primary": "tbe"}))
+    torque, tbe_torque = _torque(states), _torque(tbe)
+    assert est.primary == "tbe" and est.stack.requested == "broken"
+    assert est.events[-1].startswith("primary estimator broken failed at") and "now follows tbe" in est.events[-1]
+    assert states[k].fault and not states[k + 1].fault
+    assert np.all(np.isfinite(torque)) and torque.min() >= 0.0 and torque.max() <= SETTINGS.max_torque_Nm
+    normal = max(np.abs(np.diff(torque[200:k])).max(), np.abs(np.diff(tbe_torque[200:])).max())
+    assert np.abs(np.diff(torque[k - 1 : k + 60])).max() <= normal + BLEND_STEP + 1e-9
+    done = k + round(PRIMARY_BLEND_S / PERIOD) + 1
+    np.testing.assert_array_equal(torque[done:], tbe_torque[done:])
+    assert [s.phase for s in states[done:]] == [s.phase for s in tbe[done:]]
+
+
+def test_the_phase_ekf_failing_as_primary_hands_over_too(small_model: TrainedModel, walk) -> None:
+    frames, leg, mass = walk
+    est = FrameEstimator(small_model, leg, mass, SETTINGS, PERIOD, soft_start=False)
+    ekf = est.stack.estimators[est.stack.names.index("phase_ekf")]
+    for frame in frames[:400]:
+        est.step(frame, 0)
+
+    def broken(t: float, z: np.ndarray) -> np.ndarray:
+        raise FloatingPointError("overflow in the update")
+
+    ekf.step = broken  # type: ignore[method-assign]
+    torques = [est.step(frame, 0).torque_Nm for frame in frames[400:]]
+    assert est.stack.failed == {"phase_ekf": "raised FloatingPointError: overflow in the update"}
+    assert est.primary == "tbe" and all(0.0 <= q <= SETTINGS.max_torque_Nm for q in torques)
+    assert max(torques[60:]) > 10.0  # assistance goes on, on the timing-based phase
+
+
+def test_without_a_fallback_the_torque_ramps_down_to_zero(small_model: TrainedModel, walk) -> None:
+    k = 500
+    settings = SETTINGS.model_copy(update={"primary": "broken"})
+    broken = Scripted("broken", raise_after=k)
+    states, est = _run(small_model, walk, settings, estimators=["phase_ekf"], extra=[broken])
+    torque = _torque(states)
+    assert est.primary is None and "no fallback" in est.events[-1]
+    ramp = round(PRIMARY_BLEND_S / PERIOD)
+    assert np.abs(np.diff(torque[k - 1 : k + ramp + 1])).max() <= torque[k - 1] * PERIOD / PRIMARY_BLEND_S + 1e-9
+    assert np.all(torque[k + ramp :] == 0.0) and states[-1].phase == 0.0
+
+
+def test_an_estimator_whose_retune_raises_fails_alone(small_model: TrainedModel, walk) -> None:
+    frames, leg, mass = walk
+
+    class Untunable(Scripted):
+        tunables = ("measurement_noise_scale",)
+
+        def retune(self, **params: float) -> None:
+            raise ValueError("cannot")
+
+    est = FrameEstimator(small_model, leg, mass, SETTINGS, PERIOD, extra=[Untunable("picky")])
+    est.retune(SETTINGS.model_copy(update={"measurement_noise_scale": 2.0}))
+    assert est.stack.failed == {"picky": "retune raised ValueError: cannot"}
+    assert est.events == ["estimator picky failed: retune raised ValueError: cannot"]
+    assert est.step(frames[0], 0).t == 0.0
+
+
+# --- sessions ------------------------------------------------------------------------------------------
+def _subject(client: TestClient) -> int:
+    r = client.post(
+        "/api/subjects", json={"code": f"S{time.monotonic_ns() % 10**8}", "leg_length_m": 0.9, "mass_kg": 70}
+    )
+    assert r.status_code == 201, r.text
+    return int(r.json()["id"])
+
+
+def _upload(client: TestClient, path: Path, subject_id: int) -> dict[str, Any]:
+    data = path.read_bytes()
+    r = client.post("/api/uploads", json={"filename": path.name, "size": len(data), "subject_id": subject_id})
+    assert r.status_code == 201, r.text
+    up = r.json()
+    for off in range(0, len(data), up["chunk_size"]):
+        assert client.put(
+            f"/api/uploads/{up['id']}?offset={off}", content=data[off : off + up["chunk_size"]]
+        ).is_success
+    r = client.post(f"/api/uploads/{up['id']}/finish")
+    assert r.status_code == 201, r.text
+    return r.json()
+
+
+def test_a_session_refuses_an_estimator_its_source_cannot_feed(client: TestClient, tmp_path: Path) -> None:
+    sensors, _, _ = sensor_trial([(1.0, 0.0, 4)], rate_hz=100.0)
+    table = replay_columns(sensors)[["time_s", "shank_angle_deg", "heel_strike"]]  # no foot sensor
+    path = tmp_path / "shank_only.csv"
+    table.to_csv(path, index=False, float_format="%.6f")
+    subject = _subject(client)
+    trial = _upload(client, path, subject)
+    source = {"kind": "replay", "trial_id": trial["id"], "speed": 50.0}
+    asked = {"subject_id": subject, "source": source, "settings": {"estimators": ["phase_ekf", "tbe"]}}
+    r = client.post("/api/sessions", json=asked)
+    assert r.status_code == 409, r.text
+    assert "phase_ekf needs foot_angle_deg" in r.json()["detail"] and "tbe" not in r.json()["detail"]
+    [refused] = [s for s in client.get("/api/sessions").json() if s["settings"]["estimators"]]
+    assert refused["state"] == "failed"
+    events = client.get(f"/api/sessions/{refused['id']}/events").json()
+    assert any("refused to start" in e["text"] and "foot_angle_deg" in e["text"] for e in events)
+    # By default the session runs what the channels allow, the timing-based phase driving the torque.
+    r = client.post("/api/sessions", json={"subject_id": subject, "source": source})
+    assert r.status_code == 201, r.text
+    runtime = client.app.state.ctx.manager.get(r.json()["id"])  # type: ignore[attr-defined]
+    assert runtime.estimator.stack.names == ("tbe",) and runtime.estimator.primary == "tbe"
+    client.post(f"/api/sessions/{r.json()['id']}/stop")
+
+
+def test_a_running_session_records_streams_and_reports_every_estimator(
+    client: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Through the real runtime: a broken estimator of the stack fails alone (event, data health, its
+    recorded channel), the primary switches through the settings path (logged, rate-limited)."""
+    monkeypatch.setitem(registry.ESTIMATORS, "broken", lambda ctx: Scripted("broken", nan_after=150))
+    ctx = client.app.state.ctx  # type: ignore[attr-defined]
+    settings = {"estimators": ["phase_ekf", "tbe", "broken"]}
+    r = client.post(
+        "/api/sessions",
+        json={"subject_id": _subject(client), "source": {"kind": "device"}, "settings": settings, "start": False},
+    )
+    assert r.status_code == 201, r.text
+    session = ctx.store.get_session(r.json()["id"])
+    model, _ = ctx.models.get("default")
+    runtime = SessionRuntime(
+        session, ctx.store.get_subject(session.subject_id), model, LiveDevice(), ctx.store, ctx.settings.data_dir
+    )
+    trial = runtime.start_recording("stack")
+    sub = runtime.subscribe(0.0)
+    sensors, _, _ = sensor_trial([(1.2, 0.0, 8)], rate_hz=100.0)
+    frames = frames_from_table(sensors)
+    for i, frame in enumerate(frames):
+        if i == 300:
+            runtime.change_settings(schema.SettingsChange(primary="tbe", reason="compare"))
+            with pytest.raises(SettingRejected, match="switches are at least 2 s apart"):
+                runtime.change_settings(schema.SettingsChange(primary="phase_ekf"))
+            for name, why in (("broken", "has failed"), ("nope", "not in the session's stack")):
+                with pytest.raises(SettingRejected, match=why):
+                    runtime.change_settings(schema.SettingsChange(primary=name))
+        runtime.process(frame, time.time_ns())
+    health = runtime.health(sub)
+    assert health.estimators == ["phase_ekf", "tbe", "broken"] and health.primary == "tbe"
+    assert list(health.failed_estimators) == ["broken"] and "non-finite phase" in health.failed_estimators["broken"]
+    batch = sub.batch(session.id)
+    assert set(batch.estimators) == {"phase_ekf", "tbe", "broken"} and batch.estimators["broken"].failed
+    assert len(batch.estimators["tbe"].columns["phase"]) == len(batch.states) == len(frames)
+    streamed = batch.estimators["tbe"].columns["phase"][-5:]
+    assert streamed == pytest.approx([s.phase for s in batch.states[-5:]], abs=1e-5)
+    assert set(batch.estimators["phase_ekf"].columns) == {"phase", "phase_rate", "stride_length_m", "incline_deg"}
+    runtime.stop_recording()
+
+    events = ctx.store.list_events(session.id)
+    texts = [e.text for e in events]
+    assert any(t.startswith("estimator broken failed at 1.500 s: returned a non-finite phase") for t in texts)
+    [change] = [e for e in events if e.kind == "setting"]
+    assert (change.field, change.before, change.after) == ("primary", "phase_ekf", "tbe")
+    assert change.text == "primary phase_ekf -> tbe, the torque blends over 0.5 s (compare)"
+    path = ctx.settings.data_dir / trial.path
+    recorded = {name: [m for _, _, m in read_messages(path, [f"/estimators/{name}"])] for name in ("tbe", "broken")}
+    assert len(recorded["tbe"]) == len(frames) and recorded["tbe"][0]["values"].keys() == {"phase", "phase_rate"}
+    assert [m["failed"] for m in recorded["broken"]].index(True) == 150
+    assert recorded["broken"][-1]["values"] == {"phase": None, "phase_rate": None}
+    # written as prepared JSON on the hot path: it reads back as the class, field for field
+    last = schema.EstimatorOutputs.model_validate(recorded["tbe"][-1])
+    assert (last.name, last.seq, last.failed) == ("tbe", frames[-1].seq, False)
+    assert recorded["tbe"][-1] == last.model_dump()
+    settings_msgs = [m for _, _, m in read_messages(path, ["/settings"])]
+    assert [m["primary"] for m in settings_msgs] == ["phase_ekf", "tbe"]
+    assert all(math.isfinite(m["torque_Nm"]) for _, _, m in read_messages(path, ["/torque"]))

@@ -1,0 +1,652 @@
+// GENERATED from sessions/schema.py by `gaitscope wire --out web/wire.js`: do not edit by hand. Change the
+// schema and run the command again; tests/server/test_wire.py fails while this file differs from it.
+//
+// JSDoc types of every wire message (the JSON schemas `GET /api/schema` serves, as types), and the
+// bounds the browser checks before the server does. The server stays the judge (422, 409).
+
+/**
+ * A person who walks with a device.
+ * @typedef {object} SubjectCreate
+ * @property {string} code pseudonymous code, 1-32 of A-Z a-z 0-9 _ . -
+ * @property {number} leg_length_m (0.5..1.3)
+ * @property {number} mass_kg (20..250)
+ * @property {"left" | "right"} [side="right"]
+ * @property {string} [notes=""]
+ */
+
+/**
+ * @typedef {object} Subject
+ * @property {string} code pseudonymous code, 1-32 of A-Z a-z 0-9 _ . -
+ * @property {number} leg_length_m (0.5..1.3)
+ * @property {number} mass_kg (20..250)
+ * @property {"left" | "right"} [side="right"]
+ * @property {string} [notes=""]
+ * @property {number} id
+ * @property {string} created_utc
+ */
+
+/**
+ * @typedef {object} SessionCreate
+ * @property {number} subject_id (>= 1)
+ * @property {SimulatedSource | ReplaySource | DeviceSource | UploadSource} [source]
+ * @property {SessionSettings} [settings]
+ * @property {boolean} [start=true]
+ */
+
+/**
+ * @typedef {object} Session
+ * @property {number} id
+ * @property {number} subject_id
+ * @property {SimulatedSource | ReplaySource | DeviceSource | UploadSource} source
+ * @property {SessionSettings} settings
+ * @property {"created" | "running" | "stopped" | "failed"} state
+ * @property {string} created_utc
+ * @property {string | null} [started_utc=null]
+ * @property {string | null} [stopped_utc=null]
+ */
+
+/**
+ * Assistance and estimator tuning of one session (seed 000's defaults at 1.0).
+ * @typedef {object} SessionSettings
+ * @property {number} [torque_gain=1.0] x the 1/5-scaled biological moment (0..3)
+ * @property {number} [max_torque_Nm=30.0] hard bound on the command (0..80)
+ * @property {number} [measurement_noise_scale=1.0] (0.1..10)
+ * @property {number} [process_noise_scale=1.0] (0.1..10)
+ * @property {string} [model="default"] name of a model in the model store
+ * @property {string} [primary="phase_ekf"] the estimator of the stack whose phase drives the torque profile
+ * @property {Array<string> | null} [estimators=null] the session's estimator stack, chosen at start and fixed while it runs; null: every estimator the source's channels allow
+ */
+
+/**
+ * A requested change of some settings; fields left out keep their value.
+ * @typedef {object} SettingsChange
+ * @property {number | null} [torque_gain=null] (0..3)
+ * @property {number | null} [max_torque_Nm=null] (0..80)
+ * @property {number | null} [measurement_noise_scale=null] (0.1..10)
+ * @property {number | null} [process_noise_scale=null] (0.1..10)
+ * @property {string | null} [primary=null] switched at most every 2 s; the torque blends over 0.5 s
+ * @property {string} [actor="clinician"]
+ * @property {string} [reason=""]
+ */
+
+/**
+ * @typedef {object} Trial
+ * @property {number} id
+ * @property {number} session_id
+ * @property {string} name
+ * @property {"recording" | "finished" | "recovered" | "uploaded" | "damaged"} status
+ * @property {string} path MCAP file, relative to the data folder
+ * @property {string} started_utc
+ * @property {string | null} [stopped_utc=null]
+ * @property {number} [samples=0]
+ * @property {number} [duration_s=0.0]
+ */
+
+/**
+ * A setting change, an annotation or a system event: when, what, before, after, who.
+ * @typedef {object} Event
+ * @property {number} id
+ * @property {number} session_id
+ * @property {number} t session time (s) of the sample at which it took effect
+ * @property {string} wall_utc
+ * @property {"setting" | "annotation" | "system" | "recording"} kind
+ * @property {string} text
+ * @property {string | null} [field=null]
+ * @property {number | string | null} [before=null]
+ * @property {number | string | null} [after=null]
+ * @property {string} [actor="system"]
+ */
+
+/**
+ * @typedef {object} AnnotationCreate
+ * @property {string} text
+ * @property {string} [actor="clinician"]
+ */
+
+/**
+ * @typedef {object} RecordingControl
+ * @property {"start" | "stop"} action
+ * @property {string} [name=""]
+ */
+
+/**
+ * @typedef {object} UploadCreate
+ * @property {string} filename
+ * @property {number} size bytes; refused above the server's limit (>= 1)
+ * @property {number} subject_id (>= 1)
+ */
+
+/**
+ * @typedef {object} Upload
+ * @property {string} id
+ * @property {string} filename
+ * @property {number} size
+ * @property {number} received
+ * @property {number} chunk_size
+ */
+
+/**
+ * A re-run of a recorded trial's sensor frames through the estimators (``POST /api/trials/{id}/rerun``).
+ *
+ * Two modes, by ``settings``:
+ *
+ * * left out or null (the default): **as recorded**. The trial's recorded settings are replayed: those
+ *   in force at its first frame, then each recorded change (``/settings``) from the frame after the one
+ *   it followed, as it applied live; the model is the recorded one. The result reproduces the recorded
+ *   gait states to floating-point round-off: the baseline of "what ran".
+ * * given: **what if**. These settings, model included, held constant over the whole trial (recorded
+ *   changes are not applied).
+ * @typedef {object} RerunRequest
+ * @property {SessionSettings | null} [settings=null] null: as recorded (the default); else these settings over the whole trial
+ * @property {Array<string> | null} [estimators=null] the estimators to re-run (their outputs come back as '<name>.<output>' columns); null: the trial's recorded stack
+ */
+
+/**
+ * A model in the model store (``GET /api/models``).
+ * @typedef {object} ModelInfo
+ * @property {string} name
+ * @property {ModelProvenance} provenance
+ */
+
+/**
+ * Which running session the leg view follows (``POST /api/viewer/focus``).
+ * @typedef {object} ViewerFocus
+ * @property {number} session_id (>= 1)
+ */
+
+/**
+ * Pose the leg view at time ``t`` (s) of a trial: the review page's cursor (``POST /api/viewer/show``).
+ * @typedef {object} ViewerShow
+ * @property {number} trial_id (>= 1)
+ * @property {number} t
+ */
+
+/**
+ * One sample from a device (``/ws/devices/{id}``) or a source; absent channel = None.
+ *
+ * Every channel of :data:`CHANNELS` is optional; units and sign conventions are in each field's
+ * description (and the registry). ``t`` is the device's own clock (s) and must be a finite number: a
+ * frame without a usable time is refused. Channel values outside :data:`SENSOR_LIMITS` (or NaN /
+ * Infinity) are accepted here and treated as missing by :meth:`plausible`, which the estimators run on
+ * every frame. ``sent_ns`` is the device's wall clock at send time (ns since the epoch, optional) for
+ * end-to-end latency.
+ *
+ * Versions: a frame without ``version`` is read as the current one. Version 1 frames (recordings,
+ * replay files and device clients from before version 2, whose channels keep their names, units and
+ * meanings in version 2) are accepted and upgraded on read: the frame read says ``version=2``.
+ * @typedef {object} SensorFrame
+ * @property {"frame"} [type="frame"]
+ * @property {1 | 2} [version=2] schema version; 1 is upgraded on read
+ * @property {number} seq (0..9223372036854775807)
+ * @property {number} t
+ * @property {number | null} [foot_angle_deg=null] ipsilateral foot angle from horizontal, (+) toes up (deg)
+ * @property {number | null} [foot_vel_dps=null] ipsilateral foot angular velocity (deg/s)
+ * @property {number | null} [shank_angle_deg=null] ipsilateral shank angle from vertical (deg)
+ * @property {number | null} [shank_vel_dps=null] ipsilateral shank angular velocity (deg/s)
+ * @property {number | null} [heel_forward_m=null] ipsilateral heel forward of the hip, raw (not high-passed) (m)
+ * @property {number | null} [heel_up_m=null] ipsilateral heel above the hip, raw (not high-passed) (m)
+ * @property {number | null} [thigh_angle_deg=null] ipsilateral thigh angle from vertical (deg)
+ * @property {number | null} [thigh_vel_dps=null] ipsilateral thigh angular velocity (deg/s)
+ * @property {number | null} [foot_angle_contra_deg=null] contralateral foot angle from horizontal, (+) toes up (deg)
+ * @property {number | null} [foot_vel_contra_dps=null] contralateral foot angular velocity (deg/s)
+ * @property {number | null} [shank_angle_contra_deg=null] contralateral shank angle from vertical (deg)
+ * @property {number | null} [shank_vel_contra_dps=null] contralateral shank angular velocity (deg/s)
+ * @property {number | null} [thigh_angle_contra_deg=null] contralateral thigh angle from vertical (deg)
+ * @property {number | null} [thigh_vel_contra_dps=null] contralateral thigh angular velocity (deg/s)
+ * @property {number | null} [hip_angle_deg=null] ipsilateral hip flexion (joint encoder) (deg)
+ * @property {number | null} [knee_angle_deg=null] ipsilateral knee flexion (joint encoder) (deg)
+ * @property {number | null} [ankle_angle_deg=null] ipsilateral ankle dorsiflexion (joint encoder) (deg)
+ * @property {number | null} [hip_angle_contra_deg=null] contralateral hip flexion (joint encoder) (deg)
+ * @property {number | null} [knee_angle_contra_deg=null] contralateral knee flexion (joint encoder) (deg)
+ * @property {number | null} [ankle_angle_contra_deg=null] contralateral ankle dorsiflexion (joint encoder) (deg)
+ * @property {number | null} [imu_pelvis_gyro_x_dps=null] pelvis (sacrum) IMU, rate about x (deg/s)
+ * @property {number | null} [imu_pelvis_gyro_y_dps=null] pelvis (sacrum) IMU, rate about y (deg/s)
+ * @property {number | null} [imu_pelvis_gyro_z_dps=null] pelvis (sacrum) IMU, rate about z (deg/s)
+ * @property {number | null} [imu_pelvis_accel_x_m_s2=null] pelvis (sacrum) IMU, specific force along x (m/s^2)
+ * @property {number | null} [imu_pelvis_accel_y_m_s2=null] pelvis (sacrum) IMU, specific force along y (m/s^2)
+ * @property {number | null} [imu_pelvis_accel_z_m_s2=null] pelvis (sacrum) IMU, specific force along z (m/s^2)
+ * @property {number | null} [imu_thigh_gyro_x_dps=null] ipsilateral thigh IMU, rate about x (deg/s)
+ * @property {number | null} [imu_thigh_gyro_y_dps=null] ipsilateral thigh IMU, rate about y (deg/s)
+ * @property {number | null} [imu_thigh_gyro_z_dps=null] ipsilateral thigh IMU, rate about z (deg/s)
+ * @property {number | null} [imu_thigh_accel_x_m_s2=null] ipsilateral thigh IMU, specific force along x (m/s^2)
+ * @property {number | null} [imu_thigh_accel_y_m_s2=null] ipsilateral thigh IMU, specific force along y (m/s^2)
+ * @property {number | null} [imu_thigh_accel_z_m_s2=null] ipsilateral thigh IMU, specific force along z (m/s^2)
+ * @property {number | null} [imu_shank_gyro_x_dps=null] ipsilateral shank IMU, rate about x (deg/s)
+ * @property {number | null} [imu_shank_gyro_y_dps=null] ipsilateral shank IMU, rate about y (deg/s)
+ * @property {number | null} [imu_shank_gyro_z_dps=null] ipsilateral shank IMU, rate about z (deg/s)
+ * @property {number | null} [imu_shank_accel_x_m_s2=null] ipsilateral shank IMU, specific force along x (m/s^2)
+ * @property {number | null} [imu_shank_accel_y_m_s2=null] ipsilateral shank IMU, specific force along y (m/s^2)
+ * @property {number | null} [imu_shank_accel_z_m_s2=null] ipsilateral shank IMU, specific force along z (m/s^2)
+ * @property {number | null} [imu_foot_gyro_x_dps=null] ipsilateral foot IMU, rate about x (deg/s)
+ * @property {number | null} [imu_foot_gyro_y_dps=null] ipsilateral foot IMU, rate about y (deg/s)
+ * @property {number | null} [imu_foot_gyro_z_dps=null] ipsilateral foot IMU, rate about z (deg/s)
+ * @property {number | null} [imu_foot_accel_x_m_s2=null] ipsilateral foot IMU, specific force along x (m/s^2)
+ * @property {number | null} [imu_foot_accel_y_m_s2=null] ipsilateral foot IMU, specific force along y (m/s^2)
+ * @property {number | null} [imu_foot_accel_z_m_s2=null] ipsilateral foot IMU, specific force along z (m/s^2)
+ * @property {number | null} [imu_thigh_contra_gyro_x_dps=null] contralateral thigh IMU, rate about x (deg/s)
+ * @property {number | null} [imu_thigh_contra_gyro_y_dps=null] contralateral thigh IMU, rate about y (deg/s)
+ * @property {number | null} [imu_thigh_contra_gyro_z_dps=null] contralateral thigh IMU, rate about z (deg/s)
+ * @property {number | null} [imu_thigh_contra_accel_x_m_s2=null] contralateral thigh IMU, specific force along x (m/s^2)
+ * @property {number | null} [imu_thigh_contra_accel_y_m_s2=null] contralateral thigh IMU, specific force along y (m/s^2)
+ * @property {number | null} [imu_thigh_contra_accel_z_m_s2=null] contralateral thigh IMU, specific force along z (m/s^2)
+ * @property {number | null} [imu_shank_contra_gyro_x_dps=null] contralateral shank IMU, rate about x (deg/s)
+ * @property {number | null} [imu_shank_contra_gyro_y_dps=null] contralateral shank IMU, rate about y (deg/s)
+ * @property {number | null} [imu_shank_contra_gyro_z_dps=null] contralateral shank IMU, rate about z (deg/s)
+ * @property {number | null} [imu_shank_contra_accel_x_m_s2=null] contralateral shank IMU, specific force along x (m/s^2)
+ * @property {number | null} [imu_shank_contra_accel_y_m_s2=null] contralateral shank IMU, specific force along y (m/s^2)
+ * @property {number | null} [imu_shank_contra_accel_z_m_s2=null] contralateral shank IMU, specific force along z (m/s^2)
+ * @property {number | null} [imu_foot_contra_gyro_x_dps=null] contralateral foot IMU, rate about x (deg/s)
+ * @property {number | null} [imu_foot_contra_gyro_y_dps=null] contralateral foot IMU, rate about y (deg/s)
+ * @property {number | null} [imu_foot_contra_gyro_z_dps=null] contralateral foot IMU, rate about z (deg/s)
+ * @property {number | null} [imu_foot_contra_accel_x_m_s2=null] contralateral foot IMU, specific force along x (m/s^2)
+ * @property {number | null} [imu_foot_contra_accel_y_m_s2=null] contralateral foot IMU, specific force along y (m/s^2)
+ * @property {number | null} [imu_foot_contra_accel_z_m_s2=null] contralateral foot IMU, specific force along z (m/s^2)
+ * @property {number | null} [foot_force_N=null] vertical force under the ipsilateral foot (N)
+ * @property {number | null} [foot_force_contra_N=null] vertical force under the contralateral foot (N)
+ * @property {boolean | null} [foot_contact=null] ipsilateral foot on the ground
+ * @property {boolean | null} [foot_contact_contra=null] contralateral foot on the ground
+ * @property {boolean | null} [heel_strike=null] an ipsilateral heel strike at this sample
+ * @property {number | null} [motor_current_A=null] device motor current, (+) toward (+) torque (A)
+ * @property {number | null} [commanded_torque_Nm=null] torque the device commands, signed as torque_Nm (N m)
+ * @property {number | null} [belt_speed_m_s=null] treadmill belt speed, when known (m/s)
+ * @property {number | null} [step_length_m=null] last step: forward distance between the feet at the last touchdown (m)
+ * @property {number | null} [com_forward_m=null] centre of mass relative to the stance foot, forward (m)
+ * @property {number | null} [com_lateral_m=null] centre of mass relative to the stance foot, (+) to the subject's right (m)
+ * @property {number | null} [com_up_m=null] centre of mass relative to the stance foot, up (m)
+ * @property {number | null} [com_forward_vel_m_s=null] centre-of-mass velocity relative to the stance foot, forward (m/s)
+ * @property {number | null} [com_lateral_vel_m_s=null] centre-of-mass velocity relative to the stance foot, (+) to the subject's right (m/s)
+ * @property {number | null} [com_up_vel_m_s=null] centre-of-mass velocity relative to the stance foot, up (m/s)
+ * @property {number | null} [sent_ns=null] (0..9223372036854775807)
+ */
+
+/**
+ * The estimate at one sample, as streamed to browsers and recorded (``/gait_state``).
+ * @typedef {object} GaitState
+ * @property {number} seq
+ * @property {number} t
+ * @property {number} phase
+ * @property {number} phase_rate
+ * @property {number} stride_length_m
+ * @property {number} incline_deg
+ * @property {number} torque_Nm
+ * @property {number} tbe_phase
+ * @property {boolean} heel_strike
+ * @property {boolean} backup_reset
+ * @property {boolean} [fault=false] the filters were reset or the torque forced to 0 here
+ * @property {number | null} foot_angle_deg
+ * @property {number | null} shank_angle_deg
+ * @property {number | null} thigh_angle_deg
+ * @property {number} foot_pred_deg
+ * @property {number} shank_pred_deg
+ * @property {number | null} [sent_ns=null]
+ * @property {number} recv_ns server wall clock when the sensor frame arrived (ns)
+ */
+
+/**
+ * Sent back to a live device after each frame, and recorded (``/torque``).
+ * @typedef {object} TorqueCommand
+ * @property {"torque"} [type="torque"]
+ * @property {number} seq
+ * @property {number} t
+ * @property {number} torque_Nm
+ */
+
+/**
+ * Server -> browser: the gait states since the last batch (decimated as the client asked), and every
+ * estimator's outputs at the same samples.
+ * @typedef {object} StreamBatch
+ * @property {"states"} [type="states"]
+ * @property {number} session_id
+ * @property {Array<GaitState>} states
+ * @property {number} decimation every n-th sample is sent
+ * @property {Object<string, EstimatorColumns>} [estimators] by estimator name, aligned with states
+ */
+
+/**
+ * Server -> browser, about once a second: data health of the session and of this client.
+ * @typedef {object} Health
+ * @property {"health"} [type="health"]
+ * @property {number} session_id
+ * @property {number} rate_hz
+ * @property {number | null} latency_ms_p50
+ * @property {number | null} latency_ms_p95
+ * @property {number} samples
+ * @property {number} dropped_input device frames lost, out of order or over the declared rate
+ * @property {number} dropped_client batches this client missed because it was slow
+ * @property {number} clients
+ * @property {number} [implausible=0] sensor values outside SENSOR_LIMITS, treated as missing
+ * @property {number} [faults=0] filter restarts and resets, and torques forced to 0
+ * @property {"ok" | "low" | "critical"} [disk="ok"] free space for the recording
+ * @property {Array<string>} [estimators] the session's estimator stack
+ * @property {string | null} [primary=null] the estimator driving the torque now (null: none, the torque is 0)
+ * @property {Object<string, string>} [failed_estimators] failed estimators and why
+ */
+
+/**
+ * @typedef {object} EventMessage
+ * @property {"event"} [type="event"]
+ * @property {Event} event
+ */
+
+/**
+ * @typedef {object} SettingsMessage
+ * @property {"settings"} [type="settings"]
+ * @property {number} session_id
+ * @property {SessionSettings} settings
+ */
+
+/**
+ * @typedef {object} Hello
+ * @property {"hello"} [type="hello"]
+ * @property {Session} session
+ * @property {Subject} subject
+ * @property {number | null} source_rate_hz
+ */
+
+/**
+ * Foxglove's ``foxglove.Event`` (start_time, end_time, metadata), so Foxglove lists our events.
+ * @typedef {object} FoxgloveEvent
+ * @property {TimeStamp} start_time
+ * @property {TimeStamp} end_time
+ * @property {Array<KeyValuePair>} [metadata]
+ */
+
+/**
+ * What a fitted gait model was trained on; stored in every model file.
+ * @typedef {object} ModelProvenance
+ * @property {1} [format_version=1]
+ * @property {string} gaitscope_version
+ * @property {string} created_utc
+ * @property {string} source 'default-cohort' or the path of the LocoHub file
+ * @property {string} source_sha256 hash of the training table's signal columns
+ * @property {Array<string>} subjects
+ * @property {number} n_samples (>= 1)
+ * @property {number} n_strides (>= 1)
+ * @property {Array<number>} speeds_m_s
+ * @property {Array<number>} inclines_deg
+ * @property {number} fourier_order (>= 1)
+ * @property {[boolean, boolean, boolean, boolean]} [outputs] which of foot, shank, heel forward, heel up were trained
+ * @property {number} torque_fourier_order (>= 1)
+ * @property {number | null} [cohort_seed=null]
+ */
+
+/**
+ * Server -> device, instead of a torque command: why a frame was refused or dropped.
+ *
+ * ``kind``: ``invalid`` (the frame failed validation; ``detail`` lists the errors), ``order`` (its
+ * time does not follow the last frame's), ``rate`` (frames over the declared rate were dropped;
+ * ``dropped`` counts them since the last notice), ``binary`` (a binary message; frames are JSON text).
+ * @typedef {object} DeviceNotice
+ * @property {"error"} [type="error"]
+ * @property {"invalid" | "order" | "rate" | "binary"} kind
+ * @property {string | Array<Object<string, *>>} detail
+ * @property {number | null} [seq=null]
+ * @property {number} [dropped=0]
+ */
+
+/**
+ * One estimator's outputs at one sample, recorded on its own channel (``/estimators/<name>``).
+ *
+ * ``values`` maps each output the estimator declares (``estimators.protocol.Estimator.outputs``) to its
+ * value (booleans as 1.0 / 0.0), None for all of them once the estimator has failed.
+ * @typedef {object} EstimatorOutputs
+ * @property {number} seq
+ * @property {number} t
+ * @property {string} name
+ * @property {Object<string, number | null>} values
+ * @property {boolean} [failed=false]
+ */
+
+/**
+ * A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames.
+ *
+ * ``rate_hz`` is the device's declared sample rate: the server takes up to ``1.25 x rate_hz``
+ * frames per second (with a burst of two seconds' worth) and drops the rest, counted and reported to
+ * the device, so that a flooding device cannot starve the other sessions.
+ * @typedef {object} DeviceSource
+ * @property {"device"} [kind="device"]
+ * @property {number} [rate_hz=200.0] declared sample rate (Hz) (1..2000)
+ */
+
+/**
+ * One estimator's outputs over a :class:`StreamBatch`: one column per output, row for row with the
+ * batch's states (None where it had failed).
+ * @typedef {object} EstimatorColumns
+ * @property {boolean} failed it has failed (its outputs are no longer computed)
+ * @property {Object<string, Array<number | null>>} columns
+ */
+
+/**
+ * @typedef {object} KeyValuePair
+ * @property {string} key
+ * @property {string} value
+ */
+
+/**
+ * @typedef {object} ProtocolStep
+ * @property {number} speed_m_s (0.3..2)
+ * @property {number} incline_deg (-15..15)
+ * @property {number} strides (1..2000)
+ */
+
+/**
+ * A stored trial (recorded, or uploaded MCAP / replay CSV / LocoHub file) played back.
+ * @typedef {object} ReplaySource
+ * @property {"replay"} [kind="replay"]
+ * @property {number} trial_id (>= 1)
+ * @property {number} [speed=1.0] 1x real time or faster (1..50)
+ * @property {boolean} [loop=false]
+ */
+
+/**
+ * A virtual-cohort subject walking a protocol through simulated sensors, in real time.
+ * @typedef {object} SimulatedSource
+ * @property {"simulated"} [kind="simulated"]
+ * @property {Array<ProtocolStep>} [protocol]
+ * @property {number} [rate_hz=200.0] (20..1000)
+ * @property {number} [cohort_subject=0] (0..9)
+ * @property {boolean} [loop=true]
+ * @property {number} [seed=7] (>= 0)
+ */
+
+/**
+ * @typedef {object} TimeStamp
+ * @property {number} sec
+ * @property {number} nsec
+ */
+
+/**
+ * A log uploaded for review (MCAP, replay CSV or LocoHub); its session holds the imported trial.
+ * @typedef {object} UploadSource
+ * @property {"upload"} [kind="upload"]
+ * @property {string} filename
+ */
+
+/** Freezes an object and every object in it. */
+function deepFreeze(o) {
+  for (const v of Object.values(o)) if (v && typeof v === "object") deepFreeze(v);
+  return Object.freeze(o);
+}
+
+/**
+ * Bounds of every clinician-adjustable setting (`SETTING_LIMITS`): minimum, maximum, and the largest
+ * change per second (the server also spaces two changes of a field by `step / rate` seconds).
+ * @type {Readonly<Record<string, {min: number, max: number, rate: number}>>}
+ */
+export const SETTING_LIMITS = deepFreeze({
+  torque_gain: { min: 0.0, max: 3.0, rate: 0.5 },
+  max_torque_Nm: { min: 0.0, max: 80.0, rate: 10.0 },
+  measurement_noise_scale: { min: 0.1, max: 10.0, rate: 5.0 },
+  process_noise_scale: { min: 0.1, max: 10.0, rate: 5.0 },
+});
+
+/**
+ * Physically plausible range of each sensor channel (`SENSOR_LIMITS`); a value outside it is treated
+ * as missing for that sample.
+ * @type {Readonly<Record<string, {min: number, max: number}>>}
+ */
+export const SENSOR_LIMITS = deepFreeze({
+  foot_angle_deg: { min: -180.0, max: 180.0 },
+  foot_vel_dps: { min: -4000.0, max: 4000.0 },
+  shank_angle_deg: { min: -180.0, max: 180.0 },
+  shank_vel_dps: { min: -4000.0, max: 4000.0 },
+  thigh_angle_deg: { min: -180.0, max: 180.0 },
+  thigh_vel_dps: { min: -4000.0, max: 4000.0 },
+  foot_angle_contra_deg: { min: -180.0, max: 180.0 },
+  foot_vel_contra_dps: { min: -4000.0, max: 4000.0 },
+  shank_angle_contra_deg: { min: -180.0, max: 180.0 },
+  shank_vel_contra_dps: { min: -4000.0, max: 4000.0 },
+  thigh_angle_contra_deg: { min: -180.0, max: 180.0 },
+  thigh_vel_contra_dps: { min: -4000.0, max: 4000.0 },
+  heel_forward_m: { min: -3.0, max: 3.0 },
+  heel_up_m: { min: -3.0, max: 3.0 },
+  hip_angle_deg: { min: -180.0, max: 180.0 },
+  knee_angle_deg: { min: -180.0, max: 180.0 },
+  ankle_angle_deg: { min: -180.0, max: 180.0 },
+  hip_angle_contra_deg: { min: -180.0, max: 180.0 },
+  knee_angle_contra_deg: { min: -180.0, max: 180.0 },
+  ankle_angle_contra_deg: { min: -180.0, max: 180.0 },
+  imu_pelvis_gyro_x_dps: { min: -4000.0, max: 4000.0 },
+  imu_pelvis_gyro_y_dps: { min: -4000.0, max: 4000.0 },
+  imu_pelvis_gyro_z_dps: { min: -4000.0, max: 4000.0 },
+  imu_pelvis_accel_x_m_s2: { min: -157.0, max: 157.0 },
+  imu_pelvis_accel_y_m_s2: { min: -157.0, max: 157.0 },
+  imu_pelvis_accel_z_m_s2: { min: -157.0, max: 157.0 },
+  imu_thigh_gyro_x_dps: { min: -4000.0, max: 4000.0 },
+  imu_thigh_gyro_y_dps: { min: -4000.0, max: 4000.0 },
+  imu_thigh_gyro_z_dps: { min: -4000.0, max: 4000.0 },
+  imu_thigh_accel_x_m_s2: { min: -157.0, max: 157.0 },
+  imu_thigh_accel_y_m_s2: { min: -157.0, max: 157.0 },
+  imu_thigh_accel_z_m_s2: { min: -157.0, max: 157.0 },
+  imu_shank_gyro_x_dps: { min: -4000.0, max: 4000.0 },
+  imu_shank_gyro_y_dps: { min: -4000.0, max: 4000.0 },
+  imu_shank_gyro_z_dps: { min: -4000.0, max: 4000.0 },
+  imu_shank_accel_x_m_s2: { min: -157.0, max: 157.0 },
+  imu_shank_accel_y_m_s2: { min: -157.0, max: 157.0 },
+  imu_shank_accel_z_m_s2: { min: -157.0, max: 157.0 },
+  imu_foot_gyro_x_dps: { min: -4000.0, max: 4000.0 },
+  imu_foot_gyro_y_dps: { min: -4000.0, max: 4000.0 },
+  imu_foot_gyro_z_dps: { min: -4000.0, max: 4000.0 },
+  imu_foot_accel_x_m_s2: { min: -157.0, max: 157.0 },
+  imu_foot_accel_y_m_s2: { min: -157.0, max: 157.0 },
+  imu_foot_accel_z_m_s2: { min: -157.0, max: 157.0 },
+  imu_thigh_contra_gyro_x_dps: { min: -4000.0, max: 4000.0 },
+  imu_thigh_contra_gyro_y_dps: { min: -4000.0, max: 4000.0 },
+  imu_thigh_contra_gyro_z_dps: { min: -4000.0, max: 4000.0 },
+  imu_thigh_contra_accel_x_m_s2: { min: -157.0, max: 157.0 },
+  imu_thigh_contra_accel_y_m_s2: { min: -157.0, max: 157.0 },
+  imu_thigh_contra_accel_z_m_s2: { min: -157.0, max: 157.0 },
+  imu_shank_contra_gyro_x_dps: { min: -4000.0, max: 4000.0 },
+  imu_shank_contra_gyro_y_dps: { min: -4000.0, max: 4000.0 },
+  imu_shank_contra_gyro_z_dps: { min: -4000.0, max: 4000.0 },
+  imu_shank_contra_accel_x_m_s2: { min: -157.0, max: 157.0 },
+  imu_shank_contra_accel_y_m_s2: { min: -157.0, max: 157.0 },
+  imu_shank_contra_accel_z_m_s2: { min: -157.0, max: 157.0 },
+  imu_foot_contra_gyro_x_dps: { min: -4000.0, max: 4000.0 },
+  imu_foot_contra_gyro_y_dps: { min: -4000.0, max: 4000.0 },
+  imu_foot_contra_gyro_z_dps: { min: -4000.0, max: 4000.0 },
+  imu_foot_contra_accel_x_m_s2: { min: -157.0, max: 157.0 },
+  imu_foot_contra_accel_y_m_s2: { min: -157.0, max: 157.0 },
+  imu_foot_contra_accel_z_m_s2: { min: -157.0, max: 157.0 },
+  foot_force_N: { min: 0.0, max: 5000.0 },
+  foot_force_contra_N: { min: 0.0, max: 5000.0 },
+  motor_current_A: { min: -60.0, max: 60.0 },
+  commanded_torque_Nm: { min: -200.0, max: 200.0 },
+  belt_speed_m_s: { min: 0.0, max: 5.0 },
+  step_length_m: { min: 0.0, max: 3.0 },
+  com_forward_m: { min: -3.0, max: 3.0 },
+  com_lateral_m: { min: -3.0, max: 3.0 },
+  com_up_m: { min: -3.0, max: 3.0 },
+  com_forward_vel_m_s: { min: -10.0, max: 10.0 },
+  com_lateral_vel_m_s: { min: -10.0, max: 10.0 },
+  com_up_vel_m_s: { min: -10.0, max: 10.0 },
+});
+
+/**
+ * A session's settings when none are given (`SessionSettings()`).
+ * @type {Readonly<SessionSettings>}
+ */
+export const DEFAULT_SETTINGS = deepFreeze({
+  torque_gain: 1.0,
+  max_torque_Nm: 30.0,
+  measurement_noise_scale: 1.0,
+  process_noise_scale: 1.0,
+  model: "default",
+  primary: "phase_ekf",
+  estimators: null,
+});
+
+/**
+ * Bounds of every bounded field, per class: `min`, `max` (inclusive), `exclusiveMin`, `exclusiveMax`,
+ * `minLength`, `maxLength`, `pattern` (a regular expression source), `minItems`, `maxItems`.
+ * @type {Readonly<Record<string, Record<string, Record<string, number | string>>>>}
+ */
+export const FIELD_LIMITS = deepFreeze({
+  SubjectCreate: {
+    code: { pattern: "^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$" },
+    leg_length_m: { min: 0.5, max: 1.3 },
+    mass_kg: { min: 20.0, max: 250.0 },
+    notes: { maxLength: 2000 },
+  },
+  Subject: {
+    code: { pattern: "^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$" },
+    leg_length_m: { min: 0.5, max: 1.3 },
+    mass_kg: { min: 20.0, max: 250.0 },
+    notes: { maxLength: 2000 },
+  },
+  SessionCreate: { subject_id: { min: 1 } },
+  SessionSettings: {
+    torque_gain: { min: 0.0, max: 3.0 },
+    max_torque_Nm: { min: 0.0, max: 80.0 },
+    measurement_noise_scale: { min: 0.1, max: 10.0 },
+    process_noise_scale: { min: 0.1, max: 10.0 },
+    model: { pattern: "^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$" },
+    primary: { pattern: "^[a-z][a-z0-9_]{0,31}$" },
+    estimators: { maxItems: 16 },
+  },
+  SettingsChange: {
+    torque_gain: { min: 0.0, max: 3.0 },
+    max_torque_Nm: { min: 0.0, max: 80.0 },
+    measurement_noise_scale: { min: 0.1, max: 10.0 },
+    process_noise_scale: { min: 0.1, max: 10.0 },
+    primary: { pattern: "^[a-z][a-z0-9_]{0,31}$" },
+    actor: { maxLength: 64 },
+    reason: { maxLength: 500 },
+  },
+  AnnotationCreate: { text: { minLength: 1, maxLength: 500 }, actor: { maxLength: 64 } },
+  RecordingControl: { name: { maxLength: 100 } },
+  UploadCreate: {
+    filename: {
+      minLength: 1,
+      maxLength: 200,
+      pattern: "^[^/\\\\\\x00-\\x1f\\x7f-\\x9f\\u2028\\u2029\\u200e\\u200f\\u202a-\\u202e\\u2066-\\u2069]+\\.(mcap|csv|parquet)$",
+    },
+    size: { min: 1 },
+    subject_id: { min: 1 },
+  },
+  RerunRequest: { estimators: { maxItems: 16 } },
+  ViewerFocus: { session_id: { min: 1 } },
+  ViewerShow: { trial_id: { min: 1 } },
+  SensorFrame: { seq: { min: 0, max: 9223372036854775807 }, sent_ns: { min: 0, max: 9223372036854775807 } },
+  ModelProvenance: {
+    n_samples: { min: 1 },
+    n_strides: { min: 1 },
+    fourier_order: { min: 1 },
+    outputs: { minItems: 4, maxItems: 4 },
+    torque_fourier_order: { min: 1 },
+  },
+  DeviceSource: { rate_hz: { min: 1.0, max: 2000.0 } },
+  ProtocolStep: {
+    speed_m_s: { min: 0.3, max: 2.0 },
+    incline_deg: { min: -15.0, max: 15.0 },
+    strides: { min: 1, max: 2000 },
+  },
+  ReplaySource: { trial_id: { min: 1 }, speed: { min: 1.0, max: 50.0 } },
+  SimulatedSource: {
+    protocol: { minItems: 1, maxItems: 200 },
+    rate_hz: { min: 20.0, max: 1000.0 },
+    cohort_subject: { min: 0, max: 9 },
+    seed: { min: 0 },
+  },
+  UploadSource: { filename: { maxLength: 200 } },
+});
