@@ -7,6 +7,7 @@ creates a demo subject with a simulated session, so ``gaitscope serve`` shows a 
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
 from collections.abc import AsyncIterator
@@ -22,6 +23,7 @@ from server.origin import AllowedHostsMiddleware, SameOriginMiddleware
 from server.routes import ROUTERS, Uploads, install_error_handlers
 from server.settings import Settings
 from sessions import schema
+from sessions.estimation import warm_up
 from sessions.formats.models import gaitscope_version
 from sessions.live.disk import DiskGuard
 from sessions.live.manager import ModelStore, SessionManager
@@ -91,6 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             model = models.get("default")[0]
             ctx.leg_view = LegView(settings.host, settings.viser_port, model, allowed_hosts=settings.allowed_hosts)
         app.state.ctx = ctx
+        await asyncio.to_thread(warm_up, models.get("default")[0])  # compile the kernels before answering
         if settings.demo:
             _demo(ctx)
         try:
