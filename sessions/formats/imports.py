@@ -48,7 +48,7 @@ from sessions.estimation import FrameEstimator
 from sessions.formats.locohub import read_table
 from sessions.formats.mcap_io import check_mcap, count_messages, read_messages
 from sessions.formats.recording import ESTIMATORS_KEY, SAMPLE_PERIOD_KEY, Recorder
-from sessions.formats.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, parse_cells
+from sessions.formats.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, header_columns, parse_cells
 from sessions.registry import channels_of
 
 __all__ = [
@@ -432,20 +432,8 @@ def _replay_columns(header: list[str], name: str) -> dict[str, int]:
     """Position of each used replay column (time first); the header checks of the replay CSV."""
     if not any(header):
         raise DataFormatError("the header row is empty", file=name, row=1)
-    known = {schema.REPLAY_TIME, *schema.REPLAY_SIGNALS, schema.REPLAY_HEEL_STRIKE}
-    where: dict[str, int] = {}
-    for j, column in enumerate(header):
-        if column in known:
-            if column in where:
-                raise DataFormatError("column name appears twice", file=name, column=column, row=1)
-            where[column] = j
-    if schema.REPLAY_TIME not in where:
-        raise DataFormatError("missing required column", file=name, column=schema.REPLAY_TIME, row=1)
-    if not any(angle in where for angle in schema.REPLAY_ANGLES):
-        expected = " or ".join(repr(a) for a in schema.REPLAY_ANGLES)
-        raise DataFormatError(f"no angle column; expected {expected}", file=name, row=1)
-    order = [schema.REPLAY_TIME, *schema.REPLAY_SIGNALS, schema.REPLAY_HEEL_STRIKE]
-    return {c: where[c] for c in order if c in where}
+    where, used = header_columns(header, name)
+    return {c: where[c] for c in used}
 
 
 class _ReplayBatch:

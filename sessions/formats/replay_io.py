@@ -154,7 +154,7 @@ class ReplayOutput:
 def _read_validated(path: Path, name: str) -> ReplayInput:
     """The validating reader: Python's ``csv`` module, every cell checked, the earliest problem named."""
     header, rows, lines = _read_rows(path, name)
-    where, used = _columns(header, name)
+    where, used = header_columns(header, name)
 
     for row, line in zip(rows, lines, strict=True):
         if len(row) != len(header):
@@ -223,7 +223,7 @@ def _output_values(columns: Mapping[str, np.ndarray]) -> list[np.ndarray]:
     return values
 
 
-def _columns(header: list[str], name: str) -> tuple[dict[str, int], list[str]]:
+def header_columns(header: list[str], name: str) -> tuple[dict[str, int], list[str]]:
     """Position of each known column, and the used ones (time, signals in schema order, heel strike)."""
     known = {schema.REPLAY_TIME, *schema.REPLAY_SIGNALS, schema.REPLAY_HEEL_STRIKE}
     where: dict[str, int] = {}
@@ -272,7 +272,7 @@ def _read_plain(path: Path, name: str) -> ReplayInput | None:
     if not any(header):
         return None
     try:
-        where, used = _columns(header, name)
+        where, used = header_columns(header, name)
     except DataFormatError:
         return None
     values = _fastcsv.read_numbers(body, len(header), {c: where[c] for c in used})
