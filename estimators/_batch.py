@@ -164,29 +164,6 @@ def _restart(prm: _Params, fs: Array, ns: NDArray[np.int64], start: tuple, ekf: 
 
 
 @njit(cache=True)
-def _highpass(ns: NDArray[np.int64], b: Array, a: Array, zi_unit: Array, zi: Array, z: Array) -> None:
-    """``HighPassFilter.step`` on ``z[4:6]`` in place, restarting the filter on a non-finite output."""
-    x0, x1 = z[4], z[5]
-    o0 = o1 = np.nan
-    for _ in range(2):
-        if not ns[_I_HP_STARTED]:
-            for i in range(2):
-                zi[i, 0] = zi_unit[i] * x0
-                zi[i, 1] = zi_unit[i] * x1
-            ns[_I_HP_STARTED] = 1
-        o0 = b[0] * x0 + zi[0, 0]
-        o1 = b[0] * x1 + zi[0, 1]
-        zi[0, 0] = b[1] * x0 - a[1] * o0 + zi[1, 0]
-        zi[0, 1] = b[1] * x1 - a[1] * o1 + zi[1, 1]
-        zi[1, 0] = b[2] * x0 - a[2] * o0
-        zi[1, 1] = b[2] * x1 - a[2] * o1
-        if np.isfinite(o0) and np.isfinite(o1):
-            break
-        ns[_I_HP_STARTED] = 0  # cannot happen with bounded input; never stick on NaN
-    z[4], z[5] = o0, o1
-
-
-@njit(cache=True)
 def _detect(prm: _Params, fs: Array, ns: NDArray[np.int64], t: float, angle: float, vel: float) -> bool:
     """``HeelStrikeDetector.detect`` as the pipeline calls it (no heel positions)."""
     turned = fs[_F_DET_PREV_VEL] >= 0.0 and vel < 0.0
@@ -365,8 +342,8 @@ def _run(
         z[:] = Z[k]
         implausible = _kernels.screen(z, lo, hi)
         ns[_I_IMPLAUSIBLE] += implausible
-        if not prm.heel_filtered and np.isfinite(z[4]) and np.isfinite(z[5]):
-            _highpass(ns, hp_b, hp_a, hp_zi_unit, hp_zi, z)
+        if not prm.heel_filtered:
+            ns[_I_HP_STARTED] = _kernels.highpass_step(hp_b, hp_a, hp_zi_unit, hp_zi, ns[_I_HP_STARTED] != 0, z[4:6])
         for i in range(N_CHANNELS):
             if unmodelled[i]:
                 z[i] = np.nan

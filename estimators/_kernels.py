@@ -454,3 +454,36 @@ def healthy(x: Array, P: Array, min_rate: float, max_rate: float, max_abs_inclin
         if not (0.0 <= P[i, i] <= max_var):
             return False
     return min_rate <= x[1] <= max_rate and abs(x[3]) <= max_abs_incline
+
+
+@njit(cache=True)
+def highpass_step(b: Array, a: Array, zi_unit: Array, zi: Array, started: bool, x: Array) -> bool:
+    """One sample of :class:`~estimators.highpass.HighPassFilter` (direct form II transposed) on ``x``
+    ``(c,)`` in place, state ``zi`` ``(2, c)``; returns whether the filter is started.
+
+    A sample with a non-finite value is left as it is and does not move the filter. A filter not yet
+    started begins in the steady state of this sample; one whose output is not finite (cannot happen
+    with bounded input) restarts that way, so it never sticks on NaN.
+    """
+    n = x.shape[0]
+    for j in range(n):
+        if not np.isfinite(x[j]):
+            return started
+    xs = x.copy()
+    for _ in range(2):
+        if not started:
+            for i in range(2):
+                for j in range(n):
+                    zi[i, j] = zi_unit[i] * xs[j]
+            started = True
+        ok = True
+        for j in range(n):
+            o = b[0] * xs[j] + zi[0, j]
+            zi[0, j] = b[1] * xs[j] - a[1] * o + zi[1, j]
+            zi[1, j] = b[2] * xs[j] - a[2] * o
+            x[j] = o
+            ok = ok and np.isfinite(o)
+        if ok:
+            break
+        started = False
+    return started

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
+from estimators import _kernels
 from estimators.basis import Array
 
 CUTOFF_HZ = 0.5
@@ -34,8 +35,8 @@ class HighPassFilter:
         bz, az, _ = signal.cont2discrete((num, den), dt, method="zoh")
         self.b = np.asarray(bz, dtype=np.float64).reshape(-1)
         self.a = np.asarray(az, dtype=np.float64).reshape(-1)
-        self._zi_unit = signal.lfilter_zi(self.b, self.a)
-        self._zi: Array | None = None
+        self._zi_unit = np.ascontiguousarray(signal.lfilter_zi(self.b, self.a), dtype=np.float64)
+        self._zi: Array | None = None  # the state (2, c); None before the first sample
 
     def filter(self, x: Array) -> Array:
         """Filter a whole signal ``(n,)`` or ``(n, c)`` along axis 0, starting in steady state."""
@@ -44,11 +45,23 @@ class HighPassFilter:
         return signal.lfilter(self.b, self.a, x, axis=0, zi=zi)[0]
 
     def step(self, x: Array) -> Array:
-        """Filter one sample ``(c,)`` of a stream (direct form II transposed)."""
-        x = np.asarray(x, dtype=np.float64)
-        if self._zi is None:
-            self._zi = np.outer(self._zi_unit, x)
-        out = self.b[0] * x + self._zi[0]
-        self._zi[0] = self.b[1] * x - self.a[1] * out + self._zi[1]
-        self._zi[1] = self.b[2] * x - self.a[2] * out
+        """Filter one sample ``(c,)`` of a stream (direct form II transposed); returns the output.
+
+        A sample holding a non-finite value is returned unfiltered and does not move the filter; one
+        whose output would not be finite restarts the filter in its steady state (see
+        :func:`estimators._kernels.highpass_step`, which does the work, compiled).
+        """
+        out = np.array(x, dtype=np.float64).reshape(-1)
+        self.step_inplace(out)
         return out
+
+    def step_inplace(self, x: Array) -> None:
+        """:meth:`step` writing the output over ``x``, a C-contiguous float64 ``(c,)`` (a view is fine)."""
+        zi = self._zi
+        started = zi is not None
+        if zi is None:
+            zi = np.zeros((2, x.shape[0]))
+        if _kernels.highpass_step(self.b, self.a, self._zi_unit, zi, started, x):
+            self._zi = zi
+        else:
+            self._zi = None

@@ -139,8 +139,13 @@ class PhaseEKF:
 
     def predict(self, dt: float) -> None:
         """Advance by ``dt`` seconds (eq. 13-14); phase wrapped into [0, 1)."""
-        if dt != self._q_dt:
-            self._q = self.config.q_diag(dt)
+        if dt != self._q_dt:  # q_diag(dt), in place and in Python floats: dt jitters from sample to sample
+            cfg, q = self.config, self._q
+            c = dt / cfg.q_time_unit
+            for i in range(3):
+                q[i + 1] = cfg.q_std[i] * cfg.q_std[i] * c * cfg.process_noise_scale
+            if cfg.no_task:
+                q[2] = q[3] = FROZEN_VARIANCE
             self._q_dt = dt
         _kernels.predict(self.x, self.P, dt, self._q)
 

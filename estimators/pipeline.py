@@ -170,6 +170,7 @@ class GaitStatePipeline:
         self._hi = np.array([hi for _, hi in cfg.channel_limits])
         self._t: float | None = None
         self._z = np.full(N_CHANNELS, np.nan)
+        self._heel = self._z[HEEL_FORWARD : HEEL_UP + 1]  # a view: the high-pass filters it in place
         self._unmodelled = ~model.channel_mask
         self._hs = np.ones(1)
         #: Channel values refused as implausible since the start.
@@ -244,13 +245,8 @@ class GaitStatePipeline:
         z[:] = raw
         implausible = _kernels.screen(z, self._lo, self._hi)
         self.implausible += implausible
-        heel = z[HEEL_FORWARD : HEEL_UP + 1]
-        if not heel_filtered and np.all(np.isfinite(heel)):
-            filtered = self.highpass.step(heel)
-            if not np.all(np.isfinite(filtered)):  # cannot happen with bounded input; never stick on NaN
-                self.highpass = HighPassFilter(self._sample_period)
-                filtered = self.highpass.step(heel)
-            z[HEEL_FORWARD : HEEL_UP + 1] = filtered
+        if not heel_filtered:  # both heel positions, when both are present (restarts rather than stick on NaN)
+            self.highpass.step_inplace(self._heel)
         z[self._unmodelled] = np.nan
         if heel_strike is None:
             heel_strike = bool(

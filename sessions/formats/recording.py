@@ -50,6 +50,7 @@ from mcap.writer import Writer
 from pydantic import BaseModel
 
 from sessions import schema
+from sessions.formats._mcap_fast import message_adder
 from sessions.formats.mcap_io import CHUNK_SIZE
 
 if TYPE_CHECKING:
@@ -78,6 +79,7 @@ FLUSH_INTERVAL_S: Final = 0.5
 #: Default longest wall time (s) between two fsyncs of a recording: what a power cut adds to that.
 FSYNC_INTERVAL_S: Final = 2.0
 _DISK_FULL: Final = (errnos.ENOSPC, errnos.EDQUOT)
+_FRAME: Final = schema.SensorFrame
 
 
 class RecordingError(OSError):
@@ -202,6 +204,7 @@ class Recorder:
             # The Writer calls only write, tell and flush on its output.
             self._writer = Writer(cast(IO[bytes], self._sink), chunk_size=CHUNK_SIZE)
             self._writer.start(profile="", library="gaitscope")
+            self._add = message_adder(self._writer)
             self._writer.add_metadata(METADATA_NAME, {**metadata, "start_ns": str(start_ns)})
             self._channels: dict[str, tuple[int, type[BaseModel]]] = {}
             schema_ids: dict[str, int] = {}  # one schema record per schema, however many channels use it
@@ -243,13 +246,8 @@ class Recorder:
             raise TypeError(f"{topic} carries {cls.__name__}, not {type(message).__name__}")
         self._raise_if_failed()
         log_time = self.log_time_ns(t)
-        self._writer.add_message(
-            channel_id=channel_id,
-            log_time=log_time,
-            # a sensor frame's absent channels (None) are left out: most devices send a few of dozens
-            data=message.model_dump_json(exclude_none=isinstance(message, schema.SensorFrame)).encode(),
-            publish_time=log_time,
-        )
+        # a sensor frame's absent channels (None) are left out: most devices send a few of dozens
+        self._add(channel_id, log_time, message.model_dump_json(exclude_none=isinstance(message, _FRAME)).encode())
         if topic == "/gait_state":
             self.samples += 1
             if self._first_t is None:
@@ -283,9 +281,7 @@ class Recorder:
             raise ValueError(f"unknown MCAP topic {topic!r}; expected one of {sorted(self._channels)}")
         self._raise_if_failed()
         log_time = self.log_time_ns(t)
-        self._writer.add_message(
-            channel_id=self._channels[topic][0], log_time=log_time, data=data, publish_time=log_time
-        )
+        self._add(self._channels[topic][0], log_time, data)
         self._after_write(t)
 
     def write_event(self, event: schema.Event) -> None:
