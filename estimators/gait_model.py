@@ -40,10 +40,13 @@ from scipy import linalg
 from estimators.basis import Array, n_terms, regressor
 
 N_OUTPUTS = 4
-FOOT, SHANK, HEEL_FORWARD, HEEL_UP = range(N_OUTPUTS)
+#: Indices of the gait model's outputs (the rows of its coefficients; the columns of :func:`evaluate`).
+OUT_FOOT, OUT_SHANK, OUT_HEEL_FORWARD, OUT_HEEL_UP = range(N_OUTPUTS)
 #: Measurement channels of the EKF, in order (seed 000 eq. 16).
 CHANNELS = ("foot_angle", "foot_vel", "shank_angle", "shank_vel", "heel_forward", "heel_up")
 N_CHANNELS = len(CHANNELS)
+#: Indices of the measurement channels in a measurement vector ``z`` (the order of :data:`CHANNELS`).
+Z_FOOT_ANGLE, Z_FOOT_VEL, Z_SHANK_ANGLE, Z_SHANK_VEL, Z_HEEL_FORWARD, Z_HEEL_UP = range(N_CHANNELS)
 #: Sensor covariance of seed 000 (deg, deg/s, m): diag(1^2, 10^2, 7^2, 20^2, 0.01^2, 0.08^2).
 SENSOR_VARIANCE = np.array([1.0**2, 10.0**2, 7.0**2, 20.0**2, 0.01**2, 0.08**2])
 
@@ -116,8 +119,8 @@ def gait_constraints(order: int, output: int) -> tuple[Array, Array]:
     rr = np.repeat(np.asarray(CONSTRAINT_INCLINES), CONSTRAINT_PHASES)
     pp = np.tile(ph, len(CONSTRAINT_INCLINES))
     C = regressor(pp, np.zeros_like(pp), rr, order)
-    d = rr.copy() if output == FOOT else np.zeros_like(rr)
-    if output == FOOT:
+    d = rr.copy() if output == OUT_FOOT else np.zeros_like(rr)
+    if output == OUT_FOOT:
         r2 = np.asarray(CONSTRAINT_INCLINES)
         C2 = regressor(np.full(3, 0.2), np.full(3, 2.0), r2, order, dl=1)
         C = np.vstack([C, C2])

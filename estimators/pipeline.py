@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from estimators import _batch, _kernels
 from estimators.basis import Array
-from estimators.gait_model import N_CHANNELS, NoiseModel
+from estimators.gait_model import N_CHANNELS, Z_FOOT_ANGLE, Z_FOOT_VEL, Z_HEEL_FORWARD, Z_HEEL_UP, NoiseModel
 from estimators.heel_strike import (
     BackupConfig,
     DetectorConfig,
@@ -40,8 +40,6 @@ from estimators.heel_strike import (
 from estimators.highpass import HighPassFilter
 from estimators.phase_ekf import EKFConfig, PhaseEKF
 from estimators.torque import TorqueProfile
-
-FOOT_ANGLE, FOOT_VEL, SHANK_ANGLE, SHANK_VEL, HEEL_FORWARD, HEEL_UP = range(N_CHANNELS)
 
 #: Physically plausible range of each measurement channel, in channel order: segment angles within
 #: +/-180 deg, angular velocities within +/-4000 deg/s (the largest full scale of common MEMS gyros,
@@ -170,7 +168,7 @@ class GaitStatePipeline:
         self._hi = np.array([hi for _, hi in cfg.channel_limits])
         self._t: float | None = None
         self._z = np.full(N_CHANNELS, np.nan)
-        self._heel = self._z[HEEL_FORWARD : HEEL_UP + 1]  # a view: the high-pass filters it in place
+        self._heel = self._z[Z_HEEL_FORWARD : Z_HEEL_UP + 1]  # a view: the high-pass filters it in place
         self._unmodelled = ~model.channel_mask
         self._hs = np.ones(1)
         #: Channel values refused as implausible since the start.
@@ -250,9 +248,9 @@ class GaitStatePipeline:
         z[self._unmodelled] = np.nan
         if heel_strike is None:
             heel_strike = bool(
-                np.isfinite(z[FOOT_ANGLE])
-                and np.isfinite(z[FOOT_VEL])
-                and self.detector.detect(t, dt, float(z[FOOT_ANGLE]), float(z[FOOT_VEL]))
+                np.isfinite(z[Z_FOOT_ANGLE])
+                and np.isfinite(z[Z_FOOT_VEL])
+                and self.detector.detect(t, dt, float(z[Z_FOOT_ANGLE]), float(z[Z_FOOT_VEL]))
             )
         if dt > 0:
             self.ekf.predict(dt)

@@ -22,12 +22,12 @@ import numpy as np
 
 from estimators import _kernels
 from estimators.basis import Array, n_terms
-from estimators.gait_model import HEEL_UP, Gram, evaluate, gait_constraints, solve_constrained
+from estimators.gait_model import OUT_HEEL_UP, Gram, evaluate, gait_constraints, solve_constrained
 
 
 def fit_torque(g: Gram, order: int) -> Array:
     """Fit the plantarflexor moment per kg from a one-output Gram; coefficients ``(2, 2, 2N+1)``."""
-    C, d = gait_constraints(order, HEEL_UP)  # all outputs but the foot share "0 at l = 0"
+    C, d = gait_constraints(order, OUT_HEEL_UP)  # all outputs but the foot share "0 at l = 0"
     return solve_constrained(g.G, g.b[:, 0], C, d).reshape(2, 2, n_terms(order))
 
 

@@ -51,7 +51,7 @@ import viser
 import websockets.asyncio.server
 from scipy.interpolate import CubicSpline
 
-from estimators.gait_model import FOOT, SHANK, evaluate
+from estimators.gait_model import OUT_FOOT, OUT_SHANK, evaluate
 from estimators.pipeline import TrainedModel
 from server.origin import LOOPBACK_HOSTS, ProcessRequest, allowed_hosts_for, websockets_guard
 from sessions import schema
@@ -141,7 +141,7 @@ def segment_angles_for(
             return None
     else:
         y = evaluate(model.coef, np.array([p]), np.array([s / leg_length]), np.array([r]))[0]
-        foot, shank = float(y[FOOT]), float(y[SHANK])
+        foot, shank = float(y[OUT_FOOT]), float(y[OUT_SHANK])
     thigh = _measured_angles(state)["thigh_deg"]
     if thigh is None:
         thigh = shank + knee_flexion_deg(p)

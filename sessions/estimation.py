@@ -125,7 +125,8 @@ class FrameEstimator:
         self.implausible = 0
         self.faults = 0
         self._t_offset = time_origin
-        self._prev: SensorFrame | None = None
+        #: The last frame stepped: its session time and foot and shank angles (None: none yet).
+        self._prev: tuple[float, float | None, float | None] | None = None
         self._ramp_t0 = 0.0
         self._ramping = soft_start
         self._min_next_t = -math.inf
@@ -261,7 +262,7 @@ class FrameEstimator:
         self.last = e
         self.last_t = t
         self._last_recv_ns = recv_ns
-        self._prev = frame.model_copy(update={"t": t})
+        self._prev = (t, frame.foot_angle_deg, frame.shank_angle_deg)
         return GaitState(
             seq=frame.seq,
             t=t,
@@ -298,13 +299,14 @@ class FrameEstimator:
     def _derive_velocities(self, channels: dict[str, float], t: float) -> None:
         """Backward-difference velocities for a device without gyroscopes."""
         prev = self._prev
-        if prev is None or not t > prev.t:
+        if prev is None or not t > prev[0]:
             return
-        for angle, vel in (("foot_angle_deg", "foot_vel_dps"), ("shank_angle_deg", "shank_vel_dps")):
-            if math.isnan(channels[vel]) and not math.isnan(channels[angle]):
-                before = getattr(prev, angle)
-                if before is not None:
-                    channels[vel] = (channels[angle] - before) / (t - prev.t)
+        for angle, vel, before in (
+            ("foot_angle_deg", "foot_vel_dps", prev[1]),
+            ("shank_angle_deg", "shank_vel_dps", prev[2]),
+        ):
+            if before is not None and math.isnan(channels[vel]) and not math.isnan(channels[angle]):
+                channels[vel] = (channels[angle] - before) / (t - prev[0])
 
 
 def estimate(

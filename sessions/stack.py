@@ -321,27 +321,37 @@ class EstimatorStack:
                 before = held if old is None or old in self.failed else self._command(old, outputs)
                 torque = (1.0 - w) * before + w * new
         hs = channels.get(HEEL_STRIKE, math.nan)
-        out = StackSample(
+        phase = rate = incline = 0.0
+        stride = NOMINAL_STRIDE * self.leg_length
+        backup_reset = False
+        if primary is not None:  # the primary's outputs, read once (a live session does this 200 times a second)
+            k = self._position[primary]
+            y = outputs[k]
+            if y is not None:
+                values, idx = y.tolist(), self._index[k]
+                phase = values[idx["phase"]]
+                i = idx.get("phase_rate")
+                rate = 0.0 if i is None else values[i]
+                i = idx.get("stride_length_m")
+                stride = stride if i is None else values[i]
+                i = idx.get("incline_deg")
+                incline = 0.0 if i is None else values[i]
+                i = idx.get("backup_reset")
+                backup_reset = i is not None and values[i] > 0.5
+        return StackSample(
             outputs=outputs,
             torque_Nm=torque,
             primary=primary,
-            phase=0.0,
-            phase_rate=0.0,
-            stride_length_m=NOMINAL_STRIDE * self.leg_length,
-            incline_deg=0.0,
+            phase=phase,
+            phase_rate=rate,
+            stride_length_m=stride,
+            incline_deg=incline,
             tbe_phase=self._value("tbe", "phase", outputs, 0.0),
             heel_strike=bool(hs > 0.5),
-            backup_reset=False,
+            backup_reset=backup_reset,
             foot_pred_deg=self._first("foot_pred_deg", primary, outputs),
             shank_pred_deg=self._first("shank_pred_deg", primary, outputs),
         )
-        if primary is not None:
-            out.phase = self._value(primary, "phase", outputs, 0.0)
-            out.phase_rate = self._value(primary, "phase_rate", outputs, 0.0)
-            out.stride_length_m = self._value(primary, "stride_length_m", outputs, out.stride_length_m)
-            out.incline_deg = self._value(primary, "incline_deg", outputs, 0.0)
-            out.backup_reset = self._value(primary, "backup_reset", outputs, 0.0) > 0.5
-        return out
 
     def _value(self, name: str, output: str, outputs: list[NDArray[np.float64] | None], default: float) -> float:
         k = self._position.get(name)

@@ -24,11 +24,11 @@ import pandas as pd
 
 from estimators.basis import Array
 from estimators.gait_model import (
-    FOOT,
-    HEEL_FORWARD,
-    HEEL_UP,
+    OUT_FOOT,
+    OUT_HEEL_FORWARD,
+    OUT_HEEL_UP,
+    OUT_SHANK,
     SENSOR_VARIANCE,
-    SHANK,
     Gram,
     NoiseModel,
     evaluate,
@@ -250,12 +250,12 @@ def residuals(data: StrideData, subject: int, coef: Array) -> tuple[Array, Array
     hp = evaluate(coef, P, L, R, dp=1)
     pred = np.stack(
         [
-            h[:, FOOT],
-            pdot * hp[:, FOOT],
-            h[:, SHANK],
-            pdot * hp[:, SHANK],
-            leg * h[:, HEEL_FORWARD],
-            leg * h[:, HEEL_UP],
+            h[:, OUT_FOOT],
+            pdot * hp[:, OUT_FOOT],
+            h[:, OUT_SHANK],
+            pdot * hp[:, OUT_SHANK],
+            leg * h[:, OUT_HEEL_FORWARD],
+            leg * h[:, OUT_HEEL_UP],
         ],
         axis=1,
     )

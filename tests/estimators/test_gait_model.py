@@ -5,7 +5,7 @@ import pytest
 
 from estimators.basis import n_terms, regressor
 from estimators.gait_model import (
-    FOOT,
+    OUT_FOOT,
     SENSOR_VARIANCE,
     NoiseModel,
     evaluate,
@@ -47,7 +47,7 @@ def test_constraints_hold_to_1e8() -> None:
         assert np.abs(C @ coef[o].reshape(-1) - d).max() < 1e-8
     # eq. 11: with both constraints the foot angle at p = 0.2 equals the incline for every stride length
     for l_val in (0.5, 1.0, 1.7, 3.0):
-        foot = evaluate(coef, np.array([0.2, 0.2]), np.array([l_val, l_val]), np.array([-7.0, 4.0]))[:, FOOT]
+        foot = evaluate(coef, np.array([0.2, 0.2]), np.array([l_val, l_val]), np.array([-7.0, 4.0]))[:, OUT_FOOT]
         np.testing.assert_allclose(foot, [-7.0, 4.0], atol=1e-7)
 
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import viser
 
-from estimators.gait_model import FOOT, SHANK, evaluate
+from estimators.gait_model import OUT_FOOT, OUT_SHANK, evaluate
 from estimators.pipeline import TrainedModel
 from server.leg_view import LegView, knee_flexion_deg, quat_y, segment_angles_for, status_markdown
 from sessions.formats.models import default_model_path, load_model
@@ -200,8 +200,8 @@ def test_ghost_is_posed_by_the_model_at_the_estimate(view: LegView, model: Train
     R_shank, _ = _world(view, "/world/ghost/thigh/shank")
     R_foot, _ = _world(view, "/world/ghost/thigh/shank/foot")
     assert _sagittal_deg(R_thigh) == pytest.approx(5.0)  # shares the measured thigh
-    assert _sagittal_deg(R_shank) == pytest.approx(y[SHANK])
-    assert _sagittal_deg(R_foot) == pytest.approx(y[FOOT])
+    assert _sagittal_deg(R_shank) == pytest.approx(y[OUT_SHANK])
+    assert _sagittal_deg(R_foot) == pytest.approx(y[OUT_FOOT])
     ghost = view.server.scene.get_handle_by_name("/world/ghost")
     assert ghost is not None and ghost.visible
     view.show(_state(phase=float("nan")), LEG)
@@ -295,7 +295,7 @@ def test_set_model_switches_the_ghost_from_the_states_predictions(model: Trained
         v.show(state, LEG)
         R, _ = _world(v, "/world/ghost/thigh/shank/foot")
         y = evaluate(model.coef, np.array([0.1]), np.array([1.3 / LEG]), np.array([0.0]))[0]
-        assert _sagittal_deg(R) == pytest.approx(y[FOOT])
+        assert _sagittal_deg(R) == pytest.approx(y[OUT_FOOT])
     finally:
         v.close()
 
@@ -316,8 +316,8 @@ def test_segment_angles_match_the_gait_model(model: TrainedModel, phase: float, 
     got = segment_angles_for(state, model, LEG)
     y = evaluate(model.coef, np.array([phase]), np.array([stride / LEG]), np.array([incline]))[0]
     assert got is not None
-    assert got["foot_deg"] == pytest.approx(y[FOOT], abs=1e-12)
-    assert got["shank_deg"] == pytest.approx(y[SHANK], abs=1e-12)
+    assert got["foot_deg"] == pytest.approx(y[OUT_FOOT], abs=1e-12)
+    assert got["shank_deg"] == pytest.approx(y[OUT_SHANK], abs=1e-12)
     # No thigh measured: the measured shank (0 deg) plus the normative knee.
     assert got["thigh_deg"] == pytest.approx(0.0 + knee_flexion_deg(phase))
 
