@@ -249,7 +249,7 @@ def cmd_wire(a: argparse.Namespace) -> int:
 def cmd_bench(a: argparse.Namespace) -> int:
     from sessions.offline.bench import run_bench
 
-    run_bench(crossval=not a.skip_crossval, reference_samples=a.reference_samples)
+    run_bench(crossval=not a.skip_crossval, reference_samples=a.reference_samples, samples=a.samples)
     return 0
 
 
@@ -296,9 +296,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=None)
     p.set_defaults(func=cmd_crossval)
 
-    p = sub.add_parser("bench", help="measure the EKF, replay and cross-validation speed")
+    p = sub.add_parser("bench", help="measure the EKF, each estimator, the stack, replay and cross-validation speed")
     p.add_argument("--skip-crossval", action="store_true")
     p.add_argument("--reference-samples", type=int, default=3000)
+    p.add_argument(
+        "--samples", type=int, default=6000, help="samples of the per-estimator and whole-stack rows (default 6000)"
+    )
     p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser("loadbench", help="N live devices x M browser clients against a real server")

@@ -11,9 +11,15 @@ measured in one run; every comparison is against a baseline measured in the same
    (:meth:`GaitStatePipeline.step` per sample) against the batch path (:meth:`GaitStatePipeline.run`,
    the default), best of a few runs each; and the batch path's parts (reading, estimating, writing)
    timed one by one.
-3. Per-sample cost of the whole default estimator stack (:mod:`sessions.stack`, every registered
+3. Per-sample cost of every registered estimator (:data:`sessions.registry.ESTIMATORS`, the opt-in ones
+   too), each on its own through the stack interface (``step(t, z)``, ``time.perf_counter_ns`` around
+   each sample, fed the channels the default stack feeds it), against its library baseline where it has
+   a natural one (:data:`sessions.offline.baselines.BASELINES`; none for the TBE and the heel-strike
+   detector), each timed in a pass of its own; a baseline of the same step is also compared with the
+   estimator output by output.
+4. Per-sample cost of the whole default estimator stack (:mod:`sessions.stack`, every registered
    estimator, as a live session runs it) against the seed-000 pipeline's :meth:`GaitStatePipeline.step`.
-4. Wall time of the full leave-one-subject-out cross-validation.
+5. Wall time of the full leave-one-subject-out cross-validation.
 
 Targets: issue #2, gaitscope >= 20x faster than the reference and < 10 us per sample, states agree to
 1e-9, cross-validation under 5 minutes on 2 cores; issue #7, replay >= 200,000 samples/s.
@@ -25,17 +31,21 @@ import os
 import platform
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from estimators.phase_ekf import PhaseEKF
 from estimators.pipeline import GaitStatePipeline, PipelineConfig
+from estimators.protocol import HEEL_STRIKE, Estimator, input_names
 from estimators.reference import ReferencePhaseEKF
 from sessions import schema
 from sessions.formats.models import default_model_path, load_model
 from sessions.formats.replay_io import read_replay_csv, write_replay_output
+from sessions.offline.baselines import BASELINES, Stepper
 from sessions.offline.replay import measurements, replay_file, run
+from sessions.registry import ESTIMATORS, OPT_IN, StackContext, build_stack
 from sessions.synth.trials import minutes_schedule, replay_columns, replay_input, sensor_trial
 
 
@@ -52,29 +62,31 @@ def ekf_cost(reference_samples: int) -> dict[str, float]:
     dts = np.diff(data.time_s, prepend=data.time_s[0] - 0.01)
     fast = PhaseEKF(model.coef, model.noise, leg)
     ref = ReferencePhaseEKF(model.coef, model.noise, leg)
-    n_ref = min(reference_samples, len(z))
+    n_ref = max(0, min(reference_samples, len(z)))
     t_fast = np.empty(len(z), dtype=np.int64)
-    t_ref = np.empty(n_ref, dtype=np.int64)
-    dx = dp = 0.0
+    t_ref = np.empty(max(n_ref, 1), dtype=np.int64)
+    xs, Ps = np.empty((n_ref, 4)), np.empty((n_ref, 4, 4))
     clock = time.perf_counter_ns
-    for k in range(n_ref):
-        t0 = clock()
-        fast.predict(dts[k])
-        fast.update(z[k])
-        t1 = clock()
-        ref.predict(dts[k])
-        ref.update(z[k])
-        t2 = clock()
-        t_fast[k], t_ref[k] = t1 - t0, t2 - t1
-        diff = np.abs(fast.x - ref.x)
-        diff[0] = min(diff[0], 1 - diff[0])
-        dx = max(dx, float(diff.max()))
-        dp = max(dp, float(np.abs(fast.P - ref.P).max()))
-    for k in range(n_ref, len(z)):
+    # Each filter in a pass of its own (run in alternation, each slows the other through the caches);
+    # ours keeps its states for the comparison, which is done outside the timed sections.
+    for k in range(len(z)):
         t0 = clock()
         fast.predict(dts[k])
         fast.update(z[k])
         t_fast[k] = clock() - t0
+        if k < n_ref:
+            xs[k], Ps[k] = fast.x, fast.P
+    dx = dp = 0.0
+    t_ref[0] = 0
+    for k in range(n_ref):
+        t0 = clock()
+        ref.predict(dts[k])
+        ref.update(z[k])
+        t_ref[k] = clock() - t0
+        diff = np.abs(xs[k] - ref.x)
+        diff[0] = min(diff[0], 1 - diff[0])
+        dx = max(dx, float(diff.max()))
+        dp = max(dp, float(np.abs(Ps[k] - ref.P).max()))
     f50, f95 = _percentiles(t_fast)
     r50, r95 = _percentiles(t_ref)
     return {
@@ -130,11 +142,76 @@ def replay_throughput(minutes: float = 10.0, repeats: int = 3) -> dict[str, floa
     return out
 
 
+def estimator_costs(samples: int = 6000, reference_samples: int = 3000) -> dict[str, dict[str, float]]:
+    """Per-sample cost of every registered estimator's ``step(t, z)`` on the first ``samples`` samples of
+    the default trial, each estimator on its own, fed the source's channels (the six sensors and the true
+    heel strikes) as the default stack feeds it; and of its library baseline, where it has one, on the
+    first ``reference_samples`` of them.
+
+    Each is timed in a pass of its own: run in lock step, filterpy's work between two samples of a
+    compiled estimator (hundreds of numpy calls) doubled the estimator's median. A baseline of the same
+    step is then compared with the estimator, output by output, in an untimed pass.
+
+    Returns:
+        Per estimator, in the registry's order: ``samples``, ``median_us``, ``p95_us``; with a baseline
+        (and ``reference_samples`` > 0) also ``ref_samples``, ``ref_median_us``, ``ref_p95_us`` and
+        ``ratio`` (baseline median / the estimator's); with a baseline of the same step also
+        ``max_output_diff``, ``max_state_diff`` and ``max_cov_diff``, the largest differences over the
+        baseline's samples.
+    """
+    model, _ = load_model(default_model_path())
+    sensors, leg, mass = sensor_trial()
+    data = replay_input(sensors)
+    n = min(samples, data.time_s.size)
+    n_ref = min(reference_samples, n)
+    ctx = StackContext(model, leg, mass, 0.01)
+    source = {**data.signals, HEEL_STRIKE: (sensors[HEEL_STRIKE].to_numpy() > 0.5).astype(np.float64)}
+    missing = np.full(data.time_s.size, np.nan)
+    t = data.time_s[:n].tolist()
+    out: dict[str, dict[str, float]] = {}
+    for name, make in ESTIMATORS.items():
+        est = make(ctx)
+        z = np.column_stack([source.get(c, missing)[:n] for c in input_names(est)])
+        med, p95 = _timed(est.step, t, z)
+        row = out[name] = {"samples": float(n), "median_us": med, "p95_us": p95}
+        base = BASELINES.get(name)
+        if base is None or n_ref == 0:
+            continue
+        z_ref = z if base.inputs is None else np.ascontiguousarray(base.inputs(data)[:n])
+        r50, r95 = _timed(base.make(ctx).step, t[:n_ref], z_ref)
+        row.update(ref_samples=float(n_ref), ref_median_us=r50, ref_p95_us=r95, ratio=r50 / med)
+        if base.same_step:
+            row.update(_agreement(make(ctx), base.make(ctx), t[:n_ref], z))
+    return out
+
+
+def _timed(step: Callable[[float, np.ndarray], object], t: list[float], z: np.ndarray) -> tuple[float, float]:
+    """Median and p95 (us) of ``step(t[k], z[k])``, sample by sample, with nothing else between them."""
+    ns = np.empty(len(t), dtype=np.int64)
+    clock = time.perf_counter_ns
+    for k, tk in enumerate(t):
+        zk = z[k]
+        t0 = clock()
+        step(tk, zk)
+        ns[k] = clock() - t0
+    return _percentiles(ns)
+
+
+def _agreement(est: Estimator, ref: Stepper, t: list[float], z: np.ndarray) -> dict[str, float]:
+    """Largest differences of outputs, state and covariance between ``est`` and its baseline ``ref``, fresh,
+    over samples ``t`` (both fed ``z``)."""
+    dy = dx = dp = 0.0
+    for k, tk in enumerate(t):
+        y, y_ref = est.step(tk, z[k]), ref.step(tk, z[k])
+        dy = max(dy, float(np.abs(y - y_ref).max()))
+        dx = max(dx, float(np.abs(np.asarray(est.state) - ref.x).max()))
+        dp = max(dp, float(np.abs(np.asarray(est.covariance) - ref.P).max()))
+    return {"max_output_diff": dy, "max_state_diff": dx, "max_cov_diff": dp}
+
+
 def stack_cost(samples: int = 6000) -> tuple[dict[str, float], tuple[str, ...]]:
     """Per-sample cost of the default estimator stack and of the seed-000 pipeline alone on the same
     trial; and the stack's estimators."""
-    from sessions.registry import StackContext, build_stack
-
     model, _ = load_model(default_model_path())
     sensors, leg, mass = sensor_trial()
     data = replay_input(sensors)
@@ -155,14 +232,16 @@ def stack_cost(samples: int = 6000) -> tuple[dict[str, float], tuple[str, ...]]:
     t_stack = np.empty(n, dtype=np.int64)
     t_pipe = np.empty(n, dtype=np.int64)
     clock = time.perf_counter_ns
-    for k, row in enumerate(rows):
-        t = float(row.pop(schema.REPLAY_TIME))
-        channels = {str(c): float(v) for c, v in row.items()}
+    times = [float(row.pop(schema.REPLAY_TIME)) for row in rows]
+    inputs = [{str(c): float(v) for c, v in row.items()} for row in rows]
+    for k in range(n):  # each in a pass of its own: in alternation each slows the other through the caches
         t0 = clock()
-        stack.step(t, channels)
-        t1 = clock()
-        pipe.step(t, z[k], bool(hs[k]))
-        t_stack[k], t_pipe[k] = t1 - t0, clock() - t1
+        stack.step(times[k], inputs[k])
+        t_stack[k] = clock() - t0
+    for k in range(n):
+        t0 = clock()
+        pipe.step(times[k], z[k], bool(hs[k]))
+        t_pipe[k] = clock() - t0
     s50, s95 = _percentiles(t_stack)
     p50, p95 = _percentiles(t_pipe)
     numbers = {
@@ -183,8 +262,50 @@ def crossval_time() -> float:
     return time.perf_counter() - t0
 
 
-def run_bench(crossval: bool = True, reference_samples: int = 3000) -> dict[str, float]:
-    """Measure and print everything; returns the numbers."""
+def _print_estimators(rows: dict[str, dict[str, float]]) -> None:
+    """One line per estimator: its median and p95, its baseline's median and the ratio, or none."""
+    n = max(row["samples"] for row in rows.values())
+    n_ref = max((row["ref_samples"] for row in rows.values() if "ref_samples" in row), default=0.0)
+    print(
+        f"each estimator alone, step(t, z) through the stack interface, {n:.0f} samples of the default trial"
+        f" (baselines on the first {n_ref:.0f}):"
+    )
+    print(f"  {'estimator':<22}{'median':>10}{'p95':>11}   {'baseline':<27}{'median':>10}   ratio")
+    for name, row in rows.items():
+        label = f"{name} (opt-in)" if name in OPT_IN else name
+        line = f"  {label:<22}{row['median_us']:7.2f} us {row['p95_us']:7.2f} us   "
+        base = BASELINES.get(name)
+        if base is None:
+            print(f"{line}{'none':<27}{'':>10}   no reference")
+            continue
+        if "ref_median_us" not in row:
+            print(f"{line}{base.label:<27}{'':>10}   not run (--reference-samples 0)")
+            continue
+        print(f"{line}{base.label:<27}{row['ref_median_us']:7.2f} us   {row['ratio']:.1f}x")
+        if base.same_step:
+            print(
+                f"  {'':<22}max |output diff| {row['max_output_diff']:.2e}   max |state diff|"
+                f" {row['max_state_diff']:.2e}   max |P diff| {row['max_cov_diff']:.2e}"
+            )
+    if any(not b.same_step for name, b in BASELINES.items() if name in rows):
+        print(
+            "  (filter only: predict + update on measurements high-passed beforehand; phase_ekf's step also"
+            " high-passes, detects and runs the backup filter, so its ratio understates the filter's speed-up)"
+        )
+
+
+def run_bench(
+    crossval: bool = True, reference_samples: int = 3000, samples: int = 6000, replay_minutes: float = 10.0
+) -> dict[str, float]:
+    """Measure and print everything; returns the numbers.
+
+    Args:
+        crossval: time the cross-validation too (minutes).
+        reference_samples: samples the filterpy baselines run (they are the slow part of the EKF row and
+            of the per-estimator rows).
+        samples: samples of the default trial for the per-estimator and the whole-stack rows.
+        replay_minutes: length of the replayed trial.
+    """
     cpu = platform.processor() or platform.machine()
     load = " / ".join(f"{v:.2f}" for v in os.getloadavg())
     print(f"machine: {cpu}, {os.cpu_count()} cores, Python {platform.python_version()}; load average {load}")
@@ -200,9 +321,9 @@ def run_bench(crossval: bool = True, reference_samples: int = 3000) -> dict[str,
         f"  speed-up (median) {e['speedup_median']:.1f}x   max |state diff| {e['max_state_diff']:.2e}"
         f"   max |P diff| {e['max_cov_diff']:.2e}"
     )
-    r = replay_throughput()
+    r = replay_throughput(replay_minutes)
     print(
-        f"replay, 10 min at 100 Hz ({r['samples']:.0f} samples) through the CLI path, beyond start-up"
+        f"replay, {replay_minutes:g} min at 100 Hz ({r['samples']:.0f} samples) through the CLI path, beyond start-up"
         f" (first replay in the process: {r['startup_s']:.2f} s), best of 3:"
     )
     print(
@@ -216,7 +337,9 @@ def run_bench(crossval: bool = True, reference_samples: int = 3000) -> dict[str,
         f"  batch path apart: read CSV {1e3 * r['read_s']:.0f} ms, estimate {1e3 * r['estimate_s']:.0f} ms,"
         f" write CSV {1e3 * r['write_s']:.0f} ms (the replay writes each part while estimating the next)"
     )
-    s, names = stack_cost()
+    per = estimator_costs(samples, reference_samples)
+    _print_estimators(per)
+    s, names = stack_cost(samples)
     print(f"default estimator stack per sample ({', '.join(names)}), {s['samples']:.0f} samples of the default trial:")
     print(f"  EstimatorStack.step         median {s['stack_median_us']:7.2f} us   p95 {s['stack_p95_us']:7.2f} us")
     print(
@@ -224,6 +347,7 @@ def run_bench(crossval: bool = True, reference_samples: int = 3000) -> dict[str,
         f"   (stack / pipeline {s['stack_median_us'] / s['pipeline_median_us']:.1f}x)"
     )
     out = {**e, **{f"replay_{k}": v for k, v in r.items()}}
+    out.update({f"estimator_{name}_{k}": v for name, row in per.items() for k, v in row.items()})
     out.update({f"stack_{k}": v for k, v in s.items()})
     if crossval:
         wall = crossval_time()

@@ -114,6 +114,19 @@ def test_loadbench_and_wire_commands_are_there(capsys) -> None:
     assert "--soak" in out and "--out" in out
 
 
+def test_bench_passes_its_options_to_the_bench(monkeypatch: pytest.MonkeyPatch) -> None:
+    from sessions.offline import bench
+
+    calls: list[dict[str, object]] = []
+    monkeypatch.setattr(bench, "run_bench", lambda **kw: calls.append(kw) or {})
+    assert main(["bench", "--skip-crossval"]) == 0
+    assert main(["bench", "--reference-samples", "50", "--samples", "200"]) == 0
+    assert calls == [
+        {"crossval": False, "reference_samples": 3000, "samples": 6000},
+        {"crossval": True, "reference_samples": 50, "samples": 200},
+    ]
+
+
 def test_train_from_a_locohub_file(tmp_path: Path, small_cohort: pd.DataFrame) -> None:
     table = tmp_path / "lab.parquet"
     write_table(small_cohort, table)
