@@ -211,7 +211,7 @@ async def device_ingest(ws: WebSocket, session_id: int) -> None:
                 continue
             bad = 0
             try:
-                state = runtime.process(frame, recv)
+                runtime.process(frame, recv)
             except FrameRefused as e:
                 runtime.dropped_input += 1
                 await ws.send_text(_dump(schema.DeviceNotice(kind="order", detail=str(e), seq=frame.seq)))
@@ -221,7 +221,7 @@ async def device_ingest(ws: WebSocket, session_id: int) -> None:
                 await runtime.end("failed", f"processing a device frame failed: {e}")
                 await ws.close(code=1011, reason=f"session {session_id} failed"[:120])
                 return
-            await ws.send_text(_dump(schema.TorqueCommand(seq=frame.seq, t=state.t, torque_Nm=state.torque_Nm)))
+            await ws.send_text(runtime.last_command)  # the TorqueCommand of this frame, as recorded
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:

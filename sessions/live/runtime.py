@@ -30,7 +30,7 @@ import time
 from collections import deque
 from collections.abc import Awaitable, Callable, Coroutine
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 
@@ -147,6 +147,8 @@ class SessionRuntime:
         self.on_end = on_end
         self.disk: DiskState = "ok"
         self.torque_faults = 0
+        #: The JSON of the last sample's torque command (what the device is sent, as recorded).
+        self.last_command = ""
         self.ended: str | None = None  # why the session ended, once it has
         self._stopped = False
         self._last_note = -math.inf
@@ -266,11 +268,13 @@ class SessionRuntime:
         self._recent_recv.append(recv_ns)
         if frame.sent_ns is not None:
             self._recent_latency.append((recv_ns - frame.sent_ns) / 1e6)
+        command = schema.TorqueCommand(seq=frame.seq, t=t, torque_Nm=state.torque_Nm).model_dump_json()
+        self.last_command = command
         if self.recorder is not None:
             try:
-                self.recorder.write("/sensor", t, frame.model_copy(update={"t": t}))  # session time, as the rest
+                self.recorder.write_json("/sensor", t, _frame_json(frame, t))
                 self.recorder.write("/gait_state", t, state)
-                self.recorder.write("/torque", t, schema.TorqueCommand(seq=frame.seq, t=t, torque_Nm=state.torque_Nm))
+                self.recorder.write_json("/torque", t, command.encode())
                 for topic, data in self.estimator.output_json(frame.seq):
                     self.recorder.write_json(topic, t, data)
             except (OSError, ValueError) as e:
@@ -553,6 +557,16 @@ class SessionRuntime:
     def last_t(self) -> float:
         """Session time of the last sample processed."""
         return self.estimator.last_t
+
+
+def _frame_json(frame: SensorFrame, t: float) -> bytes:
+    """The JSON of ``frame`` at session time ``t`` (s) without its absent channels, as the recorder writes a
+    sensor frame: built from the frame's own JSON rather than from a copy of the model (per sample, the
+    copy cost more than the rest of the recording; ``tests/sessions/live/test_runtime.py`` reads it back)."""
+    return b'{"t":%r,%s' % (t, frame.model_dump_json(exclude_none=True, exclude=_T).encode()[1:])
+
+
+_T: Final = {"t"}
 
 
 def _shown(value: object) -> str:
