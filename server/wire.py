@@ -1,10 +1,12 @@
-"""The browser's wire types, generated from :mod:`sessions.schema`: ``gaitscope wire --out web/wire.js``.
+"""The browser's wire types, generated from :mod:`sessions.schema` (and :mod:`sessions.registry`):
+``gaitscope wire --out web/wire.js``.
 
 ``web/wire.js`` is the browser's one statement of the schema: a JSDoc ``@typedef`` for every class in
 ``schema.WIRE`` and every class their JSON schemas refer to (fields and types from
 ``model_json_schema()``, which ``GET /api/schema`` serves too), and the bounds the browser checks
 before the server does (``SETTING_LIMITS``, ``SENSOR_LIMITS``, every field's ``FIELD_LIMITS``) with
-the default ``SessionSettings``. The file is committed (the UI has no build step);
+the default ``SessionSettings``, and every registered estimator (:data:`sessions.registry.DECLARED`: its
+name on screen and its outputs). The file is committed (the UI has no build step);
 ``tests/server/test_wire.py`` fails when it differs from what :func:`render` makes of the schema.
 """
 
@@ -15,7 +17,7 @@ import re
 from pathlib import Path
 from typing import Any, Final
 
-from sessions import schema
+from sessions import registry, schema
 
 __all__ = ["COMMAND", "render", "write"]
 
@@ -37,11 +39,13 @@ _IDENTIFIER: Final = re.compile(r"^[A-Za-z_$][A-Za-z0-9_$]*$")
 _WIDTH: Final = 110
 
 _HEADER: Final = f"""\
-// GENERATED from sessions/schema.py by `{COMMAND}`: do not edit by hand. Change the
-// schema and run the command again; tests/server/test_wire.py fails while this file differs from it.
+// GENERATED from sessions/schema.py and sessions/registry.py by `{COMMAND}`:
+// do not edit by hand. Change them and run the command again; tests/server/test_wire.py fails while this
+// file differs from what they generate.
 //
-// JSDoc types of every wire message (the JSON schemas `GET /api/schema` serves, as types), and the
-// bounds the browser checks before the server does. The server stays the judge (422, 409).
+// JSDoc types of every wire message (the JSON schemas `GET /api/schema` serves, as types), the
+// bounds the browser checks before the server does (the server stays the judge: 422, 409), and the
+// registered estimators.
 """
 
 
@@ -83,6 +87,20 @@ def render() -> str:
             schema.SessionSettings().model_dump(mode="json"),
             "A session's settings when none are given (`SessionSettings()`).",
             "Readonly<SessionSettings>",
+        )
+    )
+    estimators = {
+        name: {"label": d.label, "outputs": dict(d.outputs), "opt_in": name in registry.OPT_IN}
+        for name, d in registry.DECLARED.items()
+    }
+    parts.append(
+        _const(
+            "ESTIMATORS",
+            estimators,
+            "Every registered estimator (`sessions.registry`), in the order a stack runs them: its name on screen,\n"
+            "its outputs (name: unit; a re-run's columns are `<name>.<output>`), and whether a session runs it\n"
+            "only when named (`OPT_IN`).",
+            "Readonly<Record<string, {label: string, outputs: Record<string, string>, opt_in: boolean}>>",
         )
     )
     limits = {name: lim for name, sch in classes.items() if (lim := _field_limits(sch))}
@@ -165,6 +183,9 @@ def _type(sch: dict[str, Any]) -> str:
         return f"Array<{_type(sch.get('items', {}))}>"
     if kind == "object":
         extra = sch.get("additionalProperties", True)
+        patterns = list(sch.get("patternProperties", {}).values())
+        if extra is True and len(patterns) == 1:  # keys of a pattern (``dict[EstimatorName, ...]``)
+            extra = patterns[0]
         return f"Object<string, {_type(extra) if isinstance(extra, dict) else '*'}>"
     return {"string": "string", "integer": "number", "number": "number", "boolean": "boolean", "null": "null"}.get(
         str(kind), "*"

@@ -7,30 +7,39 @@ one the source cannot feed refuses the start, naming the missing channels (:clas
 The order of :data:`ESTIMATORS` is the order a stack runs them in: a channel an estimator derives
 (``heel_strike``) reaches only those after it. :func:`build_stack` wraps the chosen estimators in a
 :class:`~sessions.stack.EstimatorStack`.
+
+What each registered estimator is, for screens and for checking a log before anything is built
+(:data:`DECLARED`: its name on screen, required inputs and outputs), and which of them a log's channels
+can feed (:func:`feeds`): a review offers those to re-run.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Final
+from typing import Any, Final
 
 from estimators.detector import HeelStrikeDetector
 from estimators.heel_strike import HeelStrikeBackup
 from estimators.phase_ekf_estimator import PhaseEKFEstimator
 from estimators.pipeline import PipelineConfig, TrainedModel
-from estimators.protocol import ANGLE_CHANNELS, Estimator, output_names
+from estimators.protocol import ANGLE_CHANNELS, Estimator, Output, output_names
 from estimators.tbe import TimingBasedEstimator
 from sessions.schema import CHANNELS, PRIMARY_BLEND_S, SensorFrame, missing_channels
 from sessions.stack import EstimatorStack
 
 __all__ = [
+    "DECLARED",
     "ESTIMATORS",
+    "OPT_IN",
+    "Declared",
+    "Feed",
     "MissingChannels",
     "StackContext",
     "build_stack",
     "channels_of",
     "choose_primary",
+    "feeds",
     "resolve",
 ]
 
@@ -65,6 +74,39 @@ ESTIMATORS: Final[dict[str, Callable[[StackContext], Estimator]]] = {
 #: one inside ``phase_ekf`` (which uses it to reset the filter) and costs about half of the stack's
 #: time per sample; it is there to be inspected and compared, in review or by choice.
 OPT_IN: Final = frozenset({"hs_backup"})
+
+
+@dataclass(frozen=True)
+class Declared:
+    """A registered estimator as its class declares it, known without building it (no model needed)."""
+
+    label: str  #: its name on screen (the registry name is the machine name)
+    inputs: tuple[str, ...]  #: channels it requires (``Estimator.inputs``)
+    outputs: tuple[Output, ...]  #: ``(name, unit)`` in the order it returns them (``Estimator.outputs``)
+
+
+def _declared(label: str, cls: Any) -> Declared:
+    return Declared(label, tuple(cls.inputs), tuple(cls.outputs))
+
+
+#: Every estimator of :data:`ESTIMATORS` (same order) as its class declares it, with its name on screen.
+#: ``tests/sessions/test_registry.py`` checks that each built estimator declares the same.
+DECLARED: Final[dict[str, Declared]] = {
+    "hs_detector": _declared("Heel-strike detector", HeelStrikeDetector),
+    "phase_ekf": _declared("Phase EKF (seed 000)", PhaseEKFEstimator),
+    "tbe": _declared("Timing-based estimate", TimingBasedEstimator),
+    "hs_backup": _declared("Heel-strike backup", HeelStrikeBackup),
+}
+
+
+@dataclass(frozen=True)
+class Feed:
+    """How a source's channels feed one registered estimator (:func:`feeds`)."""
+
+    missing: tuple[str, ...]  #: required channels nothing provides: it cannot run (empty: it can)
+    #: each required channel the source lacks but estimators before it derive, with those estimators
+    #: (any one of them feeds it): a stack without them cannot run it
+    derived: dict[str, tuple[str, ...]]
 
 
 class MissingChannels(ValueError):
@@ -175,6 +217,26 @@ def build_stack(
         out._pending.append(
             f"primary {primary} is not in the stack ({', '.join(out.names)}): the torque follows {out.primary}"
         )
+    return out
+
+
+def feeds(channels: Collection[str]) -> dict[str, Feed]:
+    """How a source sending ``channels`` feeds each registered estimator (by name, in :data:`ESTIMATORS`
+    order), reckoned from :data:`DECLARED` as :func:`resolve` would run the whole registry: a channel an
+    estimator derives (``heel_strike``: ``hs_detector``, ``phase_ekf``) feeds those after it."""
+    available = _provided(channels)
+    assert available is not None
+    source = set(available)
+    derived: dict[str, list[str]] = {}  # channel -> the estimators that derive it
+    out: dict[str, Feed] = {}
+    for name, d in DECLARED.items():
+        lacking = missing_channels(d.inputs, available)
+        out[name] = Feed(tuple(lacking), {c: tuple(derived[c]) for c in d.inputs if c not in source and c in derived})
+        if not lacking:
+            for o, _ in d.outputs:
+                if o in _CHANNELS:
+                    available.add(o)
+                    derived.setdefault(o, []).append(name)
     return out
 
 

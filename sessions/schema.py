@@ -411,6 +411,34 @@ class RerunRequest(_Strict):
     )
 
 
+class RerunChoices(BaseModel):
+    """Which estimators a re-run of a recorded trial can run (``GET /api/trials/{id}/estimators``): what a
+    review's picker offers. Any subset of ``runnable`` may be asked for (``RerunRequest.estimators``); the
+    server stays the judge (a subset without the estimator that derives a channel another needs is 422).
+    """
+
+    recorded: list[str] | None = Field(
+        description="the stack the trial was recorded with, in the order it ran; null: not recorded "
+        "(a log from another tool)"
+    )
+    default: list[str] = Field(
+        description="what a re-run without 'estimators' runs: the recorded stack, else every estimator the "
+        "trial's channels allow but the opt-in ones"
+    )
+    runnable: list[EstimatorName] = Field(
+        description="the registered estimators the trial's channels can feed (the recorded ones ran), in the "
+        "order a stack runs them"
+    )
+    derived: dict[EstimatorName, dict[str, list[EstimatorName]]] = Field(
+        default_factory=dict,
+        description="of a runnable estimator, each channel it requires that the trial lacks, with the "
+        "estimators before it that derive it (one of them must run too)",
+    )
+    refused: dict[EstimatorName, str] = Field(
+        default_factory=dict, description="the other registered estimators, each with why it cannot run"
+    )
+
+
 class ModelInfo(BaseModel):
     """A model in the model store (``GET /api/models``)."""
 
@@ -858,7 +886,7 @@ def estimator_channels(names: Iterable[str]) -> dict[str, tuple[str, type[BaseMo
 #: types them (the classes they refer to come along in their JSON schemas' ``$defs``).
 WIRE: Final[tuple[type[BaseModel], ...]] = (
     SubjectCreate, Subject, SessionCreate, Session, SessionSettings, SettingsChange, Trial, Event,
-    AnnotationCreate, RecordingControl, UploadCreate, Upload, RerunRequest, ModelInfo, ViewerFocus, ViewerShow,
-    SensorFrame, GaitState, TorqueCommand, StreamBatch, Health, EventMessage, SettingsMessage, Hello,
+    AnnotationCreate, RecordingControl, UploadCreate, Upload, RerunRequest, RerunChoices, ModelInfo, ViewerFocus,
+    ViewerShow, SensorFrame, GaitState, TorqueCommand, StreamBatch, Health, EventMessage, SettingsMessage, Hello,
     FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs,
 )  # fmt: skip

@@ -115,32 +115,49 @@ export function markersPlugin(getMarkers) {
   };
 }
 
+/** uPlot options of one y series of a spec: a line, or (`points`) dots without a line. */
+function _seriesOpts(s) {
+  return {
+    label: s.label, stroke: s.color, width: s.width || 2, dash: s.dash, spanGaps: !!s.spanGaps,
+    ...(s.points ? { paths: () => null, points: { show: true, size: 10, width: 2, fill: s.color } } : { points: { show: false } }),
+    value: s.value || ((u, v) => (v == null ? "–" : v.toFixed(2))),
+  };
+}
+
 /**
  * A line plot of columns against time (or any x) that follows its container's width.
  * @param {HTMLElement} container
  * @param {{title: string, yLabel: string, xLabel?: string, series: {label: string, color: string,
- *   dash?: number[], width?: number, spanGaps?: boolean}[], height?: number, xRange?: Function,
- *   yRange?: number[]|Function, bands?: object[], plugins?: object[], drag?: boolean,
- *   onSelect?: (x0: number, x1: number) => void}} spec
+ *   dash?: number[], width?: number, spanGaps?: boolean, points?: boolean, value?: Function}[],
+ *   height?: number, xRange?: Function, yRange?: number[]|Function, bands?: object[], plugins?: object[],
+ *   drag?: boolean, onSelect?: (x0: number, x1: number) => void}} spec
  */
 export class Plot {
   constructor(container, spec) {
     this.container = container;
+    this.spec = spec;
     this.height = spec.height || 170;
+    this._build(spec.series);
+    this._observer = new ResizeObserver(() => {
+      const w = Math.max(container.clientWidth, 300);
+      if (w !== this.u.width) this.u.setSize({ width: w, height: this.height });
+    });
+    this._observer.observe(container);
+  }
+
+  _build(series) {
+    const spec = this.spec;
     const onSelect = spec.onSelect;
     const opts = {
       title: spec.title,
-      width: Math.max(container.clientWidth, 300),
+      width: Math.max(this.container.clientWidth, 300),
       height: this.height,
       scales: { x: { time: false, ...(spec.xRange ? { range: spec.xRange } : {}) },
         y: spec.yRange ? { range: spec.yRange } : {} },
       axes: [{ ..._AXIS, label: spec.xLabel || "time (s)" }, { ..._AXIS, label: spec.yLabel, size: 60 }],
       series: [
         { label: spec.xLabel || "t (s)", value: (u, v) => (v == null ? "–" : v.toFixed(2)) },
-        ...spec.series.map((s) => ({
-          label: s.label, stroke: s.color, width: s.width || 2, dash: s.dash, spanGaps: !!s.spanGaps,
-          points: { show: false }, value: (u, v) => (v == null ? "–" : v.toFixed(2)),
-        })),
+        ...series.map(_seriesOpts),
       ],
       bands: spec.bands,
       legend: { live: true },
@@ -154,13 +171,22 @@ export class Plot {
         onSelect(x0, x1);
       }] } : {},
     };
-    const empty = [new Float64Array(0), ...spec.series.map(() => new Float64Array(0))];
-    this.u = new uPlot(opts, empty, container);
-    this._observer = new ResizeObserver(() => {
-      const w = Math.max(container.clientWidth, 300);
-      if (w !== this.u.width) this.u.setSize({ width: w, height: this.height });
-    });
-    this._observer.observe(container);
+    this.series = series;
+    const empty = [new Float64Array(0), ...series.map(() => new Float64Array(0))];
+    this.u = new uPlot(opts, empty, this.container);
+  }
+
+  /**
+   * Replaces the plotted series (legend included) when they differ from the current ones; the data
+   * follows with the next `setData`. (The plot is rebuilt: uPlot's `delSeries` fails without cursor points.)
+   * @returns {boolean} whether they changed
+   */
+  setSeries(series) {
+    const key = (list) => JSON.stringify(list.map((s) => [s.label, s.color, s.dash, s.width, !!s.points]));
+    if (key(series) === key(this.series)) return false;
+    this.u.destroy();
+    this._build(series);
+    return true;
   }
 
   /** Replaces the data: `[x, ...series]` arrays of equal length. */

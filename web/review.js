@@ -1,9 +1,11 @@
 // Review (`#/trials/{id}`): a timeline of the whole trial (decimated by the server) with its events,
 // zoom (server fetch of the range), a scrubbed cursor the leg view follows, the live view's plots, and a
-// re-run overlaid on the original: with the recorded settings (the default: what ran, setting changes
+// re-run overlaid on the original: of the estimators picked (the recorded stack by default; each one's
+// outputs in its own colour), with the recorded settings (the default: what ran, setting changes
 // replayed where they happened) or "what if" (the editor's settings held over the whole trial).
 
 import { api, errorText, query } from "./api.js";
+import { EstimatorPicker, estimatorLabel, estimatorOverlay, listText, overlayLegend, rerunEstimators } from "./estimators.js";
 import { EVENT_COLORS, EventList } from "./events.js";
 import { bandPlot, legView, PLOT_SPECS } from "./live.js";
 import { COLORS, decimateMinMax, markersPlugin, Plot, StrideOverlay, uPlot } from "./plots.js";
@@ -14,6 +16,7 @@ import { DEFAULT_SETTINGS } from "./wire.js";
 const MAX_POINTS = 2000; // per request, as the server decimates
 const RERUN_POINTS = 10000; // kept of a re-run, decimated again to MAX_POINTS per view
 const RERUN_COLS = { phase: "phase_pct", torque: "torque_Nm", incline: "incline_deg" }; // plot key -> column
+const RERUN_STYLE = { label: "re-run", color: COLORS.purple, width: 2 }; // the re-run's gait state
 
 /** Series columns plus phase in % (the plots' unit); nulls kept. */
 function derive(series) {
@@ -55,8 +58,7 @@ export function mountReview(root, trialId) {
   const plots = PLOT_SPECS.map((spec) => {
     const div = h("div", { class: "plot", "data-testid": `review-plot-${spec.key}` });
     plotsBox.append(div);
-    const series = RERUN_COLS[spec.key] ? [...spec.series, { label: "re-run", color: COLORS.purple, width: 2 }] : spec.series;
-    return { spec, plot: new Plot(div, { ...spec, series, plugins: [markersPlugin(marks)] }) };
+    return { spec, plot: new Plot(div, { ...spec, series: [...spec.series, ...overlaySeries(spec.key)], plugins: [markersPlugin(marks)] }) };
   });
   const strideNote = h("span", { class: "hint", "data-testid": "review-stride-count" });
   const bandT = h("div", { class: "plot" });
@@ -69,6 +71,8 @@ export function mountReview(root, trialId) {
   // Two modes (RerunRequest): "recorded" sends no settings, and the server replays the recorded ones
   // and their changes, so the overlay lies on the recording; "whatif" holds the editor's settings over
   // the whole trial. Editing a setting chooses "what if".
+  // The estimators: the trial's recorded stack by default (then no `estimators` is sent), any runnable subset.
+  const picker = new EstimatorPicker(() => refresh());
   const editor = new SettingsEditor("rerun");
   // SessionSettings' defaults until the trial's recorded settings are loaded.
   editor.setBaseline(DEFAULT_SETTINGS);
@@ -78,18 +82,32 @@ export function mountReview(root, trialId) {
   const modeRecorded = modeChoice("recorded", "Re-run with the recorded settings (default)");
   const modeWhatIf = modeChoice("whatif", "What if: these settings over the whole trial");
   const modeNote = h("p", { class: "hint", "data-testid": "rerun-mode-note" });
-  const rerunBtn = h("button", { type: "button", class: "primary", "data-testid": "rerun-submit" });
+  const rerunBtn = h("button", { type: "button", class: "primary", "data-testid": "rerun-submit",
+    "aria-describedby": "rerun-estimators-error" });
   const rerunClear = h("button", { type: "button", "data-testid": "rerun-clear", text: "Remove overlay", disabled: true });
   const rerunError = errorBox("rerun-error");
   const rerunOk = h("p", { class: "ok", role: "status", "data-testid": "rerun-ok" });
+  const rerunLegend = h("ul", { class: "overlay-legend", "data-testid": "rerun-legend", "aria-label": "Estimators overlaid", hidden: true });
   const rerunCard = h("section", { class: "card", "data-testid": "rerun-card" }, h("h2", { text: "Re-run" }),
-    h("p", { class: "hint", text: "The trial's raw sensor frames through the estimators again; phase, torque and incline are overlaid (purple)." }),
+    h("p", { class: "hint", text: "The trial's raw sensor frames through the chosen estimators again. The re-run's gait state "
+      + "(the phase the torque follows, the torque, the incline) is overlaid in purple; each estimator's own outputs in its colour." }),
+    picker.el,
     h("fieldset", { class: "choices" }, h("legend", { text: "Settings" }), modeRecorded, modeWhatIf), modeNote,
-    editor.el, h("div", { class: "buttons" }, rerunBtn, rerunClear), rerunError, rerunOk);
+    editor.el, h("div", { class: "buttons" }, rerunBtn, rerunClear), rerunError, rerunOk, rerunLegend);
   const radio = (label) => label.querySelector("input");
   const whatIf = () => radio(modeWhatIf).checked;
+  let rerunning = false;
+  // The button says what will be re-run, and how; it is disabled while the choice cannot run (the picker says why).
+  function refresh() {
+    const problem = picker.problem();
+    const what = picker.summary();
+    rerunBtn.textContent = problem ? "Re-run: choose the estimators first"
+      : whatIf() ? `Re-run ${what}: what if` : `Re-run ${what} with the recorded settings`;
+    rerunBtn.title = picker.selected() ? picker.selected().map((n) => `${estimatorLabel(n)} (${n})`).join(", ") : "";
+    rerunBtn.disabled = rerunning || problem !== null;
+  }
   function showMode() {
-    rerunBtn.textContent = whatIf() ? "Re-run: what if" : "Re-run with the recorded settings";
+    refresh();
     modeNote.textContent = whatIf()
       ? "These settings held from the first frame to the last; the recorded changes are not applied."
       : "The settings in force when the trial began (shown below), and every recorded change where it happened: the re-run reproduces what ran.";
@@ -125,27 +143,32 @@ export function mountReview(root, trialId) {
   ];
 
   // --- drawing ----------------------------------------------------------------------------------------
-  function rerunSlice(t0, t1) {
+  /** A plot's re-run series after its own: the gait state's column, then the estimators' ({..., col}). */
+  function overlaySeries(key) {
+    return [...(RERUN_COLS[key] ? [{ ...RERUN_STYLE, col: RERUN_COLS[key] }] : []), ...((st.rerun && st.rerun.series[key]) || [])];
+  }
+
+  function rerunSlice(t0, t1, cols) {
     const r = st.rerun;
     if (!r) return null;
     let i0 = r.t.findIndex((t) => t >= t0);
     if (i0 < 0) return null;
     let i1 = i0;
     while (i1 < r.t.length && r.t[i1] <= t1) i1++;
-    const cols = Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c].slice(i0, i1)]));
-    return decimateMinMax(r.t.slice(i0, i1), cols, MAX_POINTS);
+    return decimateMinMax(r.t.slice(i0, i1), Object.fromEntries(cols.map((c) => [c, r.cols[c].slice(i0, i1)])), MAX_POINTS);
   }
 
   function drawView() {
     const s = st.view;
     if (!s || !s.t.length) return;
-    const rr = rerunSlice(s.t[0], s.t[s.t.length - 1]);
     for (const { spec, plot } of plots) {
+      const extra = overlaySeries(spec.key);
+      plot.setSeries([...spec.series, ...extra]);
       const base = [s.t, ...spec.cols.map((c) => s[c])];
-      const rc = RERUN_COLS[spec.key];
-      if (!rc) plot.setData(base);
-      else if (!rr || !rr.t.length) plot.setData([...base, s.t.map(() => null)]);
-      else plot.setData(uPlot.join([base, [rr.t, rr[rc]]]));
+      const rr = extra.length ? rerunSlice(s.t[0], s.t[s.t.length - 1], extra.map((x) => x.col)) : null;
+      if (!extra.length) plot.setData(base);
+      else if (!rr || !rr.t.length) plot.setData([...base, ...extra.map(() => s.t.map(() => null))]);
+      else plot.setData(uPlot.join([base, [rr.t, ...extra.map((x) => rr[x.col])]]));
     }
     const ov = new StrideOverlay(["torque_Nm", "foot_angle_deg"], { n: 500, maxSamples: 4096 });
     for (let i = 0; i < s.t.length; i++) ov.push(s.t[i], { torque_Nm: s.torque_Nm[i], foot_angle_deg: s.foot_angle_deg[i] }, !!s.heel_strike[i]);
@@ -238,25 +261,37 @@ export function mountReview(root, trialId) {
   scrubber.addEventListener("input", () => setCursor(Number(scrubber.value), false));
 
   rerunBtn.addEventListener("click", () => {
+    if (picker.problem() !== null) return;
     rerunOk.textContent = "";
+    rerunning = true;
     runAction(rerunBtn, rerunError, async () => {
       const asWhatIf = whatIf();
       const settings = asWhatIf ? editor.values() : null;
+      const estimators = picker.request(); // null: the recorded stack, as recorded
       rerunOk.textContent = "re-running…";
       // The model and anything the editor does not show come from the recorded settings.
-      const body = asWhatIf ? { settings: { ...st.baseSettings, ...settings } } : {};
+      const body = { ...(asWhatIf ? { settings: { ...st.baseSettings, ...settings } } : {}), ...(estimators ? { estimators } : {}) };
       const res = await api("POST", `/api/trials/${trialId}/rerun${query({ max_points: RERUN_POINTS })}`, body);
+      if (!st.alive) return;
       const r = derive(res);
       if (!r.t || !r.t.length) throw new ValidationError("The re-run produced no samples (the trial has no raw sensor frames).");
       // The server puts the re-run on the recording's session times: no alignment here.
-      st.rerun = { t: r.t, ...Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c]])) };
+      const names = rerunEstimators(res);
+      const overlay = estimatorOverlay(names, res);
+      st.rerun = { t: r.t, cols: { ...Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c]])), ...overlay.cols },
+        series: overlay.series };
+      overlayLegend(rerunLegend, names, overlay.drawn);
       rerunClear.disabled = false;
       const changes = st.events.filter((e) => e.kind === "setting").length;
+      const ran = `Estimators: ${listText(names.map(estimatorLabel))}.`;
       rerunOk.textContent = asWhatIf
-        ? `Overlaid: ${Object.entries(settings).map(([k, v]) => `${k} ${v}`).join(", ")} (what if, over the whole trial).`
-        : `Overlaid: the recorded settings, ${changes} recorded change${changes === 1 ? "" : "s"} replayed (what ran).`;
+        ? `Overlaid: ${Object.entries(settings).map(([k, v]) => `${k} ${v}`).join(", ")} (what if, over the whole trial). ${ran}`
+        : `Overlaid: the recorded settings, ${changes} recorded change${changes === 1 ? "" : "s"} replayed`
+          + `${estimators ? "" : " (what ran)"}. ${ran}`;
       drawView();
     }).then(() => {
+      rerunning = false;
+      refresh();
       if (rerunOk.textContent === "re-running…") rerunOk.textContent = "";
     });
   });
@@ -264,10 +299,16 @@ export function mountReview(root, trialId) {
     st.rerun = null;
     rerunClear.disabled = true;
     rerunOk.textContent = "";
+    overlayLegend(rerunLegend, [], {});
     drawView();
   });
 
   // --- load -------------------------------------------------------------------------------------------
+  api("GET", `/api/trials/${trialId}/estimators`).then((choices) => {
+    if (st.alive) picker.set(choices);
+  }).catch((err) => {
+    if (st.alive) picker.failed(`The estimators of this trial could not be listed: ${errorText(err)}.`);
+  });
   (async () => {
     try {
       const [trial, series, evs] = await Promise.all([

@@ -1,8 +1,10 @@
-// GENERATED from sessions/schema.py by `gaitscope wire --out web/wire.js`: do not edit by hand. Change the
-// schema and run the command again; tests/server/test_wire.py fails while this file differs from it.
+// GENERATED from sessions/schema.py and sessions/registry.py by `gaitscope wire --out web/wire.js`:
+// do not edit by hand. Change them and run the command again; tests/server/test_wire.py fails while this
+// file differs from what they generate.
 //
-// JSDoc types of every wire message (the JSON schemas `GET /api/schema` serves, as types), and the
-// bounds the browser checks before the server does. The server stays the judge (422, 409).
+// JSDoc types of every wire message (the JSON schemas `GET /api/schema` serves, as types), the
+// bounds the browser checks before the server does (the server stays the judge: 422, 409), and the
+// registered estimators.
 
 /**
  * A person who walks with a device.
@@ -139,6 +141,18 @@
  * @typedef {object} RerunRequest
  * @property {SessionSettings | null} [settings=null] null: as recorded (the default); else these settings over the whole trial
  * @property {Array<string> | null} [estimators=null] the estimators to re-run (their outputs come back as '<name>.<output>' columns); null: the trial's recorded stack
+ */
+
+/**
+ * Which estimators a re-run of a recorded trial can run (``GET /api/trials/{id}/estimators``): what a
+ * review's picker offers. Any subset of ``runnable`` may be asked for (``RerunRequest.estimators``); the
+ * server stays the judge (a subset without the estimator that derives a channel another needs is 422).
+ * @typedef {object} RerunChoices
+ * @property {Array<string> | null} recorded the stack the trial was recorded with, in the order it ran; null: not recorded (a log from another tool)
+ * @property {Array<string>} default what a re-run without 'estimators' runs: the recorded stack, else every estimator the trial's channels allow but the opt-in ones
+ * @property {Array<string>} runnable the registered estimators the trial's channels can feed (the recorded ones ran), in the order a stack runs them
+ * @property {Object<string, Object<string, Array<string>>>} [derived] of a runnable estimator, each channel it requires that the trial lacks, with the estimators before it that derive it (one of them must run too)
+ * @property {Object<string, string>} [refused] the other registered estimators, each with why it cannot run
  */
 
 /**
@@ -574,6 +588,37 @@ export const DEFAULT_SETTINGS = deepFreeze({
   model: "default",
   primary: "phase_ekf",
   estimators: null,
+});
+
+/**
+ * Every registered estimator (`sessions.registry`), in the order a stack runs them: its name on screen,
+ * its outputs (name: unit; a re-run's columns are `<name>.<output>`), and whether a session runs it
+ * only when named (`OPT_IN`).
+ * @type {Readonly<Record<string, {label: string, outputs: Record<string, string>, opt_in: boolean}>>}
+ */
+export const ESTIMATORS = deepFreeze({
+  hs_detector: { label: "Heel-strike detector", outputs: { heel_strike: "bool" }, opt_in: false },
+  phase_ekf: {
+    label: "Phase EKF (seed 000)",
+    outputs: {
+      phase: "1",
+      phase_rate: "1/s",
+      stride_length_m: "m",
+      incline_deg: "deg",
+      heel_strike: "bool",
+      backup_reset: "bool",
+      fault: "code",
+      foot_pred_deg: "deg",
+      shank_pred_deg: "deg",
+    },
+    opt_in: false,
+  },
+  tbe: { label: "Timing-based estimate", outputs: { phase: "1", phase_rate: "1/s" }, opt_in: false },
+  hs_backup: {
+    label: "Heel-strike backup",
+    outputs: { phase: "1", phase_rate: "1/s", stride_length_m: "m", incline_deg: "deg" },
+    opt_in: true,
+  },
 });
 
 /**

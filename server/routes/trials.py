@@ -1,5 +1,5 @@
 """``/api/trials``: recorded and uploaded trials: their events, decimated series, MCAP download,
-recorded settings, and re-runs through the estimators."""
+recorded settings, the estimators a re-run can run, and re-runs through them."""
 
 from __future__ import annotations
 
@@ -62,6 +62,15 @@ async def trial_settings(trial_id: int, c: Ctx) -> schema.SessionSettings:
 
     _, path = reviewable_trial(c, trial_id)
     return await asyncio.to_thread(recorded_settings, path)
+
+
+@router.get("/trials/{trial_id}/estimators")
+async def trial_estimators(trial_id: int, c: Ctx) -> schema.RerunChoices:
+    """Which estimators a re-run of the trial can run: its recorded stack and those its channels feed."""
+    from sessions.review.rerun import rerun_choices
+
+    _, path = reviewable_trial(c, trial_id)
+    return await asyncio.to_thread(rerun_choices, path)
 
 
 @router.post("/trials/{trial_id}/rerun")

@@ -11,9 +11,10 @@ Two modes (:class:`~sessions.schema.RerunRequest`):
 Which estimators (:mod:`sessions.registry`): ``estimators`` when given (any subset of the registered ones
 whose channels the trial has), else the trial's recorded stack (``ESTIMATORS_KEY`` in its metadata; a
 recording made before stacks had one ran the phase EKF and its timing-based estimate), else every
-estimator the trial's channels allow. Each one's outputs come back as ``<name>.<output>`` columns beside
-the gait state's, so the review overlays them. The primary is the settings' when the subset has it,
-else its first estimator with a phase; a recorded switch to one the subset lacks is not applied.
+estimator the trial's channels allow (:func:`rerun_choices` says which can run, for a review's picker).
+Each one's outputs come back as ``<name>.<output>`` columns beside the gait state's, so the review
+overlays them. The primary is the settings' when the subset has it, else its first estimator with a
+phase; a recorded switch to one the subset lacks is not applied.
 
 The estimator is built as the live one was (:class:`~sessions.live.runtime.SessionRuntime`): the model named
 in the settings, the subject's leg length and mass, the sample period in the recording's metadata record
@@ -47,10 +48,10 @@ from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
 from sessions.formats.mcap_io import SeriesBuilder, count_messages, iter_sensor_frames, read_messages, series_window
 from sessions.formats.recording import ESTIMATORS_KEY, METADATA_NAME, SAMPLE_PERIOD_KEY
 from sessions.live.runtime import safe_torque
-from sessions.registry import channels_of
-from sessions.schema import SensorFrame, SessionSettings
+from sessions.registry import OPT_IN, channels_of, feeds
+from sessions.schema import RerunChoices, SensorFrame, SessionSettings
 
-__all__ = ["recorded_settings", "recorded_stack", "rerun_series"]
+__all__ = ["recorded_settings", "recorded_stack", "rerun_choices", "rerun_series"]
 
 #: What ran before the stack was recorded: the phase EKF (with its detector) and the timing-based estimate.
 _BEFORE_STACKS: Final = ("phase_ekf", "tbe")
@@ -114,7 +115,7 @@ def rerun_series(
         names = settings.estimators
     ran = names is None and (names := recorded_stack(path)) is not None
     # the channels are checked unless the stack is the recorded one (it ran: on a device, whatever came)
-    channels = None if ran else channels_of(f for _, f in itertools.islice(iter_sensor_frames(path), _PROBE))
+    channels = None if ran else _channels(path)
     current = settings
     estimator: FrameEstimator | None = None
     topics = ["/sensor", "/settings"] if settings is None else ["/sensor"]
@@ -180,6 +181,32 @@ def rerun_series(
     return (builder or SeriesBuilder(0, max_points)).result()
 
 
+def rerun_choices(path: Path) -> RerunChoices:
+    """Which estimators :func:`rerun_series` can run on the trial: its recorded stack (they ran, whatever
+    the channels), and every registered estimator its first frames' channels can feed, as
+    :func:`~sessions.registry.feeds` reckons it.
+
+    Raises:
+        DataFormatError: a bad file.
+    """
+    recorded = recorded_stack(path)
+    fed = feeds(_channels(path))
+    ran = set(recorded or ())
+    runnable = [n for n, f in fed.items() if n in ran or not f.missing]
+    if recorded is not None:
+        default = list(recorded)
+    else:  # as resolve(None, channels) runs them: the opt-in ones left out, and those fed by them
+        default = [n for n in runnable if n not in OPT_IN]
+        default = [n for n in default if all(set(by) & set(default) for by in fed[n].derived.values())]
+    return RerunChoices(
+        recorded=None if recorded is None else list(recorded),
+        default=default,
+        runnable=runnable,
+        derived={n: {c: list(by) for c, by in fed[n].derived.items()} for n in runnable if fed[n].derived},
+        refused={n: f"the trial does not send {', '.join(f.missing)}" for n, f in fed.items() if n not in runnable},
+    )
+
+
 def recorded_stack(path: Path) -> tuple[str, ...] | None:
     """The estimator stack a trial was recorded with (its metadata), ``("phase_ekf", "tbe")`` for a
     gaitscope recording made before stacks were recorded, None for another tool's log."""
@@ -188,6 +215,11 @@ def recorded_stack(path: Path) -> tuple[str, ...] | None:
     if text is not None:
         return tuple(n for n in text.split(",") if n)
     return _BEFORE_STACKS if SAMPLE_PERIOD_KEY in meta else None
+
+
+def _channels(path: Path) -> set[str]:
+    """The channels the trial's first :data:`_PROBE` frames send (:func:`~sessions.registry.channels_of`)."""
+    return channels_of(f for _, f in itertools.islice(iter_sensor_frames(path), _PROBE))
 
 
 def _settings(path: Path, log_time: int, msg: object) -> SessionSettings:

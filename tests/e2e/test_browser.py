@@ -2,7 +2,8 @@
 
 A clinician's path through it: create a subject and a simulated session, watch the live plots move,
 change the torque gain (and see a too-large and a too-soon change refused), annotate, upload a replay
-CSV (and see a broken MCAP refused), then review the upload, scrub it and re-run it with other settings.
+CSV (and see a broken MCAP refused), then review the upload, scrub it, re-run it with other settings and
+re-run chosen estimators of its stack, each overlaid and named in the legend.
 Screenshots of the live and review views go to ``tests/e2e/artifacts/``. Every test also checks that
 the page logged no console error and that no request left 127.0.0.1.
 """
@@ -317,5 +318,60 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(page.get_by_test_id("rerun-ok")).to_contain_text("Overlaid: torque_gain 1.5", timeout=60_000)
     expect(page.get_by_test_id("viewer-error")).to_be_hidden()
     expect(page.get_by_test_id("download-link")).to_have_attribute("href", re.compile(r"/api/trials/\d+/download$"))
-    page.screenshot(path=str(ARTIFACTS / "review.png"), full_page=True)
+
+    # --- the estimator picker: the recorded stack checked; none chosen cannot run; a subset is what is sent,
+    # re-run and overlaid (one legend entry per estimator); the recorded stack again sends no list ------------
+    labels = {
+        "hs_detector": "Heel-strike detector",
+        "phase_ekf": "Phase EKF (seed 000)",
+        "tbe": "Timing-based estimate",
+        "hs_backup": "Heel-strike backup",
+    }
+    boxes = {n: page.get_by_test_id(f"rerun-estimator-{n}") for n in labels}
+    recorded = ["hs_detector", "phase_ekf", "tbe"]  # the upload's stack (the backup is opt-in)
+    for name, box in boxes.items():
+        expect(box).to_be_enabled()
+        expect(box).to_be_checked(checked=name in recorded)
+        expect(page.locator(f"label[for='rerun-estimator-{name}']")).to_contain_text(labels[name])
+        expect(page.locator(f"label[for='rerun-estimator-{name}']")).to_have_attribute("title", name)
+    entries = page.get_by_test_id("rerun-legend-entry")
+    expect(entries).to_have_count(3)  # the what-if above re-ran the recorded stack
+    submit = page.get_by_test_id("rerun-submit")
+    for box in boxes.values():
+        box.uncheck()
+    expect(submit).to_be_disabled()
+    expect(submit).to_have_text("Re-run: choose the estimators first")
+    expect(page.get_by_test_id("rerun-estimators-error")).to_have_text("Choose at least one estimator to re-run.")
+    page.get_by_test_id("rerun-mode-recorded").check()
+    phase_legend = page.get_by_test_id("review-plot-phase").locator(".u-legend")
+    subsets = (
+        (["tbe"], "Timing-based estimate"),
+        (["phase_ekf", "tbe"], "Phase EKF (seed 000) and Timing-based estimate"),
+        (recorded, "3 estimators"),
+    )
+    for chosen, what in subsets:
+        for name, box in boxes.items():
+            box.set_checked(name in chosen)
+        expect(page.get_by_test_id("rerun-estimators-error")).to_be_hidden()
+        expect(submit).to_have_text(f"Re-run {what} with the recorded settings")
+        with page.expect_request(re.compile(r"/api/trials/\d+/rerun")) as request:
+            submit.click()
+        # the recorded stack is not sent: the server re-runs it as recorded (what ran)
+        assert request.value.post_data_json == ({} if chosen == recorded else {"estimators": chosen})
+        names = [labels[n] for n in chosen]
+        ran = f"Estimators: {' and '.join(filter(None, [', '.join(names[:-1]), names[-1]]))}."
+        expect(page.get_by_test_id("rerun-ok")).to_contain_text(ran, timeout=60_000)
+        expect(entries).to_have_count(len(chosen))
+        assert [e.get_attribute("data-estimator") for e in entries.all()] == chosen
+        for name, label in labels.items():  # the phase plot: each one's phase (the detector's heel strikes)
+            if name in chosen:
+                expect(phase_legend).to_contain_text(f"{label}, re-run")
+            else:
+                expect(phase_legend).not_to_contain_text(f"{label}, re-run")
+        if chosen == ["phase_ekf", "tbe"]:
+            page.screenshot(path=str(ARTIFACTS / "review.png"), full_page=True)
+    expect(page.get_by_test_id("rerun-ok")).to_contain_text("(what ran)")
+    page.get_by_test_id("rerun-clear").click()
+    expect(page.get_by_test_id("rerun-legend")).to_be_hidden()
+    expect(phase_legend).not_to_contain_text(", re-run")
     watched.check_clean()

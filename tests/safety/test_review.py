@@ -260,3 +260,48 @@ def test_default_rerun_reproduces_every_estimators_recorded_outputs(client: Test
     assert tbe["t"] == again["t"] and max(tbe["torque_Nm"]) > 5.0
     r = client.post(f"/api/trials/{tid}/rerun", json={"estimators": ["nope"]})
     assert r.status_code == 422 and "unknown estimator nope" in r.json()["detail"]
+
+
+def test_the_estimators_a_rerun_can_run_are_the_recorded_stack_and_those_the_channels_feed(
+    client: TestClient,
+) -> None:
+    """What the review's picker offers (``GET /api/trials/{id}/estimators``); the default re-run runs
+    ``default``, and a subset of ``runnable`` runs exactly that subset."""
+    tid, _ = _driven_trial(client)
+    r = client.get(f"/api/trials/{tid}/estimators")
+    assert r.status_code == 200, r.text
+    assert r.json() == {
+        "recorded": ["hs_detector", "phase_ekf", "tbe"],
+        "default": ["hs_detector", "phase_ekf", "tbe"],
+        "runnable": ["hs_detector", "phase_ekf", "tbe", "hs_backup"],  # the opt-in backup too
+        "derived": {},
+        "refused": {},
+    }
+    ran = _rerun(client, tid, {"estimators": ["phase_ekf", "hs_backup"]})
+    assert {k.split(".")[0] for k in ran if "." in k} == {"phase_ekf", "hs_backup"}
+    assert client.get("/api/trials/999/estimators").status_code == 404
+
+
+def test_a_subset_without_the_estimator_that_derives_a_channel_is_refused(client: TestClient, tmp_path: Path) -> None:
+    """A log without heel strikes: the detector (or the phase EKF) derives them for the timing-based
+    estimate, so the picker is told, and the timing-based estimate alone is refused with the reason."""
+    path = tmp_path / "no_heel_strikes.mcap"
+    sensors, _, _ = sensor_trial([(1.0, 0.0, 3)], rate_hz=RATE_HZ)
+    frames = [f.model_copy(update={"heel_strike": None}) for f in frames_from_table(sensors)]
+    model, _ = client.app.state.ctx.models.get("default")  # type: ignore[attr-defined]
+    states = estimate(frames, model, 0.9, 70.0, schema.SessionSettings())
+    with Recorder(path, 1_700_000_000_000_000_000, {"source": "other tool"}) as rec:
+        for f, state in zip(frames, states, strict=True):
+            rec.write("/sensor", f.t, f)
+            rec.write("/gait_state", f.t, state)
+    tid = _upload(client, path, _subject(client))["id"]
+    choices = client.get(f"/api/trials/{tid}/estimators").json()
+    assert choices["recorded"] is None and choices["refused"] == {}
+    assert choices["default"] == ["hs_detector", "phase_ekf", "tbe"]
+    strikes = {"heel_strike": ["hs_detector", "phase_ekf"]}
+    assert choices["derived"] == {"tbe": strikes, "hs_backup": strikes}
+    what_if = {"settings": {"torque_gain": 1.0}}
+    r = client.post(f"/api/trials/{tid}/rerun", json={**what_if, "estimators": ["tbe"]})
+    assert r.status_code == 422 and "tbe needs heel_strike" in r.json()["detail"], r.text
+    ran = _rerun(client, tid, {**what_if, "estimators": ["hs_detector", "tbe"]})
+    assert {k.split(".")[0] for k in ran if "." in k} == {"hs_detector", "tbe"}

@@ -13,7 +13,7 @@ import pytest
 
 from server.routes import streams
 from server.wire import COMMAND, render
-from sessions import schema
+from sessions import registry, schema
 
 WIRE_JS = Path(__file__).resolve().parents[2] / "web" / "wire.js"
 
@@ -48,6 +48,7 @@ def test_every_wire_class_and_every_class_it_refers_to_is_typed_field_by_field()
     assert ("SimulatedSource | ReplaySource | DeviceSource | UploadSource", "source") in typedefs["SessionCreate"]
     assert ("number | null", "torque_gain") in typedefs["SettingsChange"]
     assert ("Array<GaitState>", "states") in typedefs["StreamBatch"]
+    assert ("Object<string, string>", "refused") in typedefs["RerunChoices"]
     assert "@property {number | null} [torque_gain=null] (0..3)" in render()
 
 
@@ -74,7 +75,7 @@ def test_wire_js_is_a_module_whose_constants_are_the_schemas(tmp_path: Path) -> 
     script = (
         f"import * as w from {json.dumps(module.as_uri())};"
         "console.log(JSON.stringify({s: w.SETTING_LIMITS, n: w.SENSOR_LIMITS, d: w.DEFAULT_SETTINGS,"
-        " f: w.FIELD_LIMITS, frozen: Object.isFrozen(w.SETTING_LIMITS.torque_gain)}));"
+        " f: w.FIELD_LIMITS, e: w.ESTIMATORS, frozen: Object.isFrozen(w.SETTING_LIMITS.torque_gain)}));"
     )
     done = subprocess.run(
         ["node", "--input-type=module", "-e", script], capture_output=True, text=True, timeout=60, check=False
@@ -86,4 +87,14 @@ def test_wire_js_is_a_module_whose_constants_are_the_schemas(tmp_path: Path) -> 
     assert got["d"] == schema.SessionSettings().model_dump(mode="json")
     assert got["f"]["SubjectCreate"]["leg_length_m"] == {"min": 0.5, "max": 1.3}
     assert got["f"]["ReplaySource"]["speed"] == {"min": 1.0, "max": 50.0}
+    assert got["e"] == {
+        name: {"label": d.label, "outputs": dict(d.outputs), "opt_in": name in registry.OPT_IN}
+        for name, d in registry.DECLARED.items()
+    }
+    assert list(got["e"]) == list(registry.ESTIMATORS)  # the order a stack runs them in
+    assert got["e"]["tbe"] == {
+        "label": "Timing-based estimate",
+        "outputs": {"phase": "1", "phase_rate": "1/s"},
+        "opt_in": False,
+    }
     assert got["frozen"] is True
