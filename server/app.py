@@ -8,6 +8,7 @@ creates a demo subject with a simulated session, so ``gaitscope serve`` shows a 
 from __future__ import annotations
 
 import asyncio
+import gc
 import logging
 import time
 from collections.abc import AsyncIterator
@@ -94,6 +95,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             ctx.leg_view = LegView(settings.host, settings.viser_port, model, allowed_hosts=settings.allowed_hosts)
         app.state.ctx = ctx
         await asyncio.to_thread(warm_up, models.get("default")[0])  # compile the kernels before answering
+        # What start-up made (numpy, scipy, numba, pandas, the model: millions of objects) lives as long as
+        # the server: kept out of the cyclic collector, whose full passes over it stalled the sessions'
+        # event loop for tens of milliseconds (the load benchmark's p99).
+        gc.collect()
+        gc.freeze()
         if settings.demo:
             _demo(ctx)
         try:
