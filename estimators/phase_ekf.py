@@ -90,8 +90,14 @@ class EKFConfig:
             P[2, 2] = P[3, 3] = FROZEN_VARIANCE
         return P
 
-    def q_diag(self, dt: float) -> Array:
-        q = np.array([0.0, *(s * s for s in self.q_std)]) * (dt / self.q_time_unit) * self.process_noise_scale
+    def q_diag(self, dt: float, out: Array | None = None) -> Array:
+        """The process noise's diagonal ``(4,)`` over ``dt`` seconds, into ``out`` when given (in Python
+        floats: the filter recomputes it whenever ``dt`` changes, which jitters from sample to sample)."""
+        q = np.zeros(4) if out is None else out
+        c = dt / self.q_time_unit
+        q[0] = 0.0
+        for i in range(3):
+            q[i + 1] = self.q_std[i] * self.q_std[i] * c * self.process_noise_scale
         if self.no_task:
             q[2] = q[3] = FROZEN_VARIANCE
         return q
@@ -139,13 +145,8 @@ class PhaseEKF:
 
     def predict(self, dt: float) -> None:
         """Advance by ``dt`` seconds (eq. 13-14); phase wrapped into [0, 1)."""
-        if dt != self._q_dt:  # q_diag(dt), in place and in Python floats: dt jitters from sample to sample
-            cfg, q = self.config, self._q
-            c = dt / cfg.q_time_unit
-            for i in range(3):
-                q[i + 1] = cfg.q_std[i] * cfg.q_std[i] * c * cfg.process_noise_scale
-            if cfg.no_task:
-                q[2] = q[3] = FROZEN_VARIANCE
+        if dt != self._q_dt:
+            self.config.q_diag(dt, self._q)
             self._q_dt = dt
         _kernels.predict(self.x, self.P, dt, self._q)
 

@@ -79,7 +79,6 @@ FLUSH_INTERVAL_S: Final = 0.5
 #: Default longest wall time (s) between two fsyncs of a recording: what a power cut adds to that.
 FSYNC_INTERVAL_S: Final = 2.0
 _DISK_FULL: Final = (errnos.ENOSPC, errnos.EDQUOT)
-_FRAME: Final = schema.SensorFrame
 
 
 class RecordingError(OSError):
@@ -247,7 +246,8 @@ class Recorder:
         self._raise_if_failed()
         log_time = self.log_time_ns(t)
         # a sensor frame's absent channels (None) are left out: most devices send a few of dozens
-        self._add(channel_id, log_time, message.model_dump_json(exclude_none=isinstance(message, _FRAME)).encode())
+        data = message.model_dump_json(exclude_none=isinstance(message, schema.SensorFrame)).encode()
+        self._add(channel_id, log_time, data)
         if topic == "/gait_state":
             self.samples += 1
             if self._first_t is None:

@@ -559,14 +559,15 @@ class SessionRuntime:
         return self.estimator.last_t
 
 
+#: Left out of a recorded sensor frame's own JSON: its time, which the recording puts first in session time.
+_T: Final = {"t"}
+
+
 def _frame_json(frame: SensorFrame, t: float) -> bytes:
     """The JSON of ``frame`` at session time ``t`` (s) without its absent channels, as the recorder writes a
     sensor frame: built from the frame's own JSON rather than from a copy of the model (per sample, the
     copy cost more than the rest of the recording; ``tests/sessions/live/test_runtime.py`` reads it back)."""
     return b'{"t":%r,%s' % (t, frame.model_dump_json(exclude_none=True, exclude=_T).encode()[1:])
-
-
-_T: Final = {"t"}
 
 
 def _shown(value: object) -> str:
