@@ -12,7 +12,7 @@ import json
 import math
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Final, Literal
 
 from estimators.pipeline import TrainedModel
 from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator
@@ -174,6 +174,19 @@ class FrameEstimator:
         for topic, (ok, failed), y in zip(self._topics, self._json_templates, last.outputs, strict=True):
             # %r of a float is its shortest round-trip repr: valid JSON for the finite values the stack lets by
             out.append((topic, (failed % (seq, t) if y is None else ok % (seq, t, *y.tolist())).encode()))
+        return out
+
+    def recorded_json(self, frame: SensorFrame, state: GaitState, command: bytes) -> list[tuple[str, bytes]]:
+        """What is recorded of the last sample, as ``(topic, JSON)`` for
+        :meth:`~sessions.formats.recording.Recorder.write_json`: every estimator's outputs
+        (:meth:`output_json`), the sensor frame at session time (:func:`frame_json`), the gait state and
+        ``command``, the JSON of the torque command the device got (:func:`torque_json`)."""
+        out = self.output_json(state.seq)
+        out += (
+            ("/sensor", frame_json(frame, state.t)),
+            ("/gait_state", state.model_dump_json().encode()),
+            ("/torque", command),
+        )
         return out
 
     def resync(self, elapsed_s: float) -> None:
@@ -369,3 +382,24 @@ def warm_up(model: TrainedModel, samples: int = 60) -> None:
             heel_strike=k % 40 == 0,
         )
         est.step(frame, 0)
+
+
+#: Left out of a recorded sensor frame's own JSON: its time, which the recording puts first in session time.
+_T: Final = {"t"}
+_TORQUE: Final = '{"type":"torque","seq":%d,"t":%r,"torque_Nm":%r}'
+
+
+def frame_json(frame: SensorFrame, t: float) -> bytes:
+    """The JSON of ``frame`` at session time ``t`` (s) without its absent channels, as a recording holds
+    a sensor frame: built from the frame's own JSON rather than from a copy of the model (per sample, the
+    copy cost more than the rest of the recording; ``tests/sessions/test_estimation.py`` reads it back)."""
+    return b'{"t":%r,%s' % (t, frame.model_dump_json(exclude_none=True, exclude=_T).encode()[1:])
+
+
+def torque_json(seq: int, t: float, torque_Nm: float) -> str:
+    """The JSON of ``TorqueCommand(seq=seq, t=t, torque_Nm=torque_Nm)``, sent to a device and recorded
+    once per sample: a format string is a fifth of the model's cost (``tests/sessions/test_estimation.py``
+    reads it back as the model)."""
+    if math.isfinite(t) and math.isfinite(torque_Nm):  # %r of a finite float is valid JSON
+        return _TORQUE % (seq, t, torque_Nm)
+    return schema.TorqueCommand(seq=seq, t=t, torque_Nm=torque_Nm).model_dump_json()

@@ -136,9 +136,12 @@ class _Job:
     frames: list[dict[str, object]] = field(default_factory=list)
 
 
-def _worker(job: _Job) -> list[int] | list[Stream]:
-    """One load-generating process: all the devices, or a share of the browser clients (uvloop)."""
+def _worker(job: _Job) -> tuple[list[int] | list[Stream], float]:
+    """One load-generating process: all the devices, or a share of the browser clients (uvloop); with
+    the CPU seconds it used."""
     import uvloop
+
+    cpu0 = time.process_time()
 
     async def devices() -> list[int]:
         return list(
@@ -152,7 +155,8 @@ def _worker(job: _Job) -> list[int] | list[Stream]:
             )
         )
 
-    return uvloop.run(devices()) if job.kind == "devices" else uvloop.run(browsers())
+    done = uvloop.run(devices()) if job.kind == "devices" else uvloop.run(browsers())
+    return done, time.process_time() - cpu0
 
 
 def _run(base: str, sessions: int, clients: int, rate: float, seconds: float, batch_ms: float) -> dict:
@@ -175,11 +179,15 @@ def _run(base: str, sessions: int, clients: int, rate: float, seconds: float, ba
     jobs.append(_Job("devices", ws_base, ids, rate, batch_ms, now + 3.0, now + 3.0 + seconds, frames))
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=len(jobs), mp_context=ctx) as pool:
-        results = list(pool.map(_worker, jobs))
+        t0 = time.monotonic()
+        done = list(pool.map(_worker, jobs))
+        wall = time.monotonic() - t0
     for i in ids:
         _post(base, f"/api/sessions/{i}/stop", {})
+    results = [r for r, _ in done]
     streams = [s for r in results[:-1] for s in r if isinstance(s, Stream)]
-    return {"sent": results[-1], "streams": streams}
+    generator_cpu = 100.0 * sum(cpu for _, cpu in done) / wall
+    return {"sent": results[-1], "streams": streams, "generator_cpu_pct": generator_cpu}
 
 
 def _summary(label: str, result: dict, cpu_s: float, wall_s: float, mem: tuple[float, float]) -> dict[str, float]:
@@ -198,12 +206,14 @@ def _summary(label: str, result: dict, cpu_s: float, wall_s: float, mem: tuple[f
         "server_cpu_pct": 100.0 * cpu_s / wall_s,
         "server_rss_mb": mem[0],
         "server_peak_rss_mb": mem[1],
+        "generator_cpu_pct": result["generator_cpu_pct"],
     }
     print(
         f"{label:<28} streams {len(streams):3d}  rate min/mean {out['rate_min_hz']:6.1f}/{out['rate_mean_hz']:6.1f} Hz"
         f"  latency p50/p95/p99 {out['p50_ms']:6.1f}/{out['p95_ms']:6.1f}/{out['p99_ms']:6.1f} ms"
         f"  dropped input {out['dropped_input']:.0f} client {out['dropped_client']:.0f}"
         f"  server CPU {out['server_cpu_pct']:5.1f} %  RSS {mem[0]:.0f} MB (peak {mem[1]:.0f})"
+        f"  load generator CPU {out['generator_cpu_pct']:5.1f} %"
     )
     return out
 

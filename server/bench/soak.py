@@ -201,9 +201,7 @@ async def _flood(ws_base: str, session_id: int, start_s: float, seconds: float) 
     return counts
 
 
-def _worker(
-    ws_base: str, ids: list[int], rate: float, seconds: float, fault_every_s: float
-) -> list[DeviceReport]:
+def _worker(ws_base: str, ids: list[int], rate: float, seconds: float, fault_every_s: float) -> list[DeviceReport]:
     """The steady devices, in a process of their own (uvloop), so the generator is not the bottleneck."""
     import uvloop
 
@@ -270,10 +268,7 @@ def run_soak(devices: int = 4, rate: float = 200.0, seconds: float = 60.0, fault
                 r.ended = session["state"] + (f" ({endings[-1]})" if endings else " (by the API)")
                 r.trials = [t["status"] for t in trials]
                 r.bytes = sum((folder / t["path"]).stat().st_size for t in trials)
-                r.recorded = sum(
-                    sum(1 for _ in read_messages(folder / t["path"], ["/gait_state"]))
-                    for t in trials
-                )
+                r.recorded = sum(sum(1 for _ in read_messages(folder / t["path"], ["/gait_state"])) for t in trials)
         finally:
             server.stop()
     _print(reports, flood)

@@ -44,7 +44,7 @@ from pydantic import BaseModel, ValidationError
 from estimators.pipeline import TrainedModel
 from sessions import schema
 from sessions.errors import DataFormatError
-from sessions.estimation import FrameEstimator
+from sessions.estimation import FrameEstimator, torque_json
 from sessions.formats.locohub import read_table
 from sessions.formats.mcap_io import check_mcap, count_messages, read_messages
 from sessions.formats.recording import ESTIMATORS_KEY, SAMPLE_PERIOD_KEY, Recorder
@@ -382,11 +382,8 @@ def _record(job: ImportJob, frames: Iterator[schema.SensorFrame]) -> ImportResul
                 continue
             state = estimator.step(frame, 0)
             estimator.notes.clear()  # resynchronisations and filter restarts: live events, not kept here
-            rec.write("/sensor", state.t, frame.model_copy(update={"t": state.t}))  # session time, as the rest
-            rec.write("/gait_state", state.t, state)
-            rec.write("/torque", state.t, schema.TorqueCommand(seq=state.seq, t=state.t, torque_Nm=state.torque_Nm))
-            for topic, data in estimator.output_json(state.seq):
-                rec.write_json(topic, state.t, data)
+            command = torque_json(state.seq, state.t, state.torque_Nm).encode()
+            rec.write_json(state.t, estimator.recorded_json(frame, state, command))
             estimator.events.clear()  # estimator failures: their outputs say so (failed), no session to tell
     return ImportResult(samples=rec.samples, duration_s=rec.duration_s)
 

@@ -41,7 +41,7 @@ import json
 import os
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import IO, TYPE_CHECKING, Final, cast
@@ -236,24 +236,44 @@ class Recorder:
             RecordingError: the file could not be written, now or earlier. The message that hit the
                 error is held in memory for :meth:`finish` to retry; later ones are refused.
         """
-        if self._finished:
-            raise ValueError(f"recorder of {self.path} is finished")
-        if topic not in self._channels:
-            raise ValueError(f"unknown MCAP topic {topic!r}; expected one of {sorted(self._channels)}")
-        channel_id, cls = self._channels[topic]
+        cls = self._channel(topic)[1]
         if not isinstance(message, cls):
             raise TypeError(f"{topic} carries {cls.__name__}, not {type(message).__name__}")
-        self._raise_if_failed()
-        log_time = self.log_time_ns(t)
         # a sensor frame's absent channels (None) are left out: most devices send a few of dozens
         data = message.model_dump_json(exclude_none=isinstance(message, schema.SensorFrame)).encode()
-        self._add(channel_id, log_time, data)
-        if topic == "/gait_state":
-            self.samples += 1
-            if self._first_t is None:
-                self._first_t = t
-            self.duration_s = t - self._first_t
+        self.write_json(t, ((topic, data),))
+
+    def write_json(self, t: float, messages: Sequence[tuple[str, bytes]]) -> None:
+        """Write ``messages`` at session time ``t`` (s), each ``(topic, data)`` with ``data`` already the
+        JSON of the topic's class: the hot path, which writes one sample's sensor frame, state, torque
+        and estimator outputs (:meth:`~sessions.estimation.FrameEstimator.output_json`) in one call
+        rather than building and dumping a model for each. Not validated here; tests check that what
+        the hot path builds is what the class would dump.
+
+        Raises:
+            As :meth:`write`; an unknown topic is refused before anything is written.
+        """
+        ids = [self._channel(topic)[0] for topic, _ in messages]
+        self._raise_if_failed()
+        log_time = self.log_time_ns(t)
+        add = self._add
+        for channel_id, (topic, data) in zip(ids, messages, strict=True):
+            add(channel_id, log_time, data)
+            if topic == "/gait_state":
+                self.samples += 1
+                if self._first_t is None:
+                    self._first_t = t
+                self.duration_s = t - self._first_t
         self._after_write(t)
+
+    def _channel(self, topic: str) -> tuple[int, type[BaseModel]]:
+        """The channel id and message class of ``topic``; ValueError when unknown or finished."""
+        if self._finished:
+            raise ValueError(f"recorder of {self.path} is finished")
+        entry = self._channels.get(topic)
+        if entry is None:
+            raise ValueError(f"unknown MCAP topic {topic!r}; expected one of {sorted(self._channels)}")
+        return entry
 
     def _after_write(self, t: float) -> None:
         """Close the chunk when it is full or due (see the module docstring)."""
@@ -265,24 +285,6 @@ class Recorder:
             self._chunk_closed()
         elif self._chunk_t0 is None:
             self._chunk_t0, self._chunk_wall0 = t, time.monotonic()
-
-    def write_json(self, topic: str, t: float, data: bytes) -> None:
-        """Write ``data``, already the JSON of the topic's class, at session time ``t`` (s): for the hot
-        path of estimator outputs (:meth:`~sessions.estimation.FrameEstimator.output_json`), which would
-        spend more on building and dumping a model than on the write. Not validated here; tests check
-        that what the hot path builds is what the class would dump.
-
-        Raises:
-            As :meth:`write`.
-        """
-        if self._finished:
-            raise ValueError(f"recorder of {self.path} is finished")
-        if topic not in self._channels:
-            raise ValueError(f"unknown MCAP topic {topic!r}; expected one of {sorted(self._channels)}")
-        self._raise_if_failed()
-        log_time = self.log_time_ns(t)
-        self._add(self._channels[topic][0], log_time, data)
-        self._after_write(t)
 
     def write_event(self, event: schema.Event) -> None:
         """Write ``event`` on ``/events`` as a ``foxglove.Event`` at its ``t``.

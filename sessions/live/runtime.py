@@ -30,13 +30,13 @@ import time
 from collections import deque
 from collections.abc import Awaitable, Callable, Coroutine
 from pathlib import Path
-from typing import Any, Final
+from typing import Any
 
 import numpy as np
 
 from estimators.pipeline import TrainedModel
 from sessions import schema
-from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused
+from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused, torque_json
 from sessions.formats.mcap_io import recover
 from sessions.formats.recording import ESTIMATORS_KEY, SAMPLE_PERIOD_KEY, Recorder
 from sessions.live.disk import DiskLevel
@@ -268,15 +268,11 @@ class SessionRuntime:
         self._recent_recv.append(recv_ns)
         if frame.sent_ns is not None:
             self._recent_latency.append((recv_ns - frame.sent_ns) / 1e6)
-        command = schema.TorqueCommand(seq=frame.seq, t=t, torque_Nm=state.torque_Nm).model_dump_json()
+        command = torque_json(frame.seq, t, state.torque_Nm)
         self.last_command = command
         if self.recorder is not None:
             try:
-                self.recorder.write_json("/sensor", t, _frame_json(frame, t))
-                self.recorder.write("/gait_state", t, state)
-                self.recorder.write_json("/torque", t, command.encode())
-                for topic, data in self.estimator.output_json(frame.seq):
-                    self.recorder.write_json(topic, t, data)
+                self.recorder.write_json(t, self.estimator.recorded_json(frame, state, command.encode()))
             except (OSError, ValueError) as e:
                 self._recording_failed(e)
         for sub in self.subscribers:
@@ -557,17 +553,6 @@ class SessionRuntime:
     def last_t(self) -> float:
         """Session time of the last sample processed."""
         return self.estimator.last_t
-
-
-#: Left out of a recorded sensor frame's own JSON: its time, which the recording puts first in session time.
-_T: Final = {"t"}
-
-
-def _frame_json(frame: SensorFrame, t: float) -> bytes:
-    """The JSON of ``frame`` at session time ``t`` (s) without its absent channels, as the recorder writes a
-    sensor frame: built from the frame's own JSON rather than from a copy of the model (per sample, the
-    copy cost more than the rest of the recording; ``tests/sessions/live/test_runtime.py`` reads it back)."""
-    return b'{"t":%r,%s' % (t, frame.model_dump_json(exclude_none=True, exclude=_T).encode()[1:])
 
 
 def _shown(value: object) -> str:
