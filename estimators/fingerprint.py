@@ -38,6 +38,7 @@ from typing import Final, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from estimators._fp_kernel import fp_step
 from estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
 
 __all__ = [
@@ -113,7 +114,7 @@ def fit_subject(p: Array, l: Array, theta: Array, order: int = FOURIER_ORDER) ->
             f"{p.size} samples do not determine the {A.shape[1]} model parameters "
             "(walk more strides, at more than one stride length)"
         )
-    return np.linalg.lstsq(A, theta, rcond=None)[0]
+    return np.asarray(np.linalg.lstsq(A, theta, rcond=None)[0], dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -153,7 +154,7 @@ class FingerprintMap:
     def rms_deg(self, xi_a: Array, xi_b: Array) -> float:
         """RMS difference (deg) between two models' predictions over the training data (eq. 20)."""
         d = np.asarray(xi_a) - np.asarray(xi_b)
-        return float(math.sqrt(max(d @ self.gram @ d, 0.0)))
+        return math.sqrt(max(float(d @ self.gram @ d), 0.0))
 
     def ls_fingerprint(self, p: Array, l: Array, theta: Array) -> Array:
         """The least-squares fingerprint (LS-GF) of a walk: ``g`` minimising the angle error (eqs. 36-40).
@@ -170,7 +171,7 @@ class FingerprintMap:
         Ap = A @ self.p_map.T
         if np.linalg.matrix_rank(Ap) < self.n_components:
             raise ValueError("the walk does not determine every fingerprint component (too few samples)")
-        return np.linalg.lstsq(Ap, theta - A @ self.xi_avg, rcond=None)[0]
+        return np.asarray(np.linalg.lstsq(Ap, theta - A @ self.xi_avg, rcond=None)[0], dtype=np.float64)
 
 
 def _sqrt_psd(G: Array) -> tuple[Array, Array]:
@@ -315,6 +316,8 @@ class FingerprintEKF:
         else:
             self._q, self._p0 = np.array(self.config.q_fixed), np.array(self.config.p0_fixed)
         self._t: float | None = None
+        n, c = 3 + (k if self.mode == "gf" else 0), self.fmap.xi_avg.size
+        self._work = np.empty(c + c + 3 * n)
         self.reset()
 
     # --- protocol -------------------------------------------------------------------------------
@@ -355,13 +358,35 @@ class FingerprintEKF:
         self._q_scale = float(params.get("process_noise_scale", self._q_scale))
 
     def step(self, t: float, z: Array) -> Array:
-        """One sample: ``z = [thigh angle deg, thigh velocity deg/s]`` (NaN: missing)."""
+        """One sample: ``z = [thigh angle deg, thigh velocity deg/s]`` (NaN: missing); :meth:`predict` and
+        :meth:`update` in one compiled call."""
         dt, restart = elapsed(self._t, t, self.max_gap_s)
         if restart:
             self.reset()
         self._t = t
-        self.predict(dt)
-        self.update(z)
+        c, gf = self.config, self.mode == "gf"
+        lo, hi = c.l_range_gf if gf else c.l_range_fixed
+        self._pred = fp_step(
+            self.x,
+            self.P,
+            self.fmap.xi_avg,
+            self.fmap.p_map,
+            self._xi_fixed,
+            gf,
+            self._q * self._q_scale if self._q_scale != 1.0 else self._q,
+            c.r_scale * self.fmap.rbar**2 * self._r_scale,
+            c.edge,
+            c.edge_scale[0],
+            c.edge_scale[1],
+            c.pdot_min_gf if gf else c.pdot_min_fixed,
+            lo,
+            hi,
+            dt,
+            float(z[0]),
+            float(z[1]),
+            self.fmap.order,
+            self._work,
+        )
         x = self.x
         head = [x[0], x[1], x[2], self._pred]
         return np.array(head + x[3:].tolist()) if self.mode == "gf" else np.array(head)
@@ -384,7 +409,8 @@ class FingerprintEKF:
         x, order = self.x, self.fmap.order
         p, pdot, l = float(x[0]), float(x[1]), float(x[2])
         f, d, d2 = _fourier(np.array([p]), order)
-        lam, lam_p, lam_pp = _kron_l(f, [l])[0], _kron_l(d, [l])[0], _kron_l(d2, [l])[0]
+        ls = np.array([l])
+        lam, lam_p, lam_pp = _kron_l(f, ls)[0], _kron_l(d, ls)[0], _kron_l(d2, ls)[0]
         # d Lambda / dl: the l-columns carry f, the others 0
         lam_l = np.zeros_like(lam)
         lam_l[1::2] = f[0]

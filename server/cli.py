@@ -178,6 +178,8 @@ def cmd_cohort(a: argparse.Namespace) -> int:
 
 
 def cmd_crossval(a: argparse.Namespace) -> int:
+    if a.study == "fingerprints":
+        return _crossval_fingerprints(a)
     from sessions.offline.crossval import crossvalidate, summary, to_csv, to_markdown
 
     start = time.perf_counter()
@@ -191,6 +193,19 @@ def cmd_crossval(a: argparse.Namespace) -> int:
     s = summary(results)
     print(f"EKF vs TBE p = {s.p_ekf_vs_tbe:.2g}; EKF vs no-task p = {s.p_ekf_vs_notask:.2g}")
     print(f"wall time {wall:.1f} s; wrote {a.out_dir / 'crossval.md'} and crossval.csv")
+    return 0
+
+
+def _crossval_fingerprints(a: argparse.Namespace) -> int:
+    from sessions.offline.fingerprints import run_study, to_markdown
+
+    start = time.perf_counter()
+    md = to_markdown(run_study())
+    wall = time.perf_counter() - start
+    a.out_dir.mkdir(parents=True, exist_ok=True)
+    (a.out_dir / "fingerprints.md").write_text(md)
+    print(md)
+    print(f"wall time {wall:.1f} s; wrote {a.out_dir / 'fingerprints.md'}")
     return 0
 
 
@@ -299,7 +314,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=20230101)
     p.set_defaults(func=cmd_cohort)
 
-    p = sub.add_parser("crossval", help="leave-one-subject-out comparison with seed 000's numbers")
+    p = sub.add_parser("crossval", help="leave-one-subject-out comparison with a paper's numbers")
+    p.add_argument(
+        "--study",
+        choices=("phase", "fingerprints"),
+        default="phase",
+        help="phase: seed 000's phase EKF against TBE (default); fingerprints: seed 004's AVG, LS-GF and GF",
+    )
     p.add_argument("--out-dir", type=Path, default=Path("docs/results"))
     p.add_argument("--workers", type=int, default=None)
     p.set_defaults(func=cmd_crossval)

@@ -98,7 +98,7 @@ def _walk_arrays(rows: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 
 @dataclass(frozen=True)
-class TestWalk:
+class HeldOutWalk:
     """A held-out subject's walk at :data:`SCHEDULE`, one sample per row (no repeated stride boundaries)."""
 
     t: np.ndarray
@@ -110,7 +110,7 @@ class TestWalk:
     stride: np.ndarray
 
 
-def test_walk(subject: SubjectParams, seed: int) -> TestWalk:
+def held_out_walk(subject: SubjectParams, seed: int) -> HeldOutWalk:
     """The walk of the study for ``subject`` (its own random stream from ``seed``)."""
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(4, int(subject.code[2:]))))
     w = generate_walk(subject, [(v, 0.0, STRIDES_PER_BLOCK) for v in SCHEDULE], rng, SAMPLES_PER_STRIDE + 1)
@@ -118,7 +118,7 @@ def test_walk(subject: SubjectParams, seed: int) -> TestWalk:
     w = w[keep]
     t = w[schema.TIME_S].to_numpy(np.float64)
     thigh = np.degrees(w[schema.THIGH_ANGLE].to_numpy(np.float64))
-    return TestWalk(
+    return HeldOutWalk(
         t=t,
         phase=w[schema.PHASE_IPSI].to_numpy(np.float64) / 100.0,
         phase_rate=w["phase_rate_ipsi_1_s"].to_numpy(np.float64),
@@ -151,7 +151,7 @@ def _wrapped(d: np.ndarray) -> np.ndarray:
     return np.minimum(a, 1.0 - a)
 
 
-def run_filter(fmap: FingerprintMap, mode: Mode, walk: TestWalk, g: np.ndarray | None = None) -> np.ndarray:
+def run_filter(fmap: FingerprintMap, mode: Mode, walk: HeldOutWalk, g: np.ndarray | None = None) -> np.ndarray:
     """``(n, 3)`` phase, phase rate and stride length of one filter over ``walk``."""
     ekf = FingerprintEKF(fmap, mode=mode, g=g, config=FingerprintConfig())
     out = np.empty((walk.t.size, 3))
@@ -173,7 +173,7 @@ def _fold(
     A = basis(p, l, fmap.order)
     avg_fit = float(np.sqrt(np.mean((A @ fmap.xi_avg - theta) ** 2)))
     ls_fit = float(np.sqrt(np.mean((A @ fmap.xi(g_ls) - theta) ** 2)))
-    walk = test_walk(subject, seed)
+    walk = held_out_walk(subject, seed)
     scored = walk.stride >= SKIP_STRIDES
     rmse = {}
     for mode in MODES:
@@ -209,8 +209,9 @@ class FingerprintStudy:
         return (math.nan,) * 3 if a.size == 0 else tuple(float(x) for x in a.mean(axis=0))  # type: ignore[return-value]
 
 
-def run_study(spec: CohortSpec = CohortSpec(), n_components: int | None = None) -> FingerprintStudy:
-    """Every fold of the study on the cohort of ``spec`` (its subjects and seed)."""
+def run_study(spec: CohortSpec | None = None, n_components: int | None = None) -> FingerprintStudy:
+    """Every fold of the study on the cohort of ``spec`` (its subjects and seed; default the default cohort)."""
+    spec = spec or CohortSpec()
     codes, walks = training_walks(spec)
     subjects = make_subjects(spec)
     folds = [_fold(k, codes, walks, subjects[k], spec.seed, n_components) for k in range(len(codes))]
@@ -218,16 +219,16 @@ def run_study(spec: CohortSpec = CohortSpec(), n_components: int | None = None) 
     used = study.used
     if len(used) >= 2:
         col = {m: np.array([f.rmse[m] for f in used]) for m in MODES}
+
+        def p(a: Mode, b: Mode, metric: int, alternative: str) -> float:
+            return float(stats.ttest_rel(col[a][:, metric], col[b][:, metric], alternative=alternative).pvalue)
+
         study.tests.update(
             {
-                "LS-GF < AVG, phase": float(stats.ttest_rel(col["ls"][:, 0], col["avg"][:, 0], alternative="less").pvalue),
-                "LS-GF < AVG, stride length": float(
-                    stats.ttest_rel(col["ls"][:, 2], col["avg"][:, 2], alternative="less").pvalue
-                ),
-                "GF > AVG, phase": float(stats.ttest_rel(col["gf"][:, 0], col["avg"][:, 0], alternative="greater").pvalue),
-                "GF < AVG, stride length": float(
-                    stats.ttest_rel(col["gf"][:, 2], col["avg"][:, 2], alternative="less").pvalue
-                ),
+                "LS-GF < AVG, phase": p("ls", "avg", 0, "less"),
+                "LS-GF < AVG, stride length": p("ls", "avg", 2, "less"),
+                "GF > AVG, phase": p("gf", "avg", 0, "greater"),
+                "GF < AVG, stride length": p("gf", "avg", 2, "less"),
             }
         )
     return study
@@ -271,10 +272,11 @@ def to_markdown(study: FingerprintStudy) -> str:
     for f in study.folds:
         cells = " | ".join(f"{x:.3f}" for x in f.explained[:4])
         lines.append(f"| {f.code} | {cells} | {f.n_components} |")
-    per = "\n".join(
-        f"| {f.code} | " + " | ".join(" / ".join(f"{x:.4f}" for x in f.rmse[m]) for m in MODES) + f" | {'yes' if f.converged else 'no'} |"
-        for f in study.folds
-    )
+    rows = []
+    for f in study.folds:
+        cells = " | ".join(" / ".join(f"{x:.4f}" for x in f.rmse[m]) for m in MODES)
+        rows.append(f"| {f.code} | {cells} | {'yes' if f.converged else 'no'} |")
+    per = "\n".join(rows)
     lines += [
         "",
         "Per subject: phase / phase rate / stride length RMSE",
