@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from estimators import _batch, _kernels
 from estimators.basis import Array
+from estimators.fingerprint import FingerprintMap
 from estimators.gait_model import N_CHANNELS, Z_FOOT_ANGLE, Z_FOOT_VEL, Z_HEEL_FORWARD, Z_HEEL_UP, NoiseModel
 from estimators.heel_strike import (
     BackupConfig,
@@ -81,12 +82,15 @@ class TrainedModel:
         torque: the torque profile.
         outputs: which of foot, shank, heel forward and heel up the training data held; channels of
             an output not trained are ignored at run time (a LocoHub table without heel positions).
+        fingerprints: seed 004's personalization map of the thigh angle (None: the training data had
+            no thigh angle), for the fingerprint estimators.
     """
 
     coef: Array
     noise: NoiseModel
     torque: TorqueProfile
     outputs: tuple[bool, bool, bool, bool] = (True, True, True, True)
+    fingerprints: FingerprintMap | None = None
 
     @property
     def channel_mask(self) -> NDArray[np.bool_]:

@@ -60,7 +60,11 @@ SENSOR_CHANNELS: Final = (
     "heel_up_m",
 )
 #: The segment angles (a source that sends an angle can always give its velocity by differentiation).
-ANGLE_CHANNELS: Final = {"foot_angle_deg": "foot_vel_dps", "shank_angle_deg": "shank_vel_dps"}
+ANGLE_CHANNELS: Final = {
+    "foot_angle_deg": "foot_vel_dps",
+    "shank_angle_deg": "shank_vel_dps",
+    "thigh_angle_deg": "thigh_vel_dps",
+}
 #: The heel-strike channel: 1.0 on the sample of a heel strike, 0.0 otherwise, NaN when unknown.
 HEEL_STRIKE: Final = "heel_strike"
 #: Codes of an estimator's optional ``fault`` output (unit ``code``), by index: 0 nothing, 1 restarted

@@ -96,12 +96,15 @@ class FrameEstimator:
         channels: Collection[str] | None = None,
         extra: Sequence[Estimator] = (),
         blend_s: float = schema.PRIMARY_BLEND_S,
+        fingerprint: Sequence[float] | None = None,
     ):
         if not (math.isfinite(sample_period) and 1e-5 <= sample_period <= 1.0):
             sample_period = DEFAULT_PERIOD
         self.sample_period = sample_period
         self.stack: EstimatorStack = build_stack(
-            StackContext(model, leg_length, mass_kg, sample_period),
+            StackContext(
+                model, leg_length, mass_kg, sample_period, None if fingerprint is None else tuple(fingerprint)
+            ),
             names=settings.estimators if estimators is None else estimators,
             channels=channels,
             primary=settings.primary,
@@ -126,7 +129,7 @@ class FrameEstimator:
         self.faults = 0
         self._t_offset = time_origin
         #: The last frame stepped: its session time and foot and shank angles (None: none yet).
-        self._prev: tuple[float, float | None, float | None] | None = None
+        self._prev: tuple[float, float | None, float | None, float | None] | None = None
         self._ramp_t0 = 0.0
         self._ramping = soft_start
         self._min_next_t = -math.inf
@@ -251,6 +254,8 @@ class FrameEstimator:
             "shank_vel_dps": _or_nan(frame.shank_vel_dps),
             "heel_forward_m": _or_nan(frame.heel_forward_m),
             "heel_up_m": _or_nan(frame.heel_up_m),
+            "thigh_angle_deg": _or_nan(frame.thigh_angle_deg),
+            "thigh_vel_dps": _or_nan(frame.thigh_vel_dps),
             HEEL_STRIKE: math.nan if frame.heel_strike is None else float(frame.heel_strike),
         }
         self._derive_velocities(channels, t)
@@ -275,7 +280,7 @@ class FrameEstimator:
         self.last = e
         self.last_t = t
         self._last_recv_ns = recv_ns
-        self._prev = (t, frame.foot_angle_deg, frame.shank_angle_deg)
+        self._prev = (t, frame.foot_angle_deg, frame.shank_angle_deg, frame.thigh_angle_deg)
         return GaitState(
             seq=frame.seq,
             t=t,
@@ -317,6 +322,7 @@ class FrameEstimator:
         for angle, vel, before in (
             ("foot_angle_deg", "foot_vel_dps", prev[1]),
             ("shank_angle_deg", "shank_vel_dps", prev[2]),
+            ("thigh_angle_deg", "thigh_vel_dps", prev[3]),
         ):
             if before is not None and math.isnan(channels[vel]) and not math.isnan(channels[angle]):
                 channels[vel] = (channels[angle] - before) / (t - prev[0])

@@ -19,7 +19,10 @@ from collections.abc import Callable, Collection, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
+import numpy as np
+
 from estimators.detector import HeelStrikeDetector
+from estimators.fingerprint import FingerprintEKF, Mode
 from estimators.heel_strike import HeelStrikeBackup
 from estimators.phase_ekf_estimator import PhaseEKFEstimator
 from estimators.pipeline import PipelineConfig, TrainedModel
@@ -36,6 +39,7 @@ __all__ = [
     "Feed",
     "MissingChannels",
     "StackContext",
+    "Unavailable",
     "build_stack",
     "channels_of",
     "choose_primary",
@@ -48,12 +52,38 @@ _CHANNELS: Final = frozenset(CHANNELS)
 
 @dataclass(frozen=True)
 class StackContext:
-    """What an estimator of a session is built from: the trained models, the subject, the sample period."""
+    """What an estimator of a session is built from: the trained models, the subject, the sample period,
+    and the subject's personalized gait fingerprint (seed 004; None until one is calibrated)."""
 
     model: TrainedModel
     leg_length: float
     mass_kg: float
     sample_period: float
+    fingerprint: tuple[float, ...] | None = None
+
+
+class Unavailable(ValueError):
+    """An estimator that what the session has cannot build (the model has no fingerprint map, the subject no
+    calibrated fingerprint); the message says why and what to do."""
+
+
+def _fingerprint_ekf(c: StackContext, mode: Mode) -> FingerprintEKF:
+    """Seed 004's filter on the model's map: ``avg`` and ``gf`` need the map, ``ls`` also the subject's
+    fingerprint."""
+    fmap = c.model.fingerprints
+    if fmap is None:
+        raise Unavailable("the model has no fingerprint map (it was trained without thigh angles)")
+    g = None
+    if mode == "ls":
+        if c.fingerprint is None:
+            raise Unavailable("the subject has no personalized fingerprint yet: calibrate one first")
+        if len(c.fingerprint) != fmap.n_components:
+            raise Unavailable(
+                f"the subject's fingerprint has {len(c.fingerprint)} components and the model's map "
+                f"{fmap.n_components}: calibrate again with this model"
+            )
+        g = np.array(c.fingerprint, dtype=np.float64)
+    return FingerprintEKF(fmap, mode=mode, g=g)
 
 
 #: Every estimator a session can stack, by name, in the order a stack runs them (a channel an
@@ -67,6 +97,9 @@ ESTIMATORS: Final[dict[str, Callable[[StackContext], Estimator]]] = {
     "hs_backup": lambda c: HeelStrikeBackup.standalone(
         c.model.coef, c.model.noise, c.leg_length, channel_mask=c.model.channel_mask
     ),
+    "fp_avg": lambda c: _fingerprint_ekf(c, "avg"),
+    "fp_ls": lambda c: _fingerprint_ekf(c, "ls"),
+    "fp_gf": lambda c: _fingerprint_ekf(c, "gf"),
 }
 
 
@@ -89,6 +122,15 @@ def _declared(label: str, cls: Any) -> Declared:
     return Declared(label, tuple(cls.inputs), tuple(cls.outputs))
 
 
+_FP_INPUTS: Final = ("thigh_angle_deg", "thigh_vel_dps")
+_FP_OUTPUTS: Final[tuple[Output, ...]] = (
+    ("phase", "1"),
+    ("phase_rate", "1/s"),
+    ("stride_length_m", "m"),
+    ("thigh_pred_deg", "deg"),
+)
+
+
 #: Every estimator of :data:`ESTIMATORS` (same order) as its class declares it, with its name on screen.
 #: ``tests/sessions/test_registry.py`` checks that each built estimator declares the same.
 DECLARED: Final[dict[str, Declared]] = {
@@ -96,6 +138,12 @@ DECLARED: Final[dict[str, Declared]] = {
     "phase_ekf": _declared("Phase EKF (seed 000)", PhaseEKFEstimator),
     "tbe": _declared("Timing-based estimate", TimingBasedEstimator),
     "hs_backup": _declared("Heel-strike backup", HeelStrikeBackup),
+    "fp_avg": Declared("Average thigh model (seed 004)", _FP_INPUTS, _FP_OUTPUTS),
+    "fp_ls": Declared("Personalized thigh model (seed 004 LS-GF)", _FP_INPUTS, _FP_OUTPUTS),
+    # g1..g3: the default model's map keeps 3 components (a map with another number declares its own)
+    "fp_gf": Declared(
+        "Online fingerprint EKF (seed 004 GF)", _FP_INPUTS, (*_FP_OUTPUTS, ("g1", "deg"), ("g2", "deg"), ("g3", "deg"))
+    ),
 }
 
 
@@ -135,7 +183,8 @@ def resolve(names: Sequence[str] | None, channels: Collection[str] | None, ctx: 
     Raises:
         ValueError: an unknown or repeated name.
         KeyError: an estimator declares a channel that is not in :data:`~sessions.schema.CHANNELS`.
-        MissingChannels: a named estimator whose required channels the source lacks.
+        MissingChannels: a named estimator whose required channels the source lacks, or that the
+            model or subject cannot build (:class:`Unavailable`: its reason).
     """
     if names is not None:
         unknown = [n for n in names if n not in ESTIMATORS]
@@ -146,10 +195,16 @@ def resolve(names: Sequence[str] | None, channels: Collection[str] | None, ctx: 
     available = _provided(channels)
     stack: list[Estimator] = []
     missing: list[str] = []
+    cannot: list[str] = []
     for name, make in ESTIMATORS.items():
         if (names is not None and name not in names) or (names is None and name in OPT_IN):
             continue
-        est = make(ctx)
+        try:
+            est = make(ctx)
+        except Unavailable as e:
+            if names is not None:
+                cannot.append(f"{name}: {e}")
+            continue
         lacking = [] if available is None else missing_channels(est.inputs, available)
         if lacking:
             if names is not None:
@@ -160,6 +215,8 @@ def resolve(names: Sequence[str] | None, channels: Collection[str] | None, ctx: 
             available.update(n for n in output_names(est) if n in _CHANNELS)
     if missing:
         raise MissingChannels(f"the source does not send what the stack needs: {'; '.join(missing)}")
+    if cannot:
+        raise MissingChannels(f"the session cannot run {'; '.join(cannot)}")
     if not stack:
         raise MissingChannels(
             f"the source's channels ({', '.join(sorted(channels or ())) or 'none'}) feed no estimator"

@@ -619,6 +619,29 @@ export const ESTIMATORS = deepFreeze({
     outputs: { phase: "1", phase_rate: "1/s", stride_length_m: "m", incline_deg: "deg" },
     opt_in: true,
   },
+  fp_avg: {
+    label: "Average thigh model (seed 004)",
+    outputs: { phase: "1", phase_rate: "1/s", stride_length_m: "m", thigh_pred_deg: "deg" },
+    opt_in: false,
+  },
+  fp_ls: {
+    label: "Personalized thigh model (seed 004 LS-GF)",
+    outputs: { phase: "1", phase_rate: "1/s", stride_length_m: "m", thigh_pred_deg: "deg" },
+    opt_in: false,
+  },
+  fp_gf: {
+    label: "Online fingerprint EKF (seed 004 GF)",
+    outputs: {
+      phase: "1",
+      phase_rate: "1/s",
+      stride_length_m: "m",
+      thigh_pred_deg: "deg",
+      g1: "deg",
+      g2: "deg",
+      g3: "deg",
+    },
+    opt_in: false,
+  },
 });
 
 /**

@@ -14,10 +14,12 @@ import json
 import zipfile
 from importlib import metadata, resources
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pydantic import ValidationError
 
+from estimators.fingerprint import FingerprintMap
 from estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
 from estimators.pipeline import TrainedModel
 from estimators.torque import TorqueProfile
@@ -61,18 +63,63 @@ def hash_arrays(*arrays: np.ndarray) -> str:
 
 def save_model(path: str | Path, model: TrainedModel, prov: ModelProvenance) -> None:
     """Write ``model`` and its provenance to ``path`` atomically."""
+    arrays: dict[str, Any] = {
+        "coef": model.coef,
+        "residual_cov": model.noise.residual_cov,
+        "sensor_var": model.noise.sensor_var,
+        "torque_coef": model.torque.coef,
+        "torque_scale": np.float64(model.torque.scale),
+        "torque_cutoff": np.float64(model.torque.cutoff_phase),
+        "outputs": np.array(model.outputs, dtype=bool),
+        "provenance": np.array(prov.model_dump_json()),
+        **_fingerprint_arrays(model.fingerprints),
+    }
     with atomic_output(Path(path)) as tmp, tmp.open("wb") as f:
-        np.savez(
-            f,
-            coef=model.coef,
-            residual_cov=model.noise.residual_cov,
-            sensor_var=model.noise.sensor_var,
-            torque_coef=model.torque.coef,
-            torque_scale=np.float64(model.torque.scale),
-            torque_cutoff=np.float64(model.torque.cutoff_phase),
-            outputs=np.array(model.outputs, dtype=bool),
-            provenance=np.array(prov.model_dump_json()),
-        )
+        np.savez(f, **arrays)
+
+
+#: The arrays of a fingerprint map in a model file (``fp_`` + FingerprintMap field).
+_FP_FIELDS = ("xi_avg", "p_map", "explained", "fit_rmse_deg", "gram")
+
+
+def _fingerprint_arrays(fmap: FingerprintMap | None) -> dict[str, np.ndarray]:
+    if fmap is None:
+        return {}
+    out = {f"fp_{k}": np.asarray(getattr(fmap, k), dtype=np.float64) for k in _FP_FIELDS}
+    out["fp_order"] = np.array(fmap.order, dtype=np.int64)
+    return out
+
+
+def _fingerprints(arrays: dict[str, np.ndarray], name: str) -> FingerprintMap | None:
+    """The file's fingerprint map; None in files written before maps existed (or trained without thigh)."""
+    if "fp_xi_avg" not in arrays:
+        return None
+    missing = [f"fp_{k}" for k in (*_FP_FIELDS, "order") if f"fp_{k}" not in arrays]
+    if missing:
+        raise DataFormatError(f"model file lacks {', '.join(missing)}", file=name)
+    order = int(arrays["fp_order"])
+    c = 2 * (2 * order - 1)
+    xi, pm, ex, rm, g = (arrays[f"fp_{k}"] for k in _FP_FIELDS)
+    checks = [
+        ("fp_xi_avg", xi.shape == (c,)),
+        ("fp_p_map", pm.ndim == 2 and pm.shape[1] == c and pm.shape[0] >= 1),
+        ("fp_explained", ex.ndim == 1),
+        ("fp_fit_rmse_deg", rm.ndim == 1 and rm.size >= 1),
+        ("fp_gram", g.shape == (c, c)),
+    ]
+    for key, ok in checks:
+        if not ok:
+            raise DataFormatError(f"array {key!r} has the wrong shape {arrays[key].shape}", file=name)
+        if not np.all(np.isfinite(arrays[key])):
+            raise DataFormatError(f"array {key!r} holds NaN or inf", file=name)
+    return FingerprintMap(
+        xi_avg=xi.astype(np.float64),
+        p_map=pm.astype(np.float64),
+        explained=ex.astype(np.float64),
+        fit_rmse_deg=rm.astype(np.float64),
+        gram=g.astype(np.float64),
+        order=order,
+    )
 
 
 def load_model(path: str | Path) -> tuple[TrainedModel, ModelProvenance]:
@@ -121,6 +168,7 @@ def load_model(path: str | Path) -> tuple[TrainedModel, ModelProvenance]:
         noise=NoiseModel(cov.astype(np.float64), var.astype(np.float64)),
         torque=TorqueProfile(tcoef.astype(np.float64), float(arrays["torque_scale"]), float(arrays["torque_cutoff"])),
         outputs=_outputs(arrays.get("outputs"), name),
+        fingerprints=_fingerprints(arrays, name),
     )
     return model, prov
 

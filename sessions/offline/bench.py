@@ -35,9 +35,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from estimators.phase_ekf import PhaseEKF
-from estimators.pipeline import GaitStatePipeline, PipelineConfig
+from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
 from estimators.protocol import HEEL_STRIKE, Estimator, input_names
 from estimators.reference import ReferencePhaseEKF
 from sessions import schema
@@ -164,8 +165,9 @@ def estimator_costs(samples: int = 6000, reference_samples: int = 3000) -> dict[
     data = replay_input(sensors)
     n = min(samples, data.time_s.size)
     n_ref = min(reference_samples, n)
-    ctx = StackContext(model, leg, mass, 0.01)
-    source = {**data.signals, HEEL_STRIKE: (sensors[HEEL_STRIKE].to_numpy() > 0.5).astype(np.float64)}
+    ctx = _context(model, sensors, leg, mass)
+    thigh = {c: sensors[c].to_numpy(np.float64) for c in THIGH_CHANNELS}
+    source = {**data.signals, **thigh, HEEL_STRIKE: (sensors[HEEL_STRIKE].to_numpy() > 0.5).astype(np.float64)}
     missing = np.full(data.time_s.size, np.nan)
     t = data.time_s[:n].tolist()
     out: dict[str, dict[str, float]] = {}
@@ -183,6 +185,26 @@ def estimator_costs(samples: int = 6000, reference_samples: int = 3000) -> dict[
         if base.same_step:
             row.update(_agreement(make(ctx), base.make(ctx), t[:n_ref], z))
     return out
+
+
+#: The trial's thigh channels, which the fingerprint filters read.
+THIGH_CHANNELS = ("thigh_angle_deg", "thigh_vel_dps")
+
+
+def _context(model: TrainedModel, sensors: pd.DataFrame, leg: float, mass: float) -> StackContext:
+    """The bench's stack context: the trial's subject with the fingerprint least squares gives their walk
+    (ground-truth phase and stride length), so that every registered estimator runs, ``fp_ls`` included."""
+    fmap = model.fingerprints
+    g = None
+    if fmap is not None:
+        g = tuple(
+            fmap.ls_fingerprint(
+                sensors["gt_phase"].to_numpy(),
+                sensors["gt_stride_length_m"].to_numpy(),
+                sensors["thigh_angle_deg"].to_numpy(),
+            ).tolist()
+        )
+    return StackContext(model, leg, mass, 0.01, fingerprint=g)
 
 
 def _timed(step: Callable[[float, np.ndarray], object], t: list[float], z: np.ndarray) -> tuple[float, float]:
@@ -216,12 +238,12 @@ def stack_cost(samples: int = 6000) -> tuple[dict[str, float], tuple[str, ...]]:
     sensors, leg, mass = sensor_trial()
     data = replay_input(sensors)
     n = min(samples, data.time_s.size)
-    names = [schema.REPLAY_TIME, *data.signals, schema.REPLAY_HEEL_STRIKE]
+    names = [schema.REPLAY_TIME, *data.signals, *THIGH_CHANNELS, schema.REPLAY_HEEL_STRIKE]
     rows = sensors[names].iloc[:n].to_dict("records")
     stack = build_stack(
-        StackContext(model, leg, mass, 0.01),
+        _context(model, sensors, leg, mass),
         names=None,
-        channels=[*data.signals, schema.REPLAY_HEEL_STRIKE],
+        channels=[*data.signals, *THIGH_CHANNELS, schema.REPLAY_HEEL_STRIKE],
         primary="phase_ekf",
         torque_gain=1.0,
         max_torque=40.0,

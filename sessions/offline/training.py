@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from estimators.basis import Array
+from estimators.fingerprint import FingerprintMap, fit_map
 from estimators.gait_model import (
     OUT_FOOT,
     OUT_HEEL_FORWARD,
@@ -60,6 +61,7 @@ class StrideData:
             high-passed heel forward and heel up (m; zero when the table has no heel positions).
         outputs: which model outputs the table could train (foot, shank, heel forward, heel up).
         moment: plantarflexor moment per kg (N m/kg), ``(S, 150)``.
+        thigh: thigh angle (deg), ``(S, 150)``, None when the table has none (no fingerprint map).
     """
 
     subjects: tuple[str, ...]
@@ -75,6 +77,7 @@ class StrideData:
     speeds: tuple[float, ...]
     inclines: tuple[float, ...]
     outputs: tuple[bool, bool, bool, bool] = (True, True, True, True)
+    thigh: Array | None = None
 
     def rows(self, subject: int) -> tuple[Array, Array, Array, Array, Array]:
         """Flattened ``(p, l, r, z, moment)`` samples of one subject."""
@@ -156,6 +159,7 @@ def stride_data(frame: pd.DataFrame) -> StrideData:
     else:
         z[..., 4:6] = 0.0  # not measured: those outputs are fitted to zero and masked at run time
     moment = -f[schema.ANKLE_MOMENT].to_numpy(np.float64).reshape(shape) / mass[:, None]
+    thigh = np.degrees(f[schema.THIGH_ANGLE].to_numpy(np.float64).reshape(shape)) if schema.THIGH_ANGLE in f else None
     return StrideData(
         subjects=subjects,
         subject=np.array([subjects.index(s) for s in subj]),
@@ -170,6 +174,7 @@ def stride_data(frame: pd.DataFrame) -> StrideData:
         speeds=tuple(sorted(set(speed.tolist()))),
         inclines=tuple(sorted(set(incline.tolist()))),
         outputs=(True, True, has_heel, has_heel),
+        thigh=thigh if thigh is not None and np.isfinite(thigh).all() else None,
     )
 
 
@@ -292,7 +297,30 @@ def fit_models(
     cov = residual_covariance(np.concatenate(phases), np.concatenate(res), n_bins=SAMPLES_PER_STRIDE - 1)
     noise = NoiseModel(cov, np.asarray(sensor_variance))
     torque = TorqueProfile(fit_torque(_sum(g_torque, train), torque_order))
-    return TrainedModel(coef=coef, noise=noise, torque=torque, outputs=data.outputs)
+    return TrainedModel(
+        coef=coef, noise=noise, torque=torque, outputs=data.outputs, fingerprints=fingerprint_map(data, train)
+    )
+
+
+def fingerprint_map(data: StrideData, train: Sequence[int] | None = None) -> FingerprintMap | None:
+    """Seed 004's personalization map from the subjects ``train`` (default all): their level strides
+    (all strides when none is level), thigh angle against phase and stride length in metres. None when
+    the table has no thigh angle or the subjects' data do not determine it."""
+    if data.thigh is None:
+        return None
+    train = list(range(len(data.subjects))) if train is None else list(train)
+    level = np.abs(data.r) < 1e-9
+    walks = []
+    for s in train:
+        m = (data.subject == s) & (level if level.any() else True)
+        n = int(m.sum())
+        p = np.broadcast_to(data.p, (n, SAMPLES_PER_STRIDE)).reshape(-1)
+        length = np.repeat(data.l[m] * data.leg_length[m], SAMPLES_PER_STRIDE)
+        walks.append((p, length, data.thigh[m].reshape(-1)))
+    try:
+        return fit_map(walks)
+    except ValueError:
+        return None
 
 
 def _sum(grams: Sequence[Gram], idx: Sequence[int]) -> Gram:

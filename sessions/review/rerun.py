@@ -181,10 +181,11 @@ def rerun_series(
     return (builder or SeriesBuilder(0, max_points)).result()
 
 
-def rerun_choices(path: Path) -> RerunChoices:
+def rerun_choices(path: Path, fingerprint: Sequence[float] | None = None) -> RerunChoices:
     """Which estimators :func:`rerun_series` can run on the trial: its recorded stack (they ran, whatever
     the channels), and every registered estimator its first frames' channels can feed, as
-    :func:`~sessions.registry.feeds` reckons it.
+    :func:`~sessions.registry.feeds` reckons it; the personalized fingerprint filter (``fp_ls``) only with
+    the subject's ``fingerprint``.
 
     Raises:
         DataFormatError: a bad file.
@@ -192,7 +193,7 @@ def rerun_choices(path: Path) -> RerunChoices:
     recorded = recorded_stack(path)
     fed = feeds(_channels(path))
     ran = set(recorded or ())
-    runnable = [n for n, f in fed.items() if n in ran or not f.missing]
+    runnable = [n for n, f in fed.items() if (n in ran or not f.missing) and (n != "fp_ls" or fingerprint is not None)]
     if recorded is not None:
         default = list(recorded)
     else:  # as resolve(None, channels) runs them: the opt-in ones left out, and those fed by them
@@ -203,8 +204,15 @@ def rerun_choices(path: Path) -> RerunChoices:
         default=default,
         runnable=runnable,
         derived={n: {c: list(by) for c, by in fed[n].derived.items()} for n in runnable if fed[n].derived},
-        refused={n: f"the trial does not send {', '.join(f.missing)}" for n, f in fed.items() if n not in runnable},
+        refused={
+            n: f"the trial does not send {', '.join(f.missing)}" if f.missing else _NO_FINGERPRINT
+            for n, f in fed.items()
+            if n not in runnable
+        },
     )
+
+
+_NO_FINGERPRINT = "needs the subject's calibrated gait fingerprint"
 
 
 def recorded_stack(path: Path) -> tuple[str, ...] | None:

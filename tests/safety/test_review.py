@@ -271,11 +271,12 @@ def test_the_estimators_a_rerun_can_run_are_the_recorded_stack_and_those_the_cha
     r = client.get(f"/api/trials/{tid}/estimators")
     assert r.status_code == 200, r.text
     assert r.json() == {
-        "recorded": ["hs_detector", "phase_ekf", "tbe"],
-        "default": ["hs_detector", "phase_ekf", "tbe"],
-        "runnable": ["hs_detector", "phase_ekf", "tbe", "hs_backup"],  # the opt-in backup too
+        "recorded": ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf"],
+        "default": ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf"],
+        # the opt-in backup too; the personalized filter needs the subject's fingerprint
+        "runnable": ["hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_gf"],
         "derived": {},
-        "refused": {},
+        "refused": {"fp_ls": "needs the subject's calibrated gait fingerprint"},
     }
     ran = _rerun(client, tid, {"estimators": ["phase_ekf", "hs_backup"]})
     assert {k.split(".")[0] for k in ran if "." in k} == {"phase_ekf", "hs_backup"}
@@ -296,8 +297,10 @@ def test_a_subset_without_the_estimator_that_derives_a_channel_is_refused(client
             rec.write("/gait_state", f.t, state)
     tid = _upload(client, path, _subject(client))["id"]
     choices = client.get(f"/api/trials/{tid}/estimators").json()
-    assert choices["recorded"] is None and choices["refused"] == {}
-    assert choices["default"] == ["hs_detector", "phase_ekf", "tbe"]
+    assert choices["recorded"] is None and choices["refused"] == {
+        "fp_ls": "needs the subject's calibrated gait fingerprint"
+    }
+    assert choices["default"] == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf"]
     strikes = {"heel_strike": ["hs_detector", "phase_ekf"]}
     assert choices["derived"] == {"tbe": strikes, "hs_backup": strikes}
     what_if = {"settings": {"torque_gain": 1.0}}

@@ -3,16 +3,21 @@ the estimators it builds, and :func:`~sessions.registry.feeds` says which ones a
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from estimators.pipeline import TrainedModel
-from sessions.registry import DECLARED, ESTIMATORS, Feed, StackContext, feeds, resolve
+from sessions.formats.models import default_model_path, load_model
+from sessions.registry import DECLARED, ESTIMATORS, Feed, MissingChannels, StackContext, feeds, resolve
 
 HS = "heel_strike"
 
 
-def test_each_registered_estimator_declares_what_it_is_built_as(small_model: TrainedModel) -> None:
-    ctx = StackContext(small_model, 0.9, 70.0, 0.01)
+def test_each_registered_estimator_declares_what_it_is_built_as() -> None:
+    model, _ = load_model(default_model_path())  # its fingerprint map keeps 3 components, as declared
+    assert model.fingerprints is not None and model.fingerprints.n_components == 3
+    ctx = StackContext(model, 0.9, 70.0, 0.01, fingerprint=(1.0, -0.5, 0.2))
     assert list(DECLARED) == list(ESTIMATORS)
     for name, make in ESTIMATORS.items():
         est = make(ctx)
@@ -22,11 +27,35 @@ def test_each_registered_estimator_declares_what_it_is_built_as(small_model: Tra
         "phase_ekf": "Phase EKF (seed 000)",
         "tbe": "Timing-based estimate",
         "hs_backup": "Heel-strike backup",
+        "fp_avg": "Average thigh model (seed 004)",
+        "fp_ls": "Personalized thigh model (seed 004 LS-GF)",
+        "fp_gf": "Online fingerprint EKF (seed 004 GF)",
     }
 
 
+def test_a_fingerprint_filter_the_session_cannot_build_is_left_out_or_refused_with_why(
+    small_model: TrainedModel,
+) -> None:
+    assert small_model.fingerprints is not None and small_model.fingerprints.n_components == 2  # 3 subjects
+    thigh = {"thigh_angle_deg", "foot_angle_deg"}
+    ctx = StackContext(small_model, 0.9, 70.0, 0.01)
+    assert [e.name for e in resolve(None, thigh, ctx)] == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf"]
+    with pytest.raises(MissingChannels, match="fp_ls: the subject has no personalized fingerprint yet"):
+        resolve(["phase_ekf", "fp_ls"], thigh, ctx)
+    wrong = StackContext(small_model, 0.9, 70.0, 0.01, fingerprint=(1.0,))
+    with pytest.raises(MissingChannels, match="1 components and the model's map 2: calibrate again"):
+        resolve(["fp_ls"], thigh, wrong)
+    no_map = StackContext(replace(small_model, fingerprints=None), 0.9, 70.0, 0.01)
+    assert "fp_avg" not in [e.name for e in resolve(None, thigh, no_map)]
+    with pytest.raises(MissingChannels, match="no fingerprint map"):
+        resolve(["fp_gf"], thigh, no_map)
+    # without a thigh channel they cannot run, and say so
+    with pytest.raises(MissingChannels, match="fp_avg needs thigh_angle_deg"):
+        resolve(["fp_avg"], {"foot_angle_deg"}, ctx)
+
+
 def test_feeds_counts_a_channel_an_earlier_estimator_derives() -> None:
-    every = {"foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps", HS}
+    every = {"foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps", "thigh_angle_deg", HS}
     assert feeds(every) == {n: Feed((), {}) for n in ESTIMATORS}
     # the foot angle alone: its velocity is differentiated, heel strikes come from the detector or the EKF
     foot = feeds({"foot_angle_deg"})
