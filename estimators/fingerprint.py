@@ -129,6 +129,8 @@ class FingerprintMap:
         fit_rmse_deg: each training subject's own-fit RMSE (deg); their mean is ``rbar``.
         gram: ``G`` (eq. 19), kept to measure model differences in deg RMS.
         order: Fourier order of the basis.
+        training_g: each training subject's least-squares fingerprint, ``(n_subjects, k)`` (where a new
+            person sits among them).
     """
 
     xi_avg: Array
@@ -137,6 +139,7 @@ class FingerprintMap:
     fit_rmse_deg: Array
     gram: Array
     order: int = FOURIER_ORDER
+    training_g: Array = field(default_factory=lambda: np.zeros((0, 0)))
 
     @property
     def n_components(self) -> int:
@@ -233,8 +236,18 @@ def fit_map(
             raise ValueError(f"n_components must be in 1..{rank} for {len(subjects)} subjects, got {n_components}")
         k = n_components
     p_map = U[:, :k].T @ inv_root
-    return FingerprintMap(
+    fmap = FingerprintMap(
         xi_avg=xi_avg, p_map=p_map, explained=explained, fit_rmse_deg=np.array(rmse), gram=G, order=order
+    )
+    training_g = np.array([fmap.ls_fingerprint(*walk) for walk in subjects])
+    return FingerprintMap(
+        xi_avg=xi_avg,
+        p_map=p_map,
+        explained=explained,
+        fit_rmse_deg=np.array(rmse),
+        gram=G,
+        order=order,
+        training_g=training_g,
     )
 
 
@@ -316,6 +329,7 @@ class FingerprintEKF:
         else:
             self._q, self._p0 = np.array(self.config.q_fixed), np.array(self.config.p0_fixed)
         self._t: float | None = None
+        self._pending: Array | None = None
         n, c = 3 + (k if self.mode == "gf" else 0), self.fmap.xi_avg.size
         self._work = np.empty(c + c + 3 * n)
         self.reset()
@@ -357,9 +371,27 @@ class FingerprintEKF:
         self._r_scale = float(params.get("measurement_noise_scale", self._r_scale))
         self._q_scale = float(params.get("process_noise_scale", self._q_scale))
 
+    def personalize(self, g: Array) -> None:
+        """Run fingerprint ``g`` (mode ``ls``) from the next stride on: it takes over when the phase wraps
+        (a heel strike), where the thigh is near its largest flexion and a change of model moves the
+        prediction least, so that a promotion does not jolt a running filter.
+
+        Raises:
+            ValueError: not mode ``ls``, or not a finite fingerprint of this map.
+        """
+        if self.mode != "ls":
+            raise ValueError(f"only the personalized filter takes a new fingerprint, not {self.mode}")
+        g = np.asarray(g, dtype=np.float64).reshape(-1)
+        if g.shape != (self.fmap.n_components,) or not np.isfinite(g).all():
+            raise ValueError(f"a fingerprint of this map has {self.fmap.n_components} finite components")
+        self._pending = g
+
     def step(self, t: float, z: Array) -> Array:
         """One sample: ``z = [thigh angle deg, thigh velocity deg/s]`` (NaN: missing); :meth:`predict` and
         :meth:`update` in one compiled call."""
+        if self._pending is not None and self.x[0] + self._t_step(t) * self.x[1] >= 1.0:
+            self.g0, self._pending = self._pending, None
+            self._xi_fixed = self.fmap.xi(self.g0)
         dt, restart = elapsed(self._t, t, self.max_gap_s)
         if restart:
             self.reset()
@@ -400,6 +432,12 @@ class FingerprintEKF:
         P[0, :] += dt * P[1, :]
         P[:, 0] += dt * P[:, 1]
         P[np.diag_indices_from(P)] += self._q * self._q_scale
+
+    def _t_step(self, t: float) -> float:
+        """The time the next step will predict over (0 on the first sample or after a gap)."""
+        if self._t is None or not t - self._t <= self.max_gap_s:
+            return 0.0
+        return max(t - self._t, 0.0)
 
     def _xi(self) -> Array:
         return self.fmap.xi(self.x[3:]) if self.mode == "gf" else self._xi_fixed

@@ -119,6 +119,10 @@ REPLAY_OUTPUT: Final = (
 )
 
 
+#: Largest integer a frame may carry (``seq``, ``sent_ns``): a signed 64-bit integer, as MCAP and SQLite.
+INT64_MAX: Final = 2**63 - 1
+
+
 class ModelProvenance(BaseModel):
     """What a fitted gait model was trained on; stored in every model file."""
 
@@ -409,6 +413,103 @@ class RerunRequest(_Strict):
         description="the estimators to re-run (their outputs come back as '<name>.<output>' columns); "
         "null: the trial's recorded stack",
     )
+    personalization_id: int | None = Field(
+        default=None,
+        ge=1,
+        le=INT64_MAX,
+        description="the subject's personalization whose fingerprint fp_ls runs (compare before promoting); "
+        "null: the subject's active one, if any",
+    )
+
+
+#: Most components a gait fingerprint has (seed 004 keeps 3; a map is at most n_subjects - 1 wide).
+MAX_FINGERPRINT: Final = 16
+FingerprintValue = Annotated[float, Field(ge=-1000.0, le=1000.0, allow_inf_nan=False)]
+PersonalizationState = Literal["candidate", "active", "retired"]
+_ACTOR = Field(default="clinician", min_length=1, max_length=64)
+
+
+class CalibrationRequest(_Strict):
+    """Fit a subject's gait fingerprint from a recorded or uploaded trial of theirs (``POST
+    /api/subjects/{id}/fingerprints``): strides between heel strikes, thigh angle against phase and stride
+    length (belt speed x stride time when the trial records the belt, else the recorded estimate)."""
+
+    trial_id: int = Field(ge=1, le=INT64_MAX)
+    model: str = Field(default="default", pattern=_CODE)
+    actor: str = _ACTOR
+    note: str = Field(default="", max_length=500)
+
+
+class PersonalizationChange(_Strict):
+    """Promote a personalization or roll back to the one before (``.../promote``, ``.../rollback``)."""
+
+    actor: str = _ACTOR
+    reason: str = Field(default="", max_length=500)
+
+
+class Personalization(BaseModel):
+    """One version of a subject's personalized gait model: a fingerprint in a model's map (seed 004).
+
+    ``candidate`` after a calibration or an import, ``active`` once promoted (at most one per subject and
+    model: the one live sessions and review use for ``fp_ls``), ``retired`` when another was promoted.
+    """
+
+    id: int
+    subject_id: int
+    version: int = Field(description="1, 2, ... per subject")
+    model: str = Field(description="the model whose fingerprint map this fingerprint belongs to")
+    fingerprint: list[FingerprintValue] = Field(max_length=MAX_FINGERPRINT, description="g_1..g_k, deg RMS each")
+    fit_rmse_avg_deg: float = Field(description="thigh-angle RMSE of the average model on the calibration walk")
+    fit_rmse_personal_deg: float = Field(description="the same with this fingerprint")
+    source_trial_id: int | None = Field(description="the calibration trial; null: imported")
+    strides_used: int
+    strides_excluded: int
+    seconds_used: float
+    excluded: dict[str, int] = Field(description="strides left out, by reason")
+    stride_length_source: str = Field(description="'belt speed' or the estimator whose stride length was used")
+    state: PersonalizationState
+    created_utc: str
+    created_by: str
+    promoted_utc: str | None = None
+    promoted_by: str | None = None
+    note: str = ""
+
+
+class CohortPoint(BaseModel):
+    """A training subject's least-squares fingerprint in the model's map (the fingerprint plot's cloud)."""
+
+    code: str
+    fingerprint: list[float]
+
+
+class Fingerprints(BaseModel):
+    """A subject's personalized models (``GET /api/subjects/{id}/fingerprints``)."""
+
+    subject_id: int
+    model: str
+    components: int = Field(description="fingerprint components of the model's map (0: it has none)")
+    explained: list[float] = Field(description="cumulative variance share per component of the map")
+    active: Personalization | None
+    versions: list[Personalization] = Field(description="newest first")
+    cohort: list[CohortPoint]
+
+
+class PersonalizationExport(_Strict):
+    """A personalization moved between machines (``.../export``, ``.../import``): the fingerprint with the
+    model it belongs to, identified by the model's training-data hash so a map that differs is refused."""
+
+    format: Literal["gaitscope-personalization"] = "gaitscope-personalization"
+    version: Literal[1] = 1
+    subject_code: str = Field(pattern=_CODE)
+    model: str = Field(pattern=_CODE)
+    model_sha256: str = Field(pattern=r"^[0-9a-f]{64}$")
+    fingerprint: list[FingerprintValue] = Field(min_length=1, max_length=MAX_FINGERPRINT)
+    fit_rmse_avg_deg: float = Field(ge=0, allow_inf_nan=False)
+    fit_rmse_personal_deg: float = Field(ge=0, allow_inf_nan=False)
+    strides_used: int = Field(ge=0)
+    seconds_used: float = Field(ge=0, allow_inf_nan=False)
+    created_utc: str = Field(max_length=40)
+    note: str = Field(default="", max_length=500)
 
 
 class RerunChoices(BaseModel):
@@ -556,8 +657,6 @@ SENSOR_LIMITS: Final[dict[str, tuple[float, float]]] = {
 _LIMIT_ROWS: Final = tuple((name, lo, hi) for name, (lo, hi) in SENSOR_LIMITS.items())
 #: Below this many given fields :meth:`SensorFrame.plausible` checks only those (faster for sparse frames).
 _FEW_CHANNELS: Final = 24
-#: Largest integer a frame may carry (``seq``, ``sent_ns``): a signed 64-bit integer, as MCAP and SQLite.
-INT64_MAX: Final = 2**63 - 1
 #: Version of :class:`SensorFrame` this code writes. 1: the frame before the channel registry (seven
 #: ipsilateral channels, no ``version`` field); 2: every channel of :data:`CHANNELS`.
 SENSOR_FRAME_VERSION: Final = 2

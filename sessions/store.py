@@ -127,12 +127,39 @@ class _EventRow(_Base):
     actor: Mapped[str] = mapped_column(String(64))
 
 
-_Row = TypeVar("_Row", _SubjectRow, _SessionRow, _TrialRow, _EventRow)
+class _PersonalizationRow(_Base):
+    __tablename__ = "personalizations"
+    __table_args__ = (Index("ix_personalizations_subject_model", "subject_id", "model"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    subject_id: Mapped[int] = mapped_column(ForeignKey("subjects.id"))
+    version: Mapped[int]
+    model: Mapped[str] = mapped_column(String(32))
+    fingerprint: Mapped[str] = mapped_column(Text)  # JSON list of floats
+    fit_rmse_avg_deg: Mapped[float]
+    fit_rmse_personal_deg: Mapped[float]
+    source_trial_id: Mapped[int | None] = mapped_column(ForeignKey("trials.id"))
+    strides_used: Mapped[int]
+    strides_excluded: Mapped[int]
+    seconds_used: Mapped[float]
+    excluded: Mapped[str] = mapped_column(Text)  # JSON {reason: count}
+    stride_length_source: Mapped[str] = mapped_column(String(64))
+    state: Mapped[str] = mapped_column(String(16))
+    created_utc: Mapped[str] = mapped_column(String(40))
+    created_by: Mapped[str] = mapped_column(String(64))
+    promoted_utc: Mapped[str | None] = mapped_column(String(40))
+    promoted_by: Mapped[str | None] = mapped_column(String(64))
+    replaced_id: Mapped[int | None]  # the personalization that was active when this one was promoted
+    note: Mapped[str] = mapped_column(Text)
+
+
+_Row = TypeVar("_Row", _SubjectRow, _SessionRow, _TrialRow, _EventRow, _PersonalizationRow)
 _KIND: Final[dict[type[_Base], str]] = {
     _SubjectRow: "subject",
     _SessionRow: "session",
     _TrialRow: "trial",
     _EventRow: "event",
+    _PersonalizationRow: "personalization",
 }
 
 
@@ -176,6 +203,13 @@ def _event(row: _EventRow) -> schema.Event:
             "after": _decode_value(row.after),
             "actor": row.actor,
         }
+    )
+
+
+def _personalization(row: _PersonalizationRow) -> schema.Personalization:
+    fields = {c: getattr(row, c) for c in schema.Personalization.model_fields if c not in ("fingerprint", "excluded")}
+    return schema.Personalization.model_validate(
+        {**fields, "fingerprint": json.loads(row.fingerprint), "excluded": json.loads(row.excluded)}
     )
 
 
@@ -557,3 +591,93 @@ class Store:
     def _events(session: orm.Session, where: ColumnElement[bool]) -> list[schema.Event]:
         query = select(_EventRow).where(where).order_by(_EventRow.t, _EventRow.id)
         return [_event(r) for r in session.scalars(query)]
+
+    # --- personalized gait models (seed 004 fingerprints) -----------------------------------------
+
+    def add_personalization(self, p: schema.Personalization) -> schema.Personalization:
+        """Store ``p`` as a new ``candidate`` version of its subject (its ``id``, ``version``, ``state`` and
+        ``created_utc`` are assigned here); :class:`NotFound` for an unknown subject or trial."""
+        with self._write() as session:
+            self._get(session, _SubjectRow, p.subject_id)
+            if p.source_trial_id is not None:
+                self._get(session, _TrialRow, p.source_trial_id)
+            last = session.scalar(
+                select(_PersonalizationRow.version)
+                .where(_PersonalizationRow.subject_id == p.subject_id)
+                .order_by(_PersonalizationRow.version.desc())
+                .limit(1)
+            )
+            fields = p.model_dump(exclude={"id", "fingerprint", "excluded", "version", "state", "created_utc"})
+            row = _PersonalizationRow(
+                **fields,
+                fingerprint=json.dumps(p.fingerprint),
+                excluded=json.dumps(p.excluded),
+                version=(last or 0) + 1,
+                state="candidate",
+                created_utc=_stamp(),
+                replaced_id=None,
+            )
+            session.add(row)
+            session.flush()
+            return _personalization(row)
+
+    def list_personalizations(self, subject_id: int, model: str | None = None) -> list[schema.Personalization]:
+        """The subject's personalizations (of ``model``, else of every model), newest first."""
+        with self._read() as session:
+            self._get(session, _SubjectRow, subject_id)
+            q = select(_PersonalizationRow).where(_PersonalizationRow.subject_id == subject_id)
+            if model is not None:
+                q = q.where(_PersonalizationRow.model == model)
+            return [_personalization(r) for r in session.scalars(q.order_by(_PersonalizationRow.id.desc()))]
+
+    def get_personalization(self, personalization_id: int) -> schema.Personalization:
+        with self._read() as session:
+            return _personalization(self._get(session, _PersonalizationRow, personalization_id))
+
+    def active_personalization(self, subject_id: int, model: str) -> schema.Personalization | None:
+        """The subject's active personalization of ``model`` (what ``fp_ls`` runs), None when there is none."""
+        with self._read() as session:
+            row = self._active_row(session, subject_id, model)
+            return None if row is None else _personalization(row)
+
+    def promote_personalization(self, personalization_id: int, actor: str) -> schema.Personalization:
+        """Make it the subject's active one for its model (the one active before is retired and remembered,
+        so that :meth:`rollback_personalization` can bring it back). Promoting the active one changes nothing."""
+        with self._write() as session:
+            row = self._get(session, _PersonalizationRow, personalization_id, for_update=True)
+            if row.state == "active":
+                return _personalization(row)
+            current = self._active_row(session, row.subject_id, row.model)
+            if current is not None:
+                current.state = "retired"
+            row.state, row.replaced_id = "active", None if current is None else current.id
+            row.promoted_utc, row.promoted_by = _stamp(), actor
+            session.flush()
+            return _personalization(row)
+
+    def rollback_personalization(
+        self, subject_id: int, model: str, actor: str
+    ) -> tuple[schema.Personalization, schema.Personalization | None]:
+        """Retire the active personalization and make the one it replaced active again (none: the average
+        model). Returns ``(rolled back, now active)``; :class:`Conflict` when nothing is active."""
+        with self._write() as session:
+            self._get(session, _SubjectRow, subject_id)
+            current = self._active_row(session, subject_id, model)
+            if current is None:
+                raise Conflict(f"subject {subject_id} has no active personalization of model {model!r} to roll back")
+            current.state = "retired"
+            back = None if current.replaced_id is None else session.get(_PersonalizationRow, current.replaced_id)
+            if back is not None:
+                back.state, back.promoted_utc, back.promoted_by = "active", _stamp(), actor
+            session.flush()
+            return _personalization(current), None if back is None else _personalization(back)
+
+    @staticmethod
+    def _active_row(session: orm.Session, subject_id: int, model: str) -> _PersonalizationRow | None:
+        return session.scalars(
+            select(_PersonalizationRow).where(
+                _PersonalizationRow.subject_id == subject_id,
+                _PersonalizationRow.model == model,
+                _PersonalizationRow.state == "active",
+            )
+        ).first()

@@ -141,6 +141,7 @@
  * @typedef {object} RerunRequest
  * @property {SessionSettings | null} [settings=null] null: as recorded (the default); else these settings over the whole trial
  * @property {Array<string> | null} [estimators=null] the estimators to re-run (their outputs come back as '<name>.<output>' columns); null: the trial's recorded stack
+ * @property {number | null} [personalization_id=null] the subject's personalization whose fingerprint fp_ls runs (compare before promoting); null: the subject's active one, if any (1..9223372036854775807)
  */
 
 /**
@@ -692,7 +693,7 @@ export const FIELD_LIMITS = deepFreeze({
     size: { min: 1 },
     subject_id: { min: 1 },
   },
-  RerunRequest: { estimators: { maxItems: 16 } },
+  RerunRequest: { estimators: { maxItems: 16 }, personalization_id: { min: 1, max: 9223372036854775807 } },
   ViewerFocus: { session_id: { min: 1 } },
   ViewerShow: { trial_id: { min: 1 } },
   SensorFrame: { seq: { min: 0, max: 9223372036854775807 }, sent_ns: { min: 0, max: 9223372036854775807 } },

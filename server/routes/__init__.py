@@ -7,13 +7,14 @@ HTTP statuses (``common.ERROR_STATUS``).
 
 from fastapi import APIRouter
 
-from server.routes import meta, models, sessions, streams, subjects, trials, uploads, viewer
+from server.routes import fingerprints, meta, models, sessions, streams, subjects, trials, uploads, viewer
 from server.routes.common import install_error_handlers
 from server.routes.uploads import Uploads
 
 ROUTERS: tuple[APIRouter, ...] = (
     meta.router,
     subjects.router,
+    fingerprints.router,
     sessions.router,
     trials.router,
     models.router,

@@ -4,14 +4,18 @@ recorded settings, the estimators a re-run can run, and re-runs through them."""
 from __future__ import annotations
 
 import asyncio
-from typing import Annotated, Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
 
-from fastapi import APIRouter, Body, Query
+from fastapi import APIRouter, Body, HTTPException, Query
 from fastapi.responses import FileResponse
 
 from estimators.pipeline import TrainedModel
 from server.routes.common import Ctx, OptionalId, reviewable_trial, trained_model
 from sessions import schema
+
+if TYPE_CHECKING:
+    from server.app import AppContext
 
 router = APIRouter(prefix="/api")
 
@@ -69,8 +73,8 @@ async def trial_estimators(trial_id: int, c: Ctx) -> schema.RerunChoices:
     """Which estimators a re-run of the trial can run: its recorded stack and those its channels feed."""
     from sessions.review.rerun import rerun_choices
 
-    _, path = reviewable_trial(c, trial_id)
-    return await asyncio.to_thread(rerun_choices, path)
+    trial, path = reviewable_trial(c, trial_id)
+    return await asyncio.to_thread(rerun_choices, path, _fingerprint(c, trial, path, None))
 
 
 @router.post("/trials/{trial_id}/rerun")
@@ -91,10 +95,39 @@ async def rerun(
     subject = c.store.get_subject(c.store.get_session(trial.session_id).subject_id)
     settings = None if body is None else body.settings
     estimators = None if body is None else body.estimators
+    fingerprint = _fingerprint(c, trial, path, None if body is None else body.personalization_id)
 
     def model(name: str) -> TrainedModel:
         return trained_model(c, name)
 
     return await asyncio.to_thread(
-        rerun_series, path, model, subject.leg_length_m, subject.mass_kg, settings, t0, t1, max_points, estimators
+        rerun_series,
+        path,
+        model,
+        subject.leg_length_m,
+        subject.mass_kg,
+        settings,
+        t0,
+        t1,
+        max_points,
+        estimators,
+        fingerprint,
     )
+
+
+def _fingerprint(c: AppContext, trial: schema.Trial, path: Path, personalization_id: int | None) -> list[float] | None:
+    """The fingerprint ``fp_ls`` re-runs with: the personalization asked for (it must be the trial's
+    subject's; 422 if not), else the one the trial recorded, else the subject's active one, else none."""
+    from sessions.review.rerun import recorded_fingerprint
+
+    subject_id = c.store.get_session(trial.session_id).subject_id
+    if personalization_id is None:
+        recorded = recorded_fingerprint(path)
+        if recorded is not None:
+            return recorded
+        active = c.store.active_personalization(subject_id, "default")
+        return None if active is None else active.fingerprint
+    p = c.store.get_personalization(personalization_id)
+    if p.subject_id != subject_id:
+        raise HTTPException(422, f"personalization {personalization_id} is not of trial {trial.id}'s subject")
+    return p.fingerprint

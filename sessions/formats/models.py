@@ -79,7 +79,7 @@ def save_model(path: str | Path, model: TrainedModel, prov: ModelProvenance) -> 
 
 
 #: The arrays of a fingerprint map in a model file (``fp_`` + FingerprintMap field).
-_FP_FIELDS = ("xi_avg", "p_map", "explained", "fit_rmse_deg", "gram")
+_FP_FIELDS = ("xi_avg", "p_map", "explained", "fit_rmse_deg", "gram", "training_g")
 
 
 def _fingerprint_arrays(fmap: FingerprintMap | None) -> dict[str, np.ndarray]:
@@ -99,8 +99,9 @@ def _fingerprints(arrays: dict[str, np.ndarray], name: str) -> FingerprintMap | 
         raise DataFormatError(f"model file lacks {', '.join(missing)}", file=name)
     order = int(arrays["fp_order"])
     c = 2 * (2 * order - 1)
-    xi, pm, ex, rm, g = (arrays[f"fp_{k}"] for k in _FP_FIELDS)
+    xi, pm, ex, rm, g, tg = (arrays[f"fp_{k}"] for k in _FP_FIELDS)
     checks = [
+        ("fp_training_g", tg.ndim == 2 and tg.shape[1] == pm.shape[0]),
         ("fp_xi_avg", xi.shape == (c,)),
         ("fp_p_map", pm.ndim == 2 and pm.shape[1] == c and pm.shape[0] >= 1),
         ("fp_explained", ex.ndim == 1),
@@ -119,6 +120,7 @@ def _fingerprints(arrays: dict[str, np.ndarray], name: str) -> FingerprintMap | 
         fit_rmse_deg=rm.astype(np.float64),
         gram=g.astype(np.float64),
         order=order,
+        training_g=tg.astype(np.float64),
     )
 
 

@@ -58,6 +58,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ESTIMATORS_KEY",
+    "FINGERPRINT_KEY",
     "FLUSH_INTERVAL_S",
     "FSYNC_INTERVAL_S",
     "METADATA_NAME",
@@ -74,6 +75,9 @@ SAMPLE_PERIOD_KEY: Final = "sample_period_s"
 #: Key of the session's estimator stack (names, comma-separated, in run order), so that a review re-run
 #: runs the same estimators.
 ESTIMATORS_KEY: Final = "estimators"
+#: Key of the gait fingerprint the personalized filter (``fp_ls``) ran with (floats' ``repr``, comma-separated),
+#: so that a review re-run "as recorded" runs the same one.
+FINGERPRINT_KEY: Final = "fingerprint"
 #: Default longest time (s, session or wall) a chunk stays open: what ``kill -9`` can lose.
 FLUSH_INTERVAL_S: Final = 0.5
 #: Default longest wall time (s) between two fsyncs of a recording: what a power cut adds to that.

@@ -182,6 +182,10 @@ class SessionManager:
     def get(self, session_id: int) -> SessionRuntime | None:
         return self.runtimes.get(session_id)
 
+    def running(self) -> list[SessionRuntime]:
+        """The runtimes of the running sessions."""
+        return list(self.runtimes.values())
+
     async def stop_all(self) -> None:
         for session_id in list(self.runtimes):
             try:

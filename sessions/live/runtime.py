@@ -38,7 +38,7 @@ from estimators.pipeline import TrainedModel
 from sessions import schema
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused, torque_json
 from sessions.formats.mcap_io import recover
-from sessions.formats.recording import ESTIMATORS_KEY, SAMPLE_PERIOD_KEY, Recorder
+from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, SAMPLE_PERIOD_KEY, Recorder
 from sessions.live.disk import DiskLevel
 from sessions.live.sources import FrameSource, LiveDevice
 from sessions.live.subscribers import SUBSCRIBER_CAPACITY, Subscriber
@@ -124,6 +124,8 @@ class SessionRuntime:
         self.on_state = on_state
         period = 1.0 / source.rate_hz if source.rate_hz else DEFAULT_PERIOD
         self.sample_period = period  # recorded, so that a review re-run builds the same estimator
+        active = store.active_personalization(subject.id, session.settings.model)
+        self.fingerprint: list[float] | None = None if active is None else active.fingerprint
         self.estimator = FrameEstimator(
             model,
             subject.leg_length_m,
@@ -131,6 +133,7 @@ class SessionRuntime:
             session.settings,
             period,
             channels=getattr(source, "channels", None),
+            fingerprint=self.fingerprint,
         )
         self.subscribers: set[Subscriber] = set()
         self.recorder: Recorder | None = None
@@ -310,6 +313,27 @@ class SessionRuntime:
             asyncio.get_running_loop().create_task(
                 self.end("stopped", f"the recording could not be written ({_describe(e)}); session stopped")
             )
+
+    def personalization_changed(self, text: str, actor: str) -> None:
+        """The subject's personalization was promoted or rolled back: an event in this session's log, and the
+        running personalized filter (``fp_ls``) takes the now active fingerprint at its next heel strike.
+        A session whose stack has no ``fp_ls`` (none was active when it started) keeps its stack: the
+        event says the change applies from the next session."""
+        active = self.store.active_personalization(self.subject.id, self.settings.model)
+        fp_ls = next((e for e in self.estimator.stack.estimators if e.name == "fp_ls"), None)
+        if fp_ls is None:
+            self._event("system", f"{text}; fp_ls is not running here: it applies from the next session", actor=actor)
+            return
+        if active is None:
+            self._event("system", f"{text}; fp_ls keeps its fingerprint until the session ends", actor=actor)
+            return
+        try:
+            fp_ls.personalize(np.array(active.fingerprint))  # type: ignore[attr-defined]
+        except ValueError as e:
+            self._event("system", f"{text}; fp_ls cannot take it ({e})", actor=actor)
+            return
+        self.fingerprint = active.fingerprint
+        self._event("system", f"{text}; fp_ls takes it at the next heel strike", actor=actor)
 
     def accepts(self, frame: SensorFrame) -> bool:
         """Whether a device frame's time can be placed after the last one (a device may restart its clock)."""
@@ -505,6 +529,7 @@ class SessionRuntime:
                 "source": self.session.source.kind,
                 SAMPLE_PERIOD_KEY: repr(self.sample_period),
                 ESTIMATORS_KEY: ",".join(self.estimator.stack.names),
+                **({} if self.fingerprint is None else {FINGERPRINT_KEY: ",".join(map(repr, self.fingerprint))}),
             },
             channels=self.estimator.recorded_channels(),
         )

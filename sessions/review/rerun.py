@@ -46,7 +46,7 @@ from estimators.pipeline import TrainedModel
 from sessions.errors import DataFormatError
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
 from sessions.formats.mcap_io import SeriesBuilder, count_messages, iter_sensor_frames, read_messages, series_window
-from sessions.formats.recording import ESTIMATORS_KEY, METADATA_NAME, SAMPLE_PERIOD_KEY
+from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, METADATA_NAME, SAMPLE_PERIOD_KEY
 from sessions.live.runtime import safe_torque
 from sessions.registry import OPT_IN, channels_of, feeds
 from sessions.schema import RerunChoices, SensorFrame, SessionSettings
@@ -85,6 +85,7 @@ def rerun_series(
     t1: float | None = None,
     max_points: int = 2000,
     estimators: Sequence[str] | None = None,
+    fingerprint: Sequence[float] | None = None,
 ) -> dict[str, list[Any]]:
     """Series (as :func:`~sessions.formats.mcap_io.read_series`) of the trial re-estimated, and the
     outputs of each estimator as ``<name>.<output>`` columns (None where it had failed).
@@ -98,6 +99,7 @@ def rerun_series(
         t0, t1: session times (s) of the states returned (None: unbounded).
         max_points: decimation bound, as :func:`~sessions.formats.mcap_io.read_series`.
         estimators: the estimators to run (None: the recorded stack; see the module docstring).
+        fingerprint: the subject's gait fingerprint, which the personalized filter ``fp_ls`` runs.
 
     Raises:
         DataFormatError: a bad file; as recorded, a file without the settings of its first frame, or
@@ -157,8 +159,9 @@ def rerun_series(
                     max_jump_s=math.inf,
                     estimators=names,
                     channels=channels,
+                    fingerprint=fingerprint,
                 )
-            except ValueError as exc:  # unknown estimators, missing channels
+            except ValueError as exc:  # unknown estimators, missing channels, no fingerprint
                 raise DataFormatError(str(exc), file=str(path)) from exc
             stack = estimator.stack
             columns = [f"{name}.{o}" for name, outs in zip(stack.names, stack.outputs, strict=True) for o in outs]
@@ -213,6 +216,20 @@ def rerun_choices(path: Path, fingerprint: Sequence[float] | None = None) -> Rer
 
 
 _NO_FINGERPRINT = "needs the subject's calibrated gait fingerprint"
+
+
+def recorded_fingerprint(path: Path) -> list[float] | None:
+    """The fingerprint the trial's personalized filter ran with (its metadata), None when none ran."""
+    text = _metadata(path).get(FINGERPRINT_KEY)
+    if not text:
+        return None
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise DataFormatError(f"bad recorded fingerprint {text[:80]!r}", file=str(path)) from None
+    if not all(math.isfinite(v) for v in values):
+        raise DataFormatError("the recorded fingerprint is not finite", file=str(path))
+    return values
 
 
 def recorded_stack(path: Path) -> tuple[str, ...] | None:
