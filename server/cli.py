@@ -180,6 +180,8 @@ def cmd_cohort(a: argparse.Namespace) -> int:
 def cmd_crossval(a: argparse.Namespace) -> int:
     if a.study == "fingerprints":
         return _crossval_fingerprints(a)
+    if a.study == "ekf":
+        return _crossval_ekf_fingerprints(a)
     from sessions.offline.crossval import crossvalidate, summary, to_csv, to_markdown
 
     start = time.perf_counter()
@@ -206,6 +208,19 @@ def _crossval_fingerprints(a: argparse.Namespace) -> int:
     (a.out_dir / "fingerprints.md").write_text(md)
     print(md)
     print(f"wall time {wall:.1f} s; wrote {a.out_dir / 'fingerprints.md'}")
+    return 0
+
+
+def _crossval_ekf_fingerprints(a: argparse.Namespace) -> int:
+    from sessions.offline.ekf_fingerprints import run_study, to_markdown
+
+    start = time.perf_counter()
+    md = to_markdown(run_study(workers=a.workers))
+    wall = time.perf_counter() - start
+    a.out_dir.mkdir(parents=True, exist_ok=True)
+    (a.out_dir / "ekf_fingerprints.md").write_text(md)
+    print(md)
+    print(f"wall time {wall:.1f} s; wrote {a.out_dir / 'ekf_fingerprints.md'}")
     return 0
 
 
@@ -317,9 +332,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("crossval", help="leave-one-subject-out comparison with a paper's numbers")
     p.add_argument(
         "--study",
-        choices=("phase", "fingerprints"),
+        choices=("phase", "fingerprints", "ekf"),
         default="phase",
-        help="phase: seed 000's phase EKF against TBE (default); fingerprints: seed 004's AVG, LS-GF and GF",
+        help="phase: seed 000's phase EKF against TBE (default); fingerprints: seed 004's AVG, LS-GF and GF; "
+        "ekf: seed 000's model personalized by fingerprints from 10-120 s calibration walks",
     )
     p.add_argument("--out-dir", type=Path, default=Path("docs/results"))
     p.add_argument("--workers", type=int, default=None)

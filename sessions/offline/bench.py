@@ -27,6 +27,7 @@ Targets: issue #2, gaitscope >= 20x faster than the reference and < 10 us per sa
 
 from __future__ import annotations
 
+import math
 import os
 import platform
 import tempfile
@@ -231,6 +232,42 @@ def _agreement(est: Estimator, ref: Stepper, t: list[float], z: np.ndarray) -> d
     return {"max_output_diff": dy, "max_state_diff": dx, "max_cov_diff": dp}
 
 
+def calibration_cost(walk_s: float = 60.0) -> dict[str, float]:
+    """Seconds to fit a subject's fingerprint from the samples of a ``walk_s`` walk (the subject page's
+    "Fit": strides cut at heel strikes, belt-speed stride length; reading the samples from a recording
+    comes on top), and to refit the map from the cohort's level walking."""
+    from estimators.fingerprint import fit_map
+    from sessions.offline.fingerprints import training_walks
+    from sessions.personalization.calibration import CalibrationWalk, calibrate
+    from sessions.synth.cohort import CohortSpec
+
+    model, _ = load_model(default_model_path())
+    assert model.fingerprints is not None
+    sensors, _, _ = sensor_trial([(1.0, 0.0, int(walk_s))], rate_hz=100.0)
+    sensors = sensors[sensors[schema.REPLAY_TIME] <= walk_s]
+    walk = CalibrationWalk(
+        t=sensors[schema.REPLAY_TIME].to_numpy(np.float64),
+        thigh_deg=sensors["thigh_angle_deg"].to_numpy(np.float64),
+        heel_strike=sensors[HEEL_STRIKE].to_numpy() > 0.5,
+        belt_m_s=sensors["gt_speed_m_s"].to_numpy(np.float64),
+        stride_estimate_m=np.full(len(sensors), np.nan),
+    )
+    best = math.inf
+    for _ in range(5):
+        t0 = time.perf_counter()
+        cal = calibrate(model.fingerprints, walk)
+        best = min(best, time.perf_counter() - t0)
+    _, walks = training_walks(CohortSpec())
+    t0 = time.perf_counter()
+    fit_map(walks)
+    return {
+        "walk_s": float(walk.t[-1] - walk.t[0]),
+        "strides": float(cal.strides_used),
+        "fit_s": best,
+        "map_s": time.perf_counter() - t0,
+    }
+
+
 def stack_cost(samples: int = 6000) -> tuple[dict[str, float], tuple[str, ...]]:
     """Per-sample cost of the default estimator stack and of the seed-000 pipeline alone on the same
     trial; and the stack's estimators."""
@@ -368,7 +405,14 @@ def run_bench(
         f"  GaitStatePipeline.step      median {s['pipeline_median_us']:7.2f} us   p95 {s['pipeline_p95_us']:7.2f} us"
         f"   (stack / pipeline {s['stack_median_us'] / s['pipeline_median_us']:.1f}x)"
     )
+    cal = calibration_cost()
+    print(
+        f"fingerprint calibration from a {cal['walk_s']:.0f} s walk ({cal['strides']:.0f} strides), best of 5: "
+        f"{1e3 * cal['fit_s']:.1f} ms to fit its samples (target < 2 s); "
+        f"the refit of the whole map from the cohort's level walking: {1e3 * cal['map_s']:.0f} ms"
+    )
     out = {**e, **{f"replay_{k}": v for k, v in r.items()}}
+    out.update({f"calibration_{k}": v for k, v in cal.items()})
     out.update({f"estimator_{name}_{k}": v for name, row in per.items() for k, v in row.items()})
     out.update({f"stack_{k}": v for k, v in s.items()})
     if crossval:

@@ -174,3 +174,27 @@ def test_whatever_it_reads_the_state_stays_in_range_and_the_covariance_symmetric
             break  # a stack marks such an estimator failed; nothing else to check
         assert 0.0 <= y[0] < 1.0 and y[1] >= 0.5 and 0.0 <= y[2] <= 2.0
         assert np.allclose(ekf.P, ekf.P.T)
+
+
+def test_a_new_fingerprint_takes_over_at_the_next_heel_strike_only() -> None:
+    walks, _ = _subjects()
+    fmap = fit_map(walks, n_components=3)
+    ekf = FingerprintEKF(fmap, mode="ls", g=np.zeros(3))
+    t, z = _walk(fmap, 600)
+    for i in range(300):
+        y = ekf.step(float(t[i]), z[i])
+    before = ekf._xi_fixed.copy()
+    ekf.personalize(np.array([2.0, 0.0, 0.0]))
+    wrapped_at = None
+    for i in range(300, 600):
+        phase_before = float(ekf.x[0])
+        y = ekf.step(float(t[i]), z[i])
+        if wrapped_at is None and y[0] < phase_before:
+            wrapped_at = i
+        changed = not np.allclose(ekf._xi_fixed, before)
+        assert changed == (wrapped_at is not None), (i, phase_before, y[0])
+    assert wrapped_at is not None and np.allclose(ekf._xi_fixed, fmap.xi(np.array([2.0, 0.0, 0.0])))
+    with pytest.raises(ValueError, match="only the personalized filter"):
+        FingerprintEKF(fmap, mode="gf").personalize(np.zeros(3))
+    with pytest.raises(ValueError, match="3 finite components"):
+        ekf.personalize(np.array([1.0, math.inf, 0.0]))
