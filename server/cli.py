@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from estimators.pipeline import PipelineConfig, TrainedModel
@@ -201,26 +201,24 @@ def cmd_crossval(a: argparse.Namespace) -> int:
 def _crossval_fingerprints(a: argparse.Namespace) -> int:
     from sessions.offline.fingerprints import run_study, to_markdown
 
-    start = time.perf_counter()
-    md = to_markdown(run_study())
-    wall = time.perf_counter() - start
-    a.out_dir.mkdir(parents=True, exist_ok=True)
-    (a.out_dir / "fingerprints.md").write_text(md)
-    print(md)
-    print(f"wall time {wall:.1f} s; wrote {a.out_dir / 'fingerprints.md'}")
-    return 0
+    return _study(a, "fingerprints.md", lambda: to_markdown(run_study()))
 
 
 def _crossval_ekf_fingerprints(a: argparse.Namespace) -> int:
     from sessions.offline.ekf_fingerprints import run_study, to_markdown
 
+    return _study(a, "ekf_fingerprints.md", lambda: to_markdown(run_study(workers=a.workers)))
+
+
+def _study(a: argparse.Namespace, filename: str, run: Callable[[], str]) -> int:
+    """Run a study, print its Markdown and write it to ``a.out_dir / filename``."""
     start = time.perf_counter()
-    md = to_markdown(run_study(workers=a.workers))
+    md = run()
     wall = time.perf_counter() - start
     a.out_dir.mkdir(parents=True, exist_ok=True)
-    (a.out_dir / "ekf_fingerprints.md").write_text(md)
+    (a.out_dir / filename).write_text(md)
     print(md)
-    print(f"wall time {wall:.1f} s; wrote {a.out_dir / 'ekf_fingerprints.md'}")
+    print(f"wall time {wall:.1f} s; wrote {a.out_dir / filename}")
     return 0
 
 
