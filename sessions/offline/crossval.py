@@ -24,7 +24,7 @@ import io
 import itertools
 import multiprocessing
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 
@@ -37,6 +37,7 @@ from estimators.basis import Array
 from estimators.phase_ekf import EKFConfig
 from estimators.pipeline import PipelineConfig, TrainedModel
 from sessions import schema
+from sessions.formats.replay_io import ReplayInput
 from sessions.offline.replay import run
 from sessions.offline.training import StrideData, fit_models, stride_data, subject_grams
 from sessions.synth.cohort import CohortSpec, SensorNoise, generate_cohort, simulate_sensors
@@ -74,30 +75,59 @@ class SubjectResult:
     strides: int
 
 
-def evaluate_subject(
-    cohort: pd.DataFrame, data: StrideData, model: TrainedModel, subject: str, noise: SensorNoise, seed: int
-) -> SubjectResult:
-    """Run EKF, no-task EKF and TBE over every condition of one (held-out) subject."""
+@dataclass(frozen=True)
+class HeldOutTrial:
+    """One condition of a held-out subject through simulated sensors (:func:`subject_trials`)."""
+
+    trial: ReplayInput
+    heel_strike: NDArray[np.bool_]
+    phase: Array
+    stride_length_m: Array
+    incline_deg: Array
+
+
+def subject_trials(
+    cohort: pd.DataFrame, data: StrideData, subject: str, noise: SensorNoise, seed: int
+) -> tuple[float, float, Iterator[HeldOutTrial]]:
+    """The subject's leg length, mass and, lazily, each of its conditions as the protocol walks them: one
+    trial of concatenated strides through simulated sensors, each condition with its own noise stream
+    from ``(seed, subject)``, with the ground truth."""
     rows = cohort[cohort[schema.SUBJECT] == subject]
     s = data.subjects.index(subject)
     leg = float(data.leg_length[data.subject == s][0])
     mass = float(data.mass[data.subject == s][0])
+
+    def trials() -> Iterator[HeldOutTrial]:
+        ss = np.random.SeedSequence([seed, s])
+        for (_, walk), child in zip(
+            rows.groupby(schema.TASK_ID, sort=True), ss.spawn(rows[schema.TASK_ID].nunique()), strict=True
+        ):
+            sensors = simulate_sensors(walk.sort_values(schema.TIME_S), noise, np.random.default_rng(child))
+            trial = replay_input(sensors)
+            assert trial.heel_strike is not None
+            yield HeldOutTrial(
+                trial,
+                np.asarray(trial.heel_strike, dtype=bool),
+                sensors["gt_phase"].to_numpy(),
+                sensors["gt_stride_length_m"].to_numpy(),
+                sensors["gt_incline_deg"].to_numpy(),
+            )
+
+    return leg, mass, trials()
+
+
+def evaluate_subject(
+    cohort: pd.DataFrame, data: StrideData, model: TrainedModel, subject: str, noise: SensorNoise, seed: int
+) -> SubjectResult:
+    """Run EKF, no-task EKF and TBE over every condition of one (held-out) subject."""
+    leg, mass, trials = subject_trials(cohort, data, subject, noise, seed)
     base = PipelineConfig(leg_length=leg, body_mass_kg=mass, max_torque=200.0)
     notask = replace(base, ekf=EKFConfig(no_task=True))
     per: dict[str, list[Array]] = {k: [] for k in METRICS}
-    ss = np.random.SeedSequence([seed, s])
-    for (_, walk), child in zip(
-        rows.groupby(schema.TASK_ID, sort=True), ss.spawn(rows[schema.TASK_ID].nunique()), strict=True
-    ):
-        sensors = simulate_sensors(walk.sort_values(schema.TIME_S), noise, np.random.default_rng(child))
-        trial = replay_input(sensors)
-        hs = trial.heel_strike
-        assert hs is not None
-        gt_p = sensors["gt_phase"].to_numpy()
-        gt_l = sensors["gt_stride_length_m"].to_numpy()
-        gt_r = sensors["gt_incline_deg"].to_numpy()
-        out, _ = run(trial, model, base)
-        out_nt, _ = run(trial, model, notask)
+    for h in trials:
+        hs, gt_p, gt_l, gt_r = h.heel_strike, h.phase, h.stride_length_m, h.incline_deg
+        out, _ = run(h.trial, model, base)
+        out_nt, _ = run(h.trial, model, notask)
         tau_true = model.torque.torque(gt_p, gt_l / leg, gt_r, mass, 200.0)
         per["phase_ekf_pct"].append(100 * stride_rmse(wrapped(out["phase"] - gt_p), hs))
         per["phase_tbe_pct"].append(100 * stride_rmse(wrapped(out["tbe_phase"] - gt_p), hs))

@@ -72,7 +72,7 @@ from estimators.gait_model import (
 )
 from estimators.pipeline import PipelineConfig, TrainedModel
 from sessions import schema
-from sessions.offline.crossval import stride_rmse, wrapped
+from sessions.offline.crossval import stride_rmse, subject_trials, wrapped
 from sessions.offline.replay import measurements, run
 from sessions.offline.training import SAMPLES_PER_STRIDE, StrideData, fit_models, stride_data, subject_grams
 from sessions.synth.cohort import (
@@ -360,26 +360,16 @@ def score_filters(
     """The EKF of each model over every condition of ``subject``: trials, noise draws, configuration and
     scoring of :func:`sessions.offline.crossval.evaluate_subject`. Returns per-model (phase %, stride
     length m, incline deg) RMSE and the number of strides scored."""
-    rows = cohort[cohort[schema.SUBJECT] == subject]
-    s = data.subjects.index(subject)
-    leg = float(data.leg_length[data.subject == s][0])
-    mass = float(data.mass[data.subject == s][0])
+    leg, mass, trials = subject_trials(cohort, data, subject, noise, seed)
     config = PipelineConfig(leg_length=leg, body_mass_kg=mass, max_torque=200.0)
     per: dict[str, list[list[Array]]] = {name: [[], [], []] for name in models}
-    ss = np.random.SeedSequence([seed, s])
-    for (_, walk), child in zip(
-        rows.groupby(schema.TASK_ID, sort=True), ss.spawn(rows[schema.TASK_ID].nunique()), strict=True
-    ):
-        sensors = simulate_sensors(walk.sort_values(schema.TIME_S), noise, np.random.default_rng(child))
-        trial = replay_input(sensors)
-        hs = trial.heel_strike
-        assert hs is not None
-        truth = [sensors[c].to_numpy() for c in ("gt_phase", "gt_stride_length_m", "gt_incline_deg")]
+    for h in trials:
+        hs = h.heel_strike
         for name, model in models.items():
-            out, _ = run(trial, model, config)
-            per[name][0].append(100 * stride_rmse(wrapped(out["phase"] - truth[0]), hs))
-            per[name][1].append(stride_rmse(out["stride_length_m"] - truth[1], hs))
-            per[name][2].append(stride_rmse(out["incline_deg"] - truth[2], hs))
+            out, _ = run(h.trial, model, config)
+            per[name][0].append(100 * stride_rmse(wrapped(out["phase"] - h.phase), hs))
+            per[name][1].append(stride_rmse(out["stride_length_m"] - h.stride_length_m, hs))
+            per[name][2].append(stride_rmse(out["incline_deg"] - h.incline_deg, hs))
     strides = int(sum(len(v) for v in next(iter(per.values()))[0]))
     return {name: _triple([float(np.mean(np.concatenate(v))) for v in m]) for name, m in per.items()}, strides
 
