@@ -987,5 +987,6 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     SubjectCreate, Subject, SessionCreate, Session, SessionSettings, SettingsChange, Trial, Event,
     AnnotationCreate, RecordingControl, UploadCreate, Upload, RerunRequest, RerunChoices, ModelInfo, ViewerFocus,
     ViewerShow, SensorFrame, GaitState, TorqueCommand, StreamBatch, Health, EventMessage, SettingsMessage, Hello,
-    FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs,
+    FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs, CalibrationRequest, PersonalizationChange,
+    Personalization, CohortPoint, Fingerprints, PersonalizationExport,
 )  # fmt: skip

@@ -1,16 +1,18 @@
-// Entry point: the hash router (`#/`, `#/sessions/{id}`, `#/trials/{id}`) and the server badge.
+// Entry point: the hash router (`#/`, `#/sessions/{id}`, `#/trials/{id}`, `#/subjects/{id}`) and the server badge.
 // Each view is `mount(container, id) -> {unmount()}`; unmount closes sockets, timers and plots.
 
 import { api, errorText } from "./api.js";
 import { mountLive } from "./live.js";
 import { mountReview } from "./review.js";
 import { mountSessions } from "./sessions.js";
+import { mountSubject } from "./subject.js";
 import { h } from "./ui.js";
 
 const ROUTES = [
   [/^#?\/?$/, (el) => mountSessions(el)],
   [/^#\/sessions\/(\d+)$/, (el, m) => mountLive(el, Number(m[1]))],
   [/^#\/trials\/(\d+)$/, (el, m) => mountReview(el, Number(m[1]))],
+  [/^#\/subjects\/(\d+)$/, (el, m) => mountSubject(el, Number(m[1]))],
 ];
 
 let current = null;

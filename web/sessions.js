@@ -64,7 +64,8 @@ export function mountSessions(root) {
     const codes = new Map(state.subjects.map((s) => [s.id, s.code]));
     sessionsBody.replaceChildren(...(sessions.length ? sessions.map((s) => h("tr", { "data-testid": "session-row", "data-id": s.id },
       h("td", {}, h("a", { href: `#/sessions/${s.id}`, "data-testid": `session-link-${s.id}`, text: `Session ${s.id}` })),
-      h("td", { text: codes.get(s.subject_id) ?? `#${s.subject_id}` }),
+      h("td", {}, h("a", { href: `#/subjects/${s.subject_id}`, "data-testid": `subject-link-${s.subject_id}`,
+        title: "The subject's page: personalized gait models", text: codes.get(s.subject_id) ?? `#${s.subject_id}` })),
       h("td", { text: s.source.kind }),
       h("td", {}, h("span", { class: `state state-${s.state}`, text: s.state })),
       h("td", { text: fmtUtc(s.created_utc) }),

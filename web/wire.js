@@ -413,6 +413,88 @@
  */
 
 /**
+ * Fit a subject's gait fingerprint from a recorded or uploaded trial of theirs (``POST
+ * /api/subjects/{id}/fingerprints``): strides between heel strikes, thigh angle against phase and stride
+ * length (belt speed x stride time when the trial records the belt, else the recorded estimate).
+ * @typedef {object} CalibrationRequest
+ * @property {number} trial_id (1..9223372036854775807)
+ * @property {string} [model="default"]
+ * @property {string} [actor="clinician"]
+ * @property {string} [note=""]
+ */
+
+/**
+ * Promote a personalization or roll back to the one before (``.../promote``, ``.../rollback``).
+ * @typedef {object} PersonalizationChange
+ * @property {string} [actor="clinician"]
+ * @property {string} [reason=""]
+ */
+
+/**
+ * One version of a subject's personalized gait model: a fingerprint in a model's map (seed 004).
+ *
+ * ``candidate`` after a calibration or an import, ``active`` once promoted (at most one per subject and
+ * model: the one live sessions and review use for ``fp_ls``), ``retired`` when another was promoted.
+ * @typedef {object} Personalization
+ * @property {number} id
+ * @property {number} subject_id
+ * @property {number} version 1, 2, ... per subject
+ * @property {string} model the model whose fingerprint map this fingerprint belongs to
+ * @property {Array<number>} fingerprint g_1..g_k, deg RMS each
+ * @property {number} fit_rmse_avg_deg thigh-angle RMSE of the average model on the calibration walk
+ * @property {number} fit_rmse_personal_deg the same with this fingerprint
+ * @property {number | null} source_trial_id the calibration trial; null: imported
+ * @property {number} strides_used
+ * @property {number} strides_excluded
+ * @property {number} seconds_used
+ * @property {Object<string, number>} excluded strides left out, by reason
+ * @property {string} stride_length_source 'belt speed' or the estimator whose stride length was used
+ * @property {"candidate" | "active" | "retired"} state
+ * @property {string} created_utc
+ * @property {string} created_by
+ * @property {string | null} [promoted_utc=null]
+ * @property {string | null} [promoted_by=null]
+ * @property {string} [note=""]
+ */
+
+/**
+ * A training subject's least-squares fingerprint in the model's map (the fingerprint plot's cloud).
+ * @typedef {object} CohortPoint
+ * @property {string} code
+ * @property {Array<number>} fingerprint
+ */
+
+/**
+ * A subject's personalized models (``GET /api/subjects/{id}/fingerprints``).
+ * @typedef {object} Fingerprints
+ * @property {number} subject_id
+ * @property {string} model
+ * @property {number} components fingerprint components of the model's map (0: it has none)
+ * @property {Array<number>} explained cumulative variance share per component of the map
+ * @property {Personalization | null} active
+ * @property {Array<Personalization>} versions newest first
+ * @property {Array<CohortPoint>} cohort
+ */
+
+/**
+ * A personalization moved between machines (``.../export``, ``.../import``): the fingerprint with the
+ * model it belongs to, identified by the model's training-data hash so a map that differs is refused.
+ * @typedef {object} PersonalizationExport
+ * @property {"gaitscope-personalization"} [format="gaitscope-personalization"]
+ * @property {1} [version=1]
+ * @property {string} subject_code
+ * @property {string} model
+ * @property {string} model_sha256
+ * @property {Array<number>} fingerprint
+ * @property {number} fit_rmse_avg_deg (>= 0)
+ * @property {number} fit_rmse_personal_deg (>= 0)
+ * @property {number} strides_used (>= 0)
+ * @property {number} seconds_used (>= 0)
+ * @property {string} created_utc
+ * @property {string} [note=""]
+ */
+
+/**
  * A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames.
  *
  * ``rate_hz`` is the device's declared sample rate: the server takes up to ``1.25 x rate_hz``
@@ -703,6 +785,26 @@ export const FIELD_LIMITS = deepFreeze({
     fourier_order: { min: 1 },
     outputs: { minItems: 4, maxItems: 4 },
     torque_fourier_order: { min: 1 },
+  },
+  CalibrationRequest: {
+    trial_id: { min: 1, max: 9223372036854775807 },
+    model: { pattern: "^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$" },
+    actor: { minLength: 1, maxLength: 64 },
+    note: { maxLength: 500 },
+  },
+  PersonalizationChange: { actor: { minLength: 1, maxLength: 64 }, reason: { maxLength: 500 } },
+  Personalization: { fingerprint: { maxItems: 16 } },
+  PersonalizationExport: {
+    subject_code: { pattern: "^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$" },
+    model: { pattern: "^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$" },
+    model_sha256: { pattern: "^[0-9a-f]{64}$" },
+    fingerprint: { minItems: 1, maxItems: 16 },
+    fit_rmse_avg_deg: { min: 0 },
+    fit_rmse_personal_deg: { min: 0 },
+    strides_used: { min: 0 },
+    seconds_used: { min: 0 },
+    created_utc: { maxLength: 40 },
+    note: { maxLength: 500 },
   },
   DeviceSource: { rate_hz: { min: 1.0, max: 2000.0 } },
   ProtocolStep: {

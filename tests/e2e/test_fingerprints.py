@@ -1,0 +1,230 @@
+"""The subject page (``#/subjects/{id}``) in a real browser against the real server: a clinician personalizes
+a subject's gait model (seed 004's fingerprints).
+
+The walks come from the running server itself: a simulated session (a virtual-cohort subject on a treadmill;
+the simulated sensors send every channel, the thigh angle included) records, through the REST API, a walk of
+3 s (too few strides) and one of 16 s (about 14 strides). The session keeps running, so the page shows its
+live online fingerprint. In the browser: the short walk is refused with the server's reason, the long one
+fits a candidate, which is compared with the average model (both re-run and overlaid), promoted, rolled back
+to the average model; an export is imported (and a tampered one refused). The fixtures are
+``test_browser.py``'s (the same server, browser and console watch); a screenshot goes to
+``tests/e2e/artifacts/subject.png``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+import urllib.error
+import urllib.request
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.e2e import test_browser as tb
+
+playwright_api = pytest.importorskip("playwright.sync_api")
+expect = playwright_api.expect
+
+pytestmark = tb.pytestmark
+# test_browser.py's fixtures, found here by name (module-scoped: this module gets its own server).
+server = tb.server
+browser = tb.browser
+watched = tb.watched
+
+SHORT_S = 3.0  # about 2 strides: fewer than the 8 a calibration needs
+WALK_S = 16.0  # about 14 strides at 1.0 m/s
+
+
+def _call(base: str, method: str, path: str, body: dict[str, Any] | None = None) -> Any:
+    """A REST call from outside the browser (the experimenter's tooling); the JSON answer."""
+    data = None if body is None else json.dumps(body).encode()
+    req = urllib.request.Request(base + path, data=data, method=method, headers={"Content-Type": "application/json"})
+    try:
+        with urllib.request.urlopen(req, timeout=30) as resp:
+            return json.loads(resp.read() or b"null")
+    except urllib.error.HTTPError as e:
+        raise AssertionError(f"{method} {path}: {e.code} {e.read().decode(errors='replace')}") from None
+
+
+def _record(base: str, session_id: int, seconds: float, name: str) -> dict[str, Any]:
+    _call(base, "POST", f"/api/sessions/{session_id}/recording", {"action": "start", "name": name})
+    time.sleep(seconds)
+    trial: dict[str, Any] = _call(base, "POST", f"/api/sessions/{session_id}/recording", {"action": "stop"})
+    assert trial["status"] == "finished", trial
+    return trial
+
+
+@pytest.fixture(scope="module")
+def walks(server: str) -> Iterator[dict[str, Any]]:
+    """A subject with a running simulated session of theirs, which recorded a short and a calibration walk."""
+    subject = _call(server, "POST", "/api/subjects", {"code": "FP01", "leg_length_m": 0.9, "mass_kg": 70.0})
+    source = {
+        "kind": "simulated",
+        "rate_hz": 100.0,  # half the default: a lighter re-run, strides as good
+        "protocol": [{"speed_m_s": 1.0, "incline_deg": 0.0, "strides": 300}],
+    }
+    session = _call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
+    assert session["state"] == "running"
+    try:
+        short = _record(server, session["id"], SHORT_S, "standing start")
+        walk = _record(server, session["id"], WALK_S, "calibration walk")
+        assert walk["duration_s"] > WALK_S - 2, walk
+        yield {"subject": subject, "session": session, "short": short, "walk": walk}
+    finally:
+        _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+
+
+def _rmse(text: str | None) -> tuple[float, float]:
+    m = re.fullmatch(r"(\d+\.\d+) → (\d+\.\d+)", (text or "").strip())
+    assert m, f"not 'average → personal': {text!r}"
+    return float(m[1]), float(m[2])
+
+
+def test_calibrate_compare_promote_and_roll_back(
+    server: str, walks: dict[str, Any], watched: tb.Watched, tmp_path: Path
+) -> None:
+    page = watched.page
+    sid, session_id = walks["subject"]["id"], walks["session"]["id"]
+    short, walk = walks["short"], walks["walk"]
+    watched.allow_refusal(422, rf"/api/subjects/{sid}/fingerprints$")  # the short walk, refused on purpose
+    watched.allow_refusal(422, rf"/api/subjects/{sid}/fingerprints/import$")  # a tampered file
+
+    # --- from the sessions list to the subject's page ----------------------------------------------------
+    page.goto(f"{server}/#/")
+    page.get_by_test_id(f"subject-link-{sid}").first.click()
+    page.wait_for_url(re.compile(rf"#/subjects/{sid}$"))
+    expect(page.get_by_test_id("subject-title")).to_have_text("Subject FP01")
+    expect(page.get_by_test_id("subject-leg")).to_have_text("Leg length 0.90 m")
+    expect(page.get_by_test_id("subject-mass")).to_have_text("mass 70.0 kg")
+    expect(page.get_by_test_id("active-model")).to_contain_text("the average model is in use")
+    expect(page.get_by_test_id("versions-table")).to_contain_text("No personalized model yet")
+    expect(page.get_by_test_id("rollback")).to_be_disabled()
+
+    # --- where the subject sits: the training subjects, and the running session's online fingerprint ------
+    expect(page.get_by_test_id("fp-point-cohort")).to_have_count(10)
+    live = page.get_by_test_id("fp-point-live")
+    expect(live).to_have_count(1, timeout=20_000)
+    expect(page.get_by_test_id("fp-live-text")).to_contain_text(f"Live, session {session_id}")
+    first = live.get_attribute("data-g1")
+    expect(live).not_to_have_attribute("data-g1", first or "", timeout=10_000)  # it moves
+
+    # --- calibrate: the short walk refused with the server's reason, the long one fits a candidate ----------
+    calibrate = page.get_by_test_id("calibrate-submit")
+    page.get_by_test_id("calibrate-trial").select_option(str(short["id"]))
+    calibrate.click()
+    expect(page.get_by_test_id("calibrate-error")).to_contain_text("Not accepted: trial")
+    expect(page.get_by_test_id("calibrate-error")).to_contain_text("walk at least 8 steady strides")
+    expect(page.get_by_test_id("calibrate-error")).to_have_attribute("role", "alert")
+    expect(calibrate).to_be_enabled()
+
+    held: list[Any] = []  # the fit's request, held until the busy state has been seen (the page's polls pass)
+    fit_url = re.compile(rf"/api/subjects/{sid}/fingerprints$")
+    page.route(fit_url, lambda route: held.append(route) if route.request.method == "POST" else route.continue_())
+    page.get_by_test_id("calibrate-trial").select_option(str(walk["id"]))
+    page.get_by_test_id("calibrate-note").fill("E2E treadmill 1.0 m/s")
+    calibrate.click()
+    expect(calibrate).to_be_disabled()
+    expect(calibrate).to_have_text("Fitting…")
+    expect(page.get_by_test_id("calibrate-busy")).to_be_visible()
+    expect(page.get_by_test_id("calibrate-error")).to_be_hidden()
+    for _ in range(100):
+        if held:
+            break
+        page.wait_for_timeout(50)
+    assert len(held) == 1 and held[0].request.post_data_json == {
+        "trial_id": walk["id"],
+        "model": "default",
+        "actor": "clinician",
+        "note": "E2E treadmill 1.0 m/s",
+    }
+    held[0].continue_()
+    page.unroute(fit_url)
+    expect(page.get_by_test_id("calibrate-ok")).to_contain_text(f"Candidate v1 fitted from trial {walk['id']}")
+    expect(calibrate).to_have_text("Fit fingerprint")
+    expect(calibrate).to_be_enabled()
+    expect(page.get_by_test_id("calibrate-busy")).to_be_hidden()
+    row = page.get_by_test_id("version-row").and_(page.locator("[data-version='1']"))
+    expect(row).to_have_attribute("data-state", "candidate")
+    expect(row.get_by_test_id("version-state")).to_have_text("candidate")
+    expect(row).to_contain_text("E2E treadmill 1.0 m/s")
+    expect(row).to_contain_text(f"Trial {walk['id']}")
+    avg, personal = _rmse(row.get_by_test_id("version-rmse").text_content())
+    assert 0 < personal < avg
+    g = r"-?\d+\.\d\d"
+    expect(row.get_by_test_id("version-fingerprint")).to_have_text(re.compile(rf"^g1 {g} · g2 {g} · g3 {g}$"))
+    expect(page.get_by_test_id("fp-point-version")).to_have_attribute("data-state", "candidate")
+    listing = _call(server, "GET", f"/api/subjects/{sid}/fingerprints")
+    pid = listing["versions"][0]["id"]
+
+    # --- compare: the walk re-run with the average and the candidate's model, overlaid ---------------------
+    with page.expect_request(re.compile(rf"/api/trials/{walk['id']}/rerun\?max_points=2000$")) as rerun:
+        row.get_by_test_id("compare").click()
+    assert rerun.value.post_data_json == {"estimators": ["fp_avg", "fp_ls"], "personalization_id": pid}
+    compared = f"Trial {walk['id']} re-run with the average model and v1's fingerprint"
+    expect(page.get_by_test_id("compare-ok")).to_contain_text(compared)
+    for key in ("phase", "stride", "thigh"):
+        plot = page.get_by_test_id(f"compare-plot-{key}")
+        expect(plot.locator("canvas")).to_be_visible()
+        expect(plot.locator(".u-legend")).to_contain_text("average model")
+        expect(plot.locator(".u-legend")).to_contain_text("personalized v1")
+    expect(page.get_by_test_id("compare-plot-thigh").locator(".u-legend")).to_contain_text("measured")
+    expect(page.get_by_test_id("figure-rmse-avg")).to_have_text(f"{avg:.2f} deg")
+    expect(page.get_by_test_id("figure-rmse-personal")).to_contain_text(f"{personal:.2f} deg (")
+    expect(page.get_by_test_id("compare-error")).to_be_hidden()
+    tb.ARTIFACTS.mkdir(exist_ok=True)
+    page.screenshot(path=str(tb.ARTIFACTS / "subject.png"), full_page=True)
+
+    # --- promote, with the confirm step and a reason -----------------------------------------------------------
+    row.get_by_test_id("promote").click()
+    expect(page.get_by_test_id("confirm-text")).to_contain_text("Promote v1 (candidate")
+    page.get_by_test_id("change-reason").fill("tracks her thigh better")
+    page.get_by_test_id("confirm-apply").click()
+    expect(page.get_by_test_id("models-status")).to_have_text(
+        "v1 promoted by clinician (tracks her thigh better): it is FP01's model now."
+    )
+    expect(page.get_by_test_id("confirm")).to_be_hidden()
+    expect(row).to_have_attribute("data-state", "active")
+    expect(row.get_by_test_id("version-state")).to_have_text("ACTIVE")
+    expect(row.get_by_test_id("promote")).to_have_count(0)
+    expect(page.get_by_test_id("active-model")).to_contain_text("v1 is in use, promoted by clinician")
+    expect(page.get_by_test_id("fp-point-version")).to_have_attribute("data-state", "active")
+    events = [e["text"] for e in _call(server, "GET", f"/api/sessions/{session_id}/events")]
+    assert any("v1 promoted by clinician (tracks her thigh better)" in t for t in events), events
+
+    # --- roll back (as the experimenter): the average model again --------------------------------------------
+    page.get_by_test_id("actor").select_option("experimenter")
+    page.get_by_test_id("rollback").click()
+    expect(page.get_by_test_id("confirm-text")).to_contain_text("Roll back v1?")
+    page.get_by_test_id("confirm-apply").click()
+    expect(page.get_by_test_id("models-status")).to_have_text(
+        "v1 rolled back by experimenter: the average model is in use again."
+    )
+    expect(page.get_by_test_id("active-model")).to_contain_text("the average model is in use")
+    expect(row).to_have_attribute("data-state", "retired")
+    expect(page.get_by_test_id("rollback")).to_be_disabled()
+    assert _call(server, "GET", f"/api/subjects/{sid}/fingerprints")["active"] is None
+
+    # --- export, import: a tampered file refused with the server's reason, the export taken as v2 -------------
+    export = row.get_by_test_id("export")
+    expect(export).to_have_attribute("href", f"/api/subjects/{sid}/fingerprints/{pid}/export")
+    exported = _call(server, "GET", f"/api/subjects/{sid}/fingerprints/{pid}/export")
+    tampered = tmp_path / "tampered.json"
+    tampered.write_text(json.dumps({**exported, "model_sha256": "0" * 64}))
+    good = tmp_path / "FP01-fingerprint-v1.json"
+    good.write_text(json.dumps(exported))
+    page.get_by_text("Import a version exported from another gaitscope").click()
+    page.get_by_test_id("import-file").set_input_files(str(tampered))
+    page.get_by_test_id("import-submit").click()
+    expect(page.get_by_test_id("import-error")).to_contain_text("another version of model 'default'")
+    page.get_by_test_id("import-file").set_input_files(str(good))
+    page.get_by_test_id("import-submit").click()
+    expect(page.get_by_test_id("import-error")).to_be_hidden()
+    expect(page.get_by_test_id("models-status")).to_contain_text("Imported as candidate v2")
+    imported = page.get_by_test_id("version-row").and_(page.locator("[data-version='2']"))
+    expect(imported).to_have_attribute("data-state", "candidate")
+    expect(imported).to_contain_text("imported")
+    watched.check_clean()
