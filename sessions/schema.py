@@ -472,6 +472,8 @@ class Personalization(BaseModel):
     created_by: str
     promoted_utc: str | None = None
     promoted_by: str | None = None
+    retired_utc: str | None = Field(default=None, description="when another was promoted or it was rolled back")
+    retired_by: str | None = None
     note: str = ""
 
 

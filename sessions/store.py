@@ -149,6 +149,8 @@ class _PersonalizationRow(_Base):
     created_by: Mapped[str] = mapped_column(String(64))
     promoted_utc: Mapped[str | None] = mapped_column(String(40))
     promoted_by: Mapped[str | None] = mapped_column(String(64))
+    retired_utc: Mapped[str | None] = mapped_column(String(40))
+    retired_by: Mapped[str | None] = mapped_column(String(64))
     replaced_id: Mapped[int | None]  # the personalization that was active when this one was promoted
     note: Mapped[str] = mapped_column(Text)
 
@@ -649,7 +651,7 @@ class Store:
                 return _personalization(row)
             current = self._active_row(session, row.subject_id, row.model)
             if current is not None:
-                current.state = "retired"
+                current.state, current.retired_utc, current.retired_by = "retired", _stamp(), actor
             row.state, row.replaced_id = "active", None if current is None else current.id
             row.promoted_utc, row.promoted_by = _stamp(), actor
             session.flush()
@@ -665,10 +667,11 @@ class Store:
             current = self._active_row(session, subject_id, model)
             if current is None:
                 raise Conflict(f"subject {subject_id} has no active personalization of model {model!r} to roll back")
-            current.state = "retired"
+            current.state, current.retired_utc, current.retired_by = "retired", _stamp(), actor
             back = None if current.replaced_id is None else session.get(_PersonalizationRow, current.replaced_id)
             if back is not None:
                 back.state, back.promoted_utc, back.promoted_by = "active", _stamp(), actor
+                back.retired_utc = back.retired_by = None
             session.flush()
             return _personalization(current), None if back is None else _personalization(back)
 

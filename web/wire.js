@@ -454,6 +454,8 @@
  * @property {string} created_by
  * @property {string | null} [promoted_utc=null]
  * @property {string | null} [promoted_by=null]
+ * @property {string | null} [retired_utc=null] when another was promoted or it was rolled back
+ * @property {string | null} [retired_by=null]
  * @property {string} [note=""]
  */
 

@@ -96,6 +96,8 @@ def test_calibrate_compare_promote_and_roll_back(client: TestClient) -> None:
     # roll back: v1 again, then the average model, then nothing to roll back
     r = client.post(f"/api/subjects/{sid}/fingerprints/rollback", json={"actor": "dr-b", "reason": "worse"})
     assert r.status_code == 200 and r.json()["active"]["version"] == 1
+    v2_now = next(v for v in r.json()["versions"] if v["version"] == 2)
+    assert v2_now["state"] == "retired" and v2_now["retired_by"] == "dr-b" and v2_now["retired_utc"]
     r = client.post(f"/api/subjects/{sid}/fingerprints/rollback", json={})
     assert r.status_code == 200 and r.json()["active"] is None
     r = client.post(f"/api/subjects/{sid}/fingerprints/rollback", json={})
