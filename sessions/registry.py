@@ -24,6 +24,7 @@ import numpy as np
 from estimators.detector import HeelStrikeDetector
 from estimators.fingerprint import FingerprintEKF, Mode
 from estimators.heel_strike import HeelStrikeBackup
+from estimators.intent import IntentEstimator
 from estimators.phase_ekf_estimator import PhaseEKFEstimator
 from estimators.pipeline import PipelineConfig, TrainedModel
 from estimators.protocol import ANGLE_CHANNELS, Estimator, Output, output_names
@@ -100,6 +101,7 @@ ESTIMATORS: Final[dict[str, Callable[[StackContext], Estimator]]] = {
     "fp_avg": lambda c: _fingerprint_ekf(c, "avg"),
     "fp_ls": lambda c: _fingerprint_ekf(c, "ls"),
     "fp_gf": lambda c: _fingerprint_ekf(c, "gf"),
+    "intent": lambda c: IntentEstimator(c.leg_length),
 }
 
 
@@ -144,6 +146,7 @@ DECLARED: Final[dict[str, Declared]] = {
     "fp_gf": Declared(
         "Online fingerprint EKF (seed 004 GF)", _FP_INPUTS, (*_FP_OUTPUTS, ("g1", "deg"), ("g2", "deg"), ("g3", "deg"))
     ),
+    "intent": _declared("Speed-change intent (seed 001)", IntentEstimator),
 }
 
 

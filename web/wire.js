@@ -727,6 +727,17 @@ export const ESTIMATORS = deepFreeze({
     },
     opt_in: false,
   },
+  intent: {
+    label: "Speed-change intent (seed 001)",
+    outputs: {
+      desired_speed_m_s: "m/s",
+      intent_m_s: "m/s",
+      intent_code: "code",
+      intent_confidence: "1",
+      speed_m_s: "m/s",
+    },
+    opt_in: false,
+  },
 });
 
 /**

@@ -30,6 +30,7 @@ def test_each_registered_estimator_declares_what_it_is_built_as() -> None:
         "fp_avg": "Average thigh model (seed 004)",
         "fp_ls": "Personalized thigh model (seed 004 LS-GF)",
         "fp_gf": "Online fingerprint EKF (seed 004 GF)",
+        "intent": "Speed-change intent (seed 001)",
     }
 
 
@@ -56,7 +57,9 @@ def test_a_fingerprint_filter_the_session_cannot_build_is_left_out_or_refused_wi
 
 def test_feeds_counts_a_channel_an_earlier_estimator_derives() -> None:
     every = {"foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps", "thigh_angle_deg", HS}
-    assert feeds(every) == {n: Feed((), {}) for n in ESTIMATORS}
+    intent = set(DECLARED["intent"].inputs)
+    assert feeds(every | intent) == {n: Feed((), {}) for n in ESTIMATORS}
+    assert feeds(every)["intent"].missing == DECLARED["intent"].inputs
     # the foot angle alone: its velocity is differentiated, heel strikes come from the detector or the EKF
     foot = feeds({"foot_angle_deg"})
     assert foot["hs_detector"] == foot["phase_ekf"] == Feed((), {})

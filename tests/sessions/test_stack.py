@@ -63,9 +63,9 @@ def test_the_default_stack_is_every_estimator_the_channels_allow(small_model: Tr
     def names(channels: set[str] | None, asked: list[str] | None = None) -> list[str]:
         return [e.name for e in resolve(asked, channels, ctx)]
 
-    assert list(ESTIMATORS) == ["hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_ls", "fp_gf"]
+    assert list(ESTIMATORS) == ["hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_ls", "fp_gf", "intent"]
     # hs_backup is opt-in (OPT_IN); fp_ls needs the subject's calibrated fingerprint
-    assert names(None) == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf"]
+    assert names(None) == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "intent"]
     assert names({"foot_angle_deg", "thigh_angle_deg"}) == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf"]
     assert names(None, ["phase_ekf", "hs_backup"]) == ["phase_ekf", "hs_backup"]
     # a foot angle alone: its velocity is derived, heel strikes detected (the detector feeds the TBE)
@@ -85,7 +85,8 @@ def test_the_default_stack_keeps_the_gait_state_of_the_phase_ekf(small_model: Tr
     """The primary's outputs are the gait state; the other estimators change nothing of it."""
     full, est = _run(small_model, walk)
     alone, _ = _run(small_model, walk, estimators=["phase_ekf", "tbe"])
-    assert est.stack.names == ("hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf") and est.primary == "phase_ekf"
+    assert est.stack.names == ("hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "intent")
+    assert est.primary == "phase_ekf"
     for a, b in zip(full, alone, strict=True):
         assert a.model_dump() == b.model_dump()
     tbe = est.stack.outputs[2].index("phase")
