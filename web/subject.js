@@ -6,6 +6,7 @@
 
 import { api, ApiError, errorText, openSessionStream, query } from "./api.js";
 import { actorSelect } from "./controls.js";
+import { fingerprintScatter, gText } from "./fingerprint_plot.js";
 import { COLORS, Plot } from "./plots.js";
 import { errorBox, field, fmt, fmtUtc, h, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
@@ -19,7 +20,12 @@ const LIVE_RATE_HZ = 5; // the online fingerprint moves slowly: a few samples a 
 const RERUN_POINTS = 2000;
 const COLUMNS = ["Version", "State", "Calibration walk", "Fit RMSE (deg) average → personal", "Fingerprint (deg)", "Created, promoted", "Actions"];
 const USABLE = (t) => t.status !== "recording" && t.status !== "damaged";
-const SVG_NS = "http://www.w3.org/2000/svg";
+const WALK_DURATIONS_S = [20, 30, 60]; // "record a calibration walk now": 20 s is ~18 strides at 1 m/s, 8 are needed
+const WALK_DEFAULT_S = 30;
+const WALK_NAME = "calibration walk";
+const WALK_START = "Record a calibration walk now";
+const WALK_TICK_MS = 250;
+const WALK_CHECK_MS = 2000; // during a walk, how often its trial is asked whether it still records
 
 /** The comparison charts: each model's output (phase in % of the cycle), the measured thigh angle under its predictions. */
 const COMPARE = [
@@ -29,102 +35,213 @@ const COMPARE = [
 ];
 
 const actor = () => localStorage.getItem(ACTOR_KEY) || "clinician";
-const plural = (n, word) => `${n} ${word}${n === 1 ? "" : "s"}`;
-const gText = (g) => g.map((x, i) => `g${i + 1} ${fmt(x, 2)}`).join(" · ");
 const trialLabel = (t) => `Trial ${t.id}${t.name ? ` · ${t.name}` : ""} · ${fmt(t.duration_s, 1)} s · ${fmtUtc(t.started_utc)}`;
 const excludedText = (v) => Object.entries(v.excluded).map(([why, n]) => `${n} ${why}`).join("; ");
 const rmseText = (v) => `${fmt(v.fit_rmse_avg_deg, 2)} → ${fmt(v.fit_rmse_personal_deg, 2)}`;
 
-/** An SVG element (`h` builds HTML ones). */
-function svg(tag, attrs = {}, ...children) {
-  const el = document.createElementNS(SVG_NS, tag);
-  for (const [k, v] of Object.entries(attrs)) if (v !== null && v !== undefined) el.setAttribute(k, String(v));
-  for (const c of children.flat(Infinity)) if (c !== null && c !== undefined) el.append(c);
-  return el;
-}
-
-/** About `n` round tick values covering [lo, hi]. */
-function ticks(lo, hi, n = 5) {
-  const raw = (hi - lo) / n;
-  const mag = 10 ** Math.floor(Math.log10(raw));
-  const step = [1, 2, 5, 10].map((m) => m * mag).find((s) => s >= raw);
-  const out = [];
-  for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) out.push(Math.round(v / step) * step);
-  return out;
-}
-
 /**
- * "Where the subject sits": g1 against g2 of the training subjects (labelled), the subject's versions (the
- * active one ringed) and the live online fingerprint. Redrawn whole: a few dozen elements.
+ * "Record a calibration walk now" on a running session of the subject: a new trial, stopped after the chosen
+ * duration and handed to `onRecorded` (the Fit flow). Cancel stops it and fits nothing, as does `stop()` (the
+ * page going); the session ending or another screen stopping the recording cuts it short (`onCut`).
+ *
+ * A session has one recording switch (`POST /api/sessions/{id}/recording`, sessions/live/runtime.py): "start"
+ * while a trial records returns that trial, "stop" stops whichever records, and a session records "trial 1"
+ * from its start. So a recording under way is finished (and kept) first, a start that returns an older trial
+ * is refused, and the walk is stopped only while its own trial still records.
+ *
+ * @param {{errorEl: HTMLElement, okEl: HTMLElement, onBusy: (busy: boolean) => void,
+ *   onRecorded: (trial: object) => Promise<void>, onCut: (trial: object) => Promise<void>}} hooks
+ * @returns {{el: HTMLElement, update: (props: {session: number | null, recording: object | null, enabled: boolean}) => void,
+ *   stop: () => void}}
  */
-function scatter(fps, code, live) {
-  const W = 520;
-  const H = 380;
-  const M = { l: 56, r: 20, t: 16, b: 50 };
-  const g12 = (f) => [f[0] ?? 0, f[1] ?? 0];
-  const pts = [
-    ...fps.cohort.map((c) => ({ kind: "cohort", label: c.code, g: g12(c.fingerprint) })),
-    ...fps.versions.map((v) => ({ kind: v.state, label: `v${v.version}`, g: g12(v.fingerprint), v })),
-    ...(live && live.g ? [{ kind: "live", label: "live", g: g12(live.g) }] : []),
-  ];
-  const span = (i) => {
-    const xs = pts.map((p) => p.g[i]);
-    const [lo, hi] = [Math.min(0, ...xs), Math.max(0, ...xs)];
-    const pad = Math.max((hi - lo) * 0.1, 0.5);
-    return [lo - pad, hi + pad];
+function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
+  const duration = h("select", { id: "walk-duration", "data-testid": "walk-duration" },
+    ...WALK_DURATIONS_S.map((sec) => h("option", { value: String(sec), text: `${sec} s` })));
+  duration.value = String(WALK_DEFAULT_S);
+  const startBtn = h("button", { type: "button", class: "primary", "data-testid": "walk-start", text: WALK_START });
+  const fill = h("div", { class: "meter-fill" });
+  const bar = h("div", { class: "meter", role: "progressbar", "aria-label": "Calibration walk recorded", "aria-valuemin": 0,
+    "data-testid": "walk-bar" }, fill);
+  const left = h("span", { class: "walk-left", "data-testid": "walk-left" });
+  const cancelBtn = h("button", { type: "button", "data-testid": "walk-cancel", text: "Cancel" });
+  const note = h("p", { id: "walk-note", class: "hint", "data-testid": "walk-note" });
+  const controls = h("div", { class: "inline" }, field("Walk duration", duration), startBtn);
+  const progress = h("div", { class: "walk-progress", "data-testid": "walk-progress", hidden: true }, bar,
+    h("div", { class: "walk-row" }, left, cancelBtn));
+  const el = h("div", { class: "walk", role: "group", "aria-labelledby": "walk-title walk-note", "data-testid": "walk" },
+    h("h3", { id: "walk-title", text: "Or walk now, on the running session" }), note, controls, progress);
+  let props = { session: null, recording: null, enabled: false };
+  let w = null; // the walk under way: {sid, seconds, trial, t0, checked, ending}
+  let timer = 0;
+  let alive = true;
+  const recording = (sid, action) => api("POST", `/api/sessions/${sid}/recording`, action === "start" ? { action, name: WALK_NAME } : { action });
+  const elapsed = () => (performance.now() - w.t0) / 1000;
+
+  function render() {
+    if (w) return; // a walk under way keeps its own text
+    const { session, recording: rec, enabled } = props;
+    controls.hidden = session === null;
+    startBtn.disabled = !enabled;
+    duration.disabled = false;
+    note.textContent = session === null ? "No session of this subject is running: start one to record a calibration walk from it."
+      : `Session ${session} is running: record a walk on it as a new trial, fitted as soon as it ends.`
+        + (rec ? ` It is recording “${rec.name}” (trial ${rec.id}): that recording is finished, and kept, when the walk starts.` : "");
+  }
+
+  function show(t) {
+    const n = Math.min(Math.floor(t), w.seconds);
+    fill.style.width = `${Math.min(100, (100 * t) / w.seconds)}%`;
+    if (bar.getAttribute("aria-valuenow") === String(n)) return;
+    bar.setAttribute("aria-valuenow", String(n));
+    bar.setAttribute("aria-valuetext", `${n} s of ${w.seconds} s`);
+    left.textContent = `${n} s of ${w.seconds} s · ${w.seconds - n} s left`;
+  }
+
+  function done() {
+    w = null;
+    clearInterval(timer);
+    removeEventListener("pagehide", onPageHide);
+    progress.hidden = true;
+    cancelBtn.disabled = false;
+    startBtn.textContent = WALK_START;
+    onBusy(false);
+    render();
+  }
+
+  /** Stops the walk's trial if it still records; the stopped trial, or null when it no longer recorded. */
+  async function stopOwn(walk) {
+    const t = await api("GET", `/api/trials/${walk.trial.id}`);
+    if (t.status !== "recording") return null;
+    try {
+      return await recording(walk.sid, "stop");
+    } catch (err) {
+      // 409: "session N is not running" (it ended meanwhile) or "is not recording" (stopped on another screen)
+      if (err instanceof ApiError && err.status === 409) return null;
+      throw err;
+    }
+  }
+
+  // Closing or reloading the tab unmounts nothing: one blind stop that outlives the page (`keepalive`).
+  function onPageHide() {
+    if (w && w.trial && !w.ending) {
+      fetch(`/api/sessions/${w.sid}/recording`, { method: "POST", keepalive: true, headers: { "Content-Type": "application/json" },
+        body: JSON.stringify({ action: "stop" }) }).catch(() => {});
+    }
+  }
+
+  startBtn.addEventListener("click", async () => {
+    if (w || props.session === null) return;
+    const walk = (w = { sid: props.session, seconds: Number(duration.value), trial: null, t0: 0, checked: 0, ending: false });
+    showError(errorEl, null);
+    okEl.textContent = "";
+    startBtn.disabled = true;
+    duration.disabled = true;
+    startBtn.textContent = "Starting…";
+    onBusy(true);
+    try {
+      const before = await api("GET", `/api/trials${query({ session_id: walk.sid })}`);
+      if (!alive) return;
+      if (before.some((t) => t.status === "recording")) {
+        await recording(walk.sid, "stop").catch((err) => {
+          if (!(err instanceof ApiError && err.status === 409)) throw err; // already stopped: the start says if the session ended
+        });
+      }
+      if (!alive) return;
+      walk.trial = await recording(walk.sid, "start");
+      if (before.some((t) => t.id === walk.trial.id)) {
+        walk.trial = null; // not this walk's: left alone
+        throw new ValidationError(`Another screen is recording on session ${walk.sid}: nothing was started. Try again when it stops.`);
+      }
+      if (!alive) {
+        stopOwn(walk).catch(() => {});
+        return;
+      }
+      walk.t0 = performance.now();
+      note.textContent = `Recording trial ${walk.trial.id} (“${walk.trial.name}”) on session ${walk.sid}: the subject walks steadily until the bar is full.`;
+      bar.setAttribute("aria-valuemax", String(walk.seconds));
+      bar.removeAttribute("aria-valuenow");
+      show(0);
+      controls.hidden = true;
+      progress.hidden = false;
+      cancelBtn.focus();
+      addEventListener("pagehide", onPageHide);
+      timer = setInterval(tick, WALK_TICK_MS);
+    } catch (err) {
+      if (!alive) return;
+      showError(errorEl, err);
+      done();
+    }
+  });
+
+  function tick() {
+    if (!w || w.ending) return;
+    const t = elapsed();
+    show(t);
+    if (t >= w.seconds) finish("done");
+    else if (performance.now() - w.checked > WALK_CHECK_MS) {
+      const walk = w;
+      walk.checked = performance.now();
+      api("GET", `/api/trials/${walk.trial.id}`).then((tr) => {
+        if (tr.status !== "recording" && w === walk) finish("cut");
+      }, () => {}); // unreachable for a moment: the next check, or the stop, tells
+    }
+  }
+
+  cancelBtn.addEventListener("click", () => finish("cancel"));
+
+  async function finish(how) {
+    const walk = w;
+    if (!walk || walk.ending) return;
+    walk.ending = true;
+    clearInterval(timer);
+    cancelBtn.disabled = true;
+    const secs = Math.min(walk.seconds, Math.round(elapsed()));
+    let recorded = null;
+    try {
+      const trial = how === "cut" ? null : await stopOwn(walk);
+      if (!alive) return;
+      if (trial === null) { // cut short: say by what, and offer what was recorded
+        const [t, s] = await Promise.all([api("GET", `/api/trials/${walk.trial.id}`), api("GET", `/api/sessions/${walk.sid}`)]);
+        if (!alive) return;
+        const why = s.state === "running" ? "its recording was stopped on another screen" : `session ${walk.sid} ${s.state === "failed" ? "failed" : "ended"}`;
+        await onCut(t);
+        throw new ValidationError(`The calibration walk was cut short after ${secs} s of ${walk.seconds} s: ${why}. Nothing was fitted; `
+          + `what was recorded is kept as trial ${t.id} (${fmt(t.duration_s, 1)} s): fit it above if the walk was steady.`);
+      }
+      if (how === "cancel") okEl.textContent = `Calibration walk cancelled after ${secs} s: its recording stopped (kept as trial ${trial.id}); nothing was fitted.`;
+      else recorded = trial;
+    } catch (err) {
+      if (alive) showError(errorEl, err);
+    }
+    if (!alive) return;
+    done();
+    if (recorded) await onRecorded(recorded);
+  }
+
+  render();
+  return {
+    el,
+    update(next) {
+      props = next;
+      render();
+    },
+    /** The page goes: a walk under way is stopped (best effort, nothing shown). */
+    stop() {
+      alive = false;
+      clearInterval(timer);
+      removeEventListener("pagehide", onPageHide);
+      if (w && w.trial && !w.ending) {
+        w.ending = true;
+        stopOwn(w).catch(() => {});
+      }
+    },
   };
-  const [x0, x1] = span(0);
-  const [y0, y1] = span(1);
-  const tickText = (v) => fmt(v, Number.isInteger(v) ? 0 : 1);
-  const X = (x) => M.l + ((x - x0) / (x1 - x0)) * (W - M.l - M.r);
-  const Y = (y) => H - M.b - ((y - y0) / (y1 - y0)) * (H - M.t - M.b);
-  const grid = [
-    ...ticks(x0, x1).map((v) => [svg("line", { x1: X(v), x2: X(v), y1: M.t, y2: H - M.b, class: v === 0 ? "axis-zero" : "grid" }),
-      svg("text", { x: X(v), y: H - M.b + 18, "text-anchor": "middle", class: "tick" }, tickText(v))]),
-    ...ticks(y0, y1).map((v) => [svg("line", { x1: M.l, x2: W - M.r, y1: Y(v), y2: Y(v), class: v === 0 ? "axis-zero" : "grid" }),
-      svg("text", { x: M.l - 8, y: Y(v) + 5, "text-anchor": "end", class: "tick" }, tickText(v))]),
-    svg("text", { x: (M.l + W - M.r) / 2, y: H - 8, "text-anchor": "middle", class: "axis-label" }, "g1 (deg)"),
-    svg("text", { x: 16, y: (M.t + H - M.b) / 2, "text-anchor": "middle", class: "axis-label",
-      transform: `rotate(-90 16 ${(M.t + H - M.b) / 2})` }, "g2 (deg)"),
-  ];
-  // The cohort's labels right of their dots, the subject's left of theirs (a version sits near its training
-  // subject); a label overlapping one already placed moves down a line, so versions at one spot stay readable.
-  const placed = [];
-  const labelAt = (right, x, y, text) => {
-    const w = 7.5 * text.length;
-    const [a, b] = right ? [x, x + w] : [x - w, x];
-    while (placed.some((q) => a < q.b && q.a < b && Math.abs(q.y - y) < 14)) y += 15;
-    placed.push({ a, b, y });
-    return svg("text", { x, y, "text-anchor": right ? "start" : "end", class: "pt-label" }, text);
-  };
-  const mark = (p) => {
-    const [cx, cy] = [X(p.g[0]), Y(p.g[1])];
-    const title = svg("title", {}, p.kind === "cohort" ? `training subject ${p.label}: ${gText(p.g)}`
-      : p.kind === "live" ? `live online fingerprint: ${gText(live.g)}` : `${code} ${p.label} (${p.kind}): ${gText(p.v.fingerprint)}`);
-    const attrs = p.kind === "cohort" ? { "data-testid": "fp-point-cohort", "data-code": p.label }
-      : p.kind === "live" ? { "data-testid": "fp-point-live", "data-g1": p.g[0], "data-g2": p.g[1] }
-        : { "data-testid": "fp-point-version", "data-version": p.v.version, "data-state": p.kind };
-    const r = { cohort: 5, retired: 6, candidate: 7, active: 9, live: 8 }[p.kind];
-    const label = p.kind === "active" ? `${p.label} active` : p.label;
-    return svg("g", { class: `pt pt-${p.kind}`, ...attrs }, title,
-      p.kind === "active" || p.kind === "live" ? svg("circle", { cx, cy, r: r + 5, class: "halo" }) : null,
-      svg("circle", { cx, cy, r }), p.kind === "cohort" || p.kind === "live"
-        ? labelAt(true, cx + r + 4, cy + 5, label) : labelAt(false, cx - r - 4, cy + 5, label));
-  };
-  const active = fps.active;
-  const summary = `Fingerprints g1 against g2: ${plural(fps.cohort.length, "training subject")}, `
-    + `${plural(fps.versions.length, `version`)} of ${code}${active ? ` (v${active.version} active at ${gText(active.fingerprint.slice(0, 2))})` : ""}`
-    + `${live && live.g ? `, live online fingerprint at ${gText(live.g.slice(0, 2))}` : ""}.`;
-  // labels placed active first (it keeps its place), marks drawn active last (on top)
-  const rank = { active: 0, live: 1, candidate: 2, retired: 3 };
-  const own = pts.filter((p) => p.kind !== "cohort").sort((a, b) => rank[a.kind] - rank[b.kind]).map(mark);
-  return svg("svg", { viewBox: `0 0 ${W} ${H}`, role: "img", "aria-label": summary, "data-testid": "fp-scatter", class: "fp-svg" },
-    grid, pts.filter((p) => p.kind === "cohort").map(mark), own.reverse());
 }
 
 export function mountSubject(root, subjectId) {
   const st = { subject: null, fps: null, fpsSig: null, sessions: [], trialsBySession: new Map(), trials: [], trialsSig: null,
-    live: null, stream: null, streamSession: null, pending: null, plots: null, fitting: false, comparing: false, alive: true };
+    live: null, stream: null, streamSession: null, pending: null, plots: null, fitting: false, walking: false, comparing: false,
+    alive: true };
   const base = `/api/subjects/${subjectId}/fingerprints`;
   const code = () => (st.subject ? st.subject.code : `subject ${subjectId}`);
 
@@ -170,10 +287,20 @@ export function mountSubject(root, subjectId) {
     h("progress", { "aria-label": "Fitting the fingerprint" }), h("span", { class: "hint", text: "Fitting the fingerprint on the walk's strides…" }));
   const calError = errorBox("calibrate-error");
   const calOk = h("p", { class: "ok", role: "status", "data-testid": "calibrate-ok" });
+  const walk = calibrationWalk({ errorEl: calError, okEl: calOk,
+    onBusy(busy) {
+      st.walking = busy;
+      syncCalibrate();
+    },
+    async onRecorded(trial) {
+      await chooseTrial(trial);
+      await fit(trial.id);
+    },
+    onCut: chooseTrial });
   const calCard = h("section", { class: "card", "data-testid": "calibrate-card" }, h("h2", { text: "Calibrate" }),
     h("p", { class: "hint", text: "A steady walk of at least 8 strides (about 10 s) with a thigh sensor. The fit is stored as a "
       + "candidate: nothing runs it until it is promoted." }),
-    field("Calibration walk", calTrial), field("Note (optional)", calNote), h("div", { class: "buttons" }, calBtn), calBusy, calError, calOk);
+    field("Calibration walk", calTrial), field("Note (optional)", calNote), h("div", { class: "buttons" }, calBtn), walk.el, calBusy, calError, calOk);
 
   // --- where the subject sits -----------------------------------------------------------------------
   const scatterBox = h("div", { class: "fp-scatter" });
@@ -243,7 +370,7 @@ export function mountSubject(root, subjectId) {
       : h("span", {}, h("span", { class: "badge badge-average", text: "AVERAGE MODEL" }),
         " No personalized model is active: the average model is in use."));
     rollbackBtn.disabled = !a;
-    calBtn.disabled = st.fitting || !fps.components;
+    syncCalibrate();
     versionsBody.replaceChildren(...(fps.versions.length ? fps.versions.map(versionRow)
       : [h("tr", {}, h("td", { colspan: COLUMNS.length, class: "empty", text: "No personalized model yet: calibrate one from a walk below." }))]));
     const keep = cmpVersion.value;
@@ -261,7 +388,7 @@ export function mountSubject(root, subjectId) {
       scatterBox.replaceChildren(h("p", { class: "hint", text: "The model has no fingerprint map: there is nothing to place the subject in." }));
       return;
     }
-    scatterBox.replaceChildren(scatter(fps, code(), st.live));
+    scatterBox.replaceChildren(fingerprintScatter(fps, code(), st.live));
   }
 
   function renderLive() {
@@ -310,6 +437,7 @@ export function mountSubject(root, subjectId) {
     st.trials = [...st.trialsBySession.values()].flat().filter(USABLE).sort((a, b) => b.id - a.id);
     fillTrialSelects();
     followLive();
+    syncCalibrate();
   }
 
   async function refresh() {
@@ -367,14 +495,15 @@ export function mountSubject(root, subjectId) {
   }
 
   // --- calibrate --------------------------------------------------------------------------------------------
-  calBtn.addEventListener("click", () => {
+  /** The Fit flow, from the walk chosen or just recorded: a candidate, or the server's reason (a 422) why not. */
+  async function fit(trialId) {
     calOk.textContent = "";
     calBtn.textContent = "Fitting…";
     calBusy.hidden = false;
     calCard.setAttribute("aria-busy", "true");
     st.fitting = true;
-    runAction(calBtn, calError, async () => {
-      const trialId = Number(calTrial.value);
+    syncCalibrate();
+    await runAction(calBtn, calError, async () => {
       if (!trialId) throw new ValidationError("Choose the walk to calibrate from.");
       const p = await api("POST", base, { trial_id: trialId, model: st.fps ? st.fps.model : "default", actor: actor(), note: calNote.value.trim() });
       if (!st.alive) return;
@@ -384,14 +513,34 @@ export function mountSubject(root, subjectId) {
         + `fit RMSE ${rmseText(p)} deg. Compare it with the average model, then promote it.`;
       await loadModels();
       cmpVersion.value = String(p.id);
-    }).finally(() => {
-      st.fitting = false;
-      calBtn.textContent = "Fit fingerprint";
-      calBusy.hidden = true;
-      calCard.removeAttribute("aria-busy");
-      if (st.fps) calBtn.disabled = !st.fps.components;
     });
-  });
+    st.fitting = false;
+    calBtn.textContent = "Fit fingerprint";
+    calBusy.hidden = true;
+    calCard.removeAttribute("aria-busy");
+    syncCalibrate();
+  }
+
+  calBtn.addEventListener("click", () => fit(Number(calTrial.value)));
+
+  /** The Fit button and the walk: one at a time, and only with a model that has a fingerprint map. */
+  function syncCalibrate() {
+    const can = !!(st.fps && st.fps.components);
+    if (!st.fitting) calBtn.disabled = st.walking || !can; // while fitting, runAction holds it
+    const sid = st.streamSession;
+    const rec = sid === null ? null : (st.trialsBySession.get(sid) || []).find((t) => t.status === "recording") || null;
+    walk.update({ session: sid, recording: rec, enabled: can && !st.fitting });
+  }
+
+  /** A walk just recorded (or cut short) chosen in the list, once the list has it. */
+  async function chooseTrial(trial) {
+    try {
+      await loadTrials();
+    } catch {
+      return; // the list catches up at the next refresh
+    }
+    if (st.alive && st.trials.some((t) => t.id === trial.id)) calTrial.value = String(trial.id);
+  }
 
   // --- compare ----------------------------------------------------------------------------------------------
   function drawCompare(v, res) {
@@ -543,6 +692,7 @@ export function mountSubject(root, subjectId) {
     unmount() {
       st.alive = false;
       clearInterval(timer);
+      walk.stop();
       closeStream();
       if (st.plots) for (const p of st.plots) p.destroy();
     },

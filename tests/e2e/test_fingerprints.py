@@ -6,7 +6,9 @@ the simulated sensors send every channel, the thigh angle included) records, thr
 3 s (too few strides) and one of 16 s (about 14 strides). The session keeps running, so the page shows its
 live online fingerprint. In the browser: the short walk is refused with the server's reason, the long one
 fits a candidate, which is compared with the average model (both re-run and overlaid), promoted, rolled back
-to the average model; an export is imported (and a tampered one refused). The fixtures are
+to the average model; an export is imported (and a tampered one refused). Then a calibration walk is recorded
+from the page itself ("record a calibration walk now"): cancelled, abandoned by leaving the page, walked to the
+end and fitted, and cut short by the session ending (the module's last step). The fixtures are
 ``test_browser.py``'s (the same server, browser and console watch); a screenshot goes to
 ``tests/e2e/artifacts/subject.png``.
 """
@@ -75,7 +77,14 @@ def walks(server: str) -> Iterator[dict[str, Any]]:
         assert walk["duration_s"] > WALK_S - 2, walk
         yield {"subject": subject, "session": session, "short": short, "walk": walk}
     finally:
-        _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+        if _call(server, "GET", f"/api/sessions/{session['id']}")["state"] == "running":  # the last test stops it
+            _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+
+
+def _recording(base: str, session_id: int) -> list[dict[str, Any]]:
+    """The session's trials still recording."""
+    trials: list[dict[str, Any]] = _call(base, "GET", f"/api/trials?session_id={session_id}")
+    return [t for t in trials if t["status"] == "recording"]
 
 
 def _rmse(text: str | None) -> tuple[float, float]:
@@ -227,4 +236,92 @@ def test_calibrate_compare_promote_and_roll_back(
     imported = page.get_by_test_id("version-row").and_(page.locator("[data-version='2']"))
     expect(imported).to_have_attribute("data-state", "candidate")
     expect(imported).to_contain_text("imported")
+    watched.check_clean()
+
+
+def test_record_a_calibration_walk_now(server: str, walks: dict[str, Any], watched: tb.Watched) -> None:
+    """The Calibrate card's walk on the running session: it finishes a recording under way (another screen's),
+    shows its progress, stops on Cancel and when the page goes, fits a candidate at its end, and says so when
+    the session ends during a walk. Runs after the test above (v1 retired, v2 imported): this walk is v3."""
+    page = watched.page
+    sid, session_id = walks["subject"]["id"], walks["session"]["id"]
+    recording = f"/api/sessions/{session_id}/recording"
+    other = _call(server, "POST", recording, {"action": "start", "name": "other screen"})
+    page.goto(f"{server}/#/subjects/{sid}")
+    note = page.get_by_test_id("walk-note")
+    expect(note).to_contain_text(f"Session {session_id} is running")
+    expect(note).to_contain_text(f"It is recording “other screen” (trial {other['id']})")
+    duration = page.get_by_test_id("walk-duration")
+    expect(duration).to_have_value("30")
+    assert duration.locator("option").all_text_contents() == ["20 s", "30 s", "60 s"]
+    duration.select_option("20")
+    start = page.get_by_role("button", name="Record a calibration walk now")
+    bar = page.get_by_role("progressbar", name="Calibration walk recorded")
+    left = page.get_by_test_id("walk-left")
+
+    def walk_started() -> dict[str, Any]:
+        """A click on the button: the walk's trial recording, its bar moving; the trial."""
+        start.click()
+        expect(bar).to_have_attribute("aria-valuemax", "20")
+        expect(bar).to_have_attribute("aria-valuenow", re.compile(r"^([1-9]|1\d)$"))  # a second or more
+        expect(left).to_have_text(re.compile(r"^\d+ s of 20 s · \d+ s left$"))
+        (trial,) = _recording(server, session_id)
+        assert trial["name"] == "calibration walk" and trial["id"] > other["id"], trial
+        return trial
+
+    # --- Cancel: the other screen's recording was finished (and kept), this one stopped, nothing fitted ---------
+    cancelled = walk_started()
+    assert _call(server, "GET", f"/api/trials/{other['id']}")["status"] == "finished"
+    expect(note).to_contain_text(f"Recording trial {cancelled['id']} (“calibration walk”) on session {session_id}")
+    expect(page.get_by_test_id("calibrate-submit")).to_be_disabled()  # one calibration at a time
+    page.get_by_test_id("walk-cancel").click()
+    expect(page.get_by_test_id("calibrate-ok")).to_contain_text(
+        f"its recording stopped (kept as trial {cancelled['id']}); nothing was fitted"
+    )
+    expect(bar).to_be_hidden()
+    expect(start).to_be_enabled()
+    assert _recording(server, session_id) == []
+    assert _call(server, "GET", f"/api/trials/{cancelled['id']}")["status"] == "finished"
+    assert len(_call(server, "GET", f"/api/subjects/{sid}/fingerprints")["versions"]) == 2
+
+    # --- leaving the page mid-walk stops the recording -------------------------------------------------------
+    walk_started()
+    page.get_by_role("link", name="← Sessions").click()
+    page.wait_for_url(re.compile(r"#/$"))
+    for _ in range(50):
+        if not _recording(server, session_id):
+            break
+        page.wait_for_timeout(100)
+    assert _recording(server, session_id) == [], "the walk still records after the page went"
+
+    # --- a walk to its end: the bar fills, the walk is fitted at once ------------------------------------------
+    page.goto(f"{server}/#/subjects/{sid}")
+    page.get_by_test_id("calibrate-note").fill("walked now")
+    expect(note).to_contain_text(f"Session {session_id} is running")
+    duration.select_option("20")
+    walked = walk_started()
+    expect(bar).to_have_attribute("aria-valuenow", re.compile(r"^1\d$"), timeout=15_000)  # ten seconds or more
+    ok = page.get_by_test_id("calibrate-ok")
+    expect(ok).to_contain_text(f"Candidate v3 fitted from trial {walked['id']}", timeout=20_000)
+    expect(page.get_by_test_id("calibrate-error")).to_be_hidden()
+    expect(bar).to_be_hidden()
+    expect(page.get_by_test_id("calibrate-trial")).to_have_value(str(walked["id"]))
+    row = page.get_by_test_id("version-row").and_(page.locator("[data-version='3']"))
+    expect(row).to_have_attribute("data-state", "candidate")
+    expect(row).to_contain_text(f"Trial {walked['id']}")
+    expect(row).to_contain_text("walked now")
+    trial = _call(server, "GET", f"/api/trials/{walked['id']}")
+    assert trial["status"] == "finished" and 19.0 < trial["duration_s"] < 23.0, trial
+    assert _recording(server, session_id) == []
+
+    # --- the session ends during a walk: said, what was recorded offered, nothing fitted (the module's end) ----
+    cut = walk_started()
+    _call(server, "POST", f"/api/sessions/{session_id}/stop")
+    error = page.get_by_test_id("calibrate-error")
+    expect(error).to_contain_text("The calibration walk was cut short after")
+    expect(error).to_contain_text(f"session {session_id} ended. Nothing was fitted")
+    expect(error).to_contain_text(f"kept as trial {cut['id']}")
+    expect(page.get_by_test_id("calibrate-trial")).to_have_value(str(cut["id"]))
+    expect(bar).to_be_hidden()
+    assert len(_call(server, "GET", f"/api/subjects/{sid}/fingerprints")["versions"]) == 3
     watched.check_clean()
