@@ -1,8 +1,8 @@
 // Subject page (`#/subjects/{id}`): the subject's personalized gait models (seed 004's fingerprints,
-// docs/dashboard.md). The versions and which one runs; calibrating a candidate from one of their trials;
-// comparing a version with the average model on a re-run; promoting and rolling back; export and import;
-// and where the subject sits among the training subjects, with the live online fingerprint (`fp_gf`) of
-// a running session of theirs.
+// docs/dashboard.md). The versions and which one runs; calibrating a candidate from one of their trials, or
+// from a walk recorded now on a running session of theirs; comparing a version with the average model on a
+// re-run; promoting and rolling back; export and import; and where the subject sits among the training
+// subjects (fingerprint_plot.js), with the live online fingerprint (`fp_gf`) of a running session of theirs.
 
 import { api, ApiError, errorText, openSessionStream, query } from "./api.js";
 import { actorSelect } from "./controls.js";
@@ -69,7 +69,7 @@ function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
   const progress = h("div", { class: "walk-progress", "data-testid": "walk-progress", hidden: true }, bar,
     h("div", { class: "walk-row" }, left, cancelBtn));
   const el = h("div", { class: "walk", role: "group", "aria-labelledby": "walk-title walk-note", "data-testid": "walk" },
-    h("h3", { id: "walk-title", text: "Or walk now, on the running session" }), note, controls, progress);
+    h("h3", { id: "walk-title", text: "Or record the walk now" }), note, controls, progress);
   let props = { session: null, recording: null, enabled: false };
   let w = null; // the walk under way: {sid, seconds, trial, t0, checked, ending}
   let timer = 0;
@@ -98,14 +98,16 @@ function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
   }
 
   function done() {
+    const focused = progress.contains(document.activeElement); // Cancel, about to be hidden
     w = null;
     clearInterval(timer);
-    removeEventListener("pagehide", onPageHide);
+    window.removeEventListener("pagehide", onPageHide);
     progress.hidden = true;
     cancelBtn.disabled = false;
     startBtn.textContent = WALK_START;
     onBusy(false);
     render();
+    if (focused) duration.focus();
   }
 
   /** Stops the walk's trial if it still records; the stopped trial, or null when it no longer recorded. */
@@ -164,7 +166,7 @@ function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
       controls.hidden = true;
       progress.hidden = false;
       cancelBtn.focus();
-      addEventListener("pagehide", onPageHide);
+      window.addEventListener("pagehide", onPageHide);
       timer = setInterval(tick, WALK_TICK_MS);
     } catch (err) {
       if (!alive) return;
@@ -198,15 +200,21 @@ function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
     const secs = Math.min(walk.seconds, Math.round(elapsed()));
     let recorded = null;
     try {
-      const trial = how === "cut" ? null : await stopOwn(walk);
+      let trial = null;
+      try {
+        trial = how === "cut" ? null : await stopOwn(walk);
+      } catch (err) {
+        throw new Error(`The calibration walk's recording could not be stopped (${errorText(err)}): it may still be recording. `
+          + `Stop it in session ${walk.sid}'s live view.`);
+      }
       if (!alive) return;
       if (trial === null) { // cut short: say by what, and offer what was recorded
         const [t, s] = await Promise.all([api("GET", `/api/trials/${walk.trial.id}`), api("GET", `/api/sessions/${walk.sid}`)]);
         if (!alive) return;
         const why = s.state === "running" ? "its recording was stopped on another screen" : `session ${walk.sid} ${s.state === "failed" ? "failed" : "ended"}`;
         await onCut(t);
-        throw new ValidationError(`The calibration walk was cut short after ${secs} s of ${walk.seconds} s: ${why}. Nothing was fitted; `
-          + `what was recorded is kept as trial ${t.id} (${fmt(t.duration_s, 1)} s): fit it above if the walk was steady.`);
+        throw new ValidationError(`The calibration walk was cut short (${fmt(t.duration_s, 1)} s of ${walk.seconds} s recorded): ${why}. `
+          + `Nothing was fitted; what was recorded is kept as trial ${t.id}: fit it above if the walk was steady.`);
       }
       if (how === "cancel") okEl.textContent = `Calibration walk cancelled after ${secs} s: its recording stopped (kept as trial ${trial.id}); nothing was fitted.`;
       else recorded = trial;
@@ -229,7 +237,7 @@ function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
     stop() {
       alive = false;
       clearInterval(timer);
-      removeEventListener("pagehide", onPageHide);
+      window.removeEventListener("pagehide", onPageHide);
       if (w && w.trial && !w.ending) {
         w.ending = true;
         stopOwn(w).catch(() => {});
