@@ -291,6 +291,22 @@ class DeviceSource(_Strict):
 
     kind: Literal["device"] = "device"
     rate_hz: float = Field(default=200.0, ge=1.0, le=2000.0, description="declared sample rate (Hz)")
+    channels: list[str] | None = Field(
+        default=None,
+        max_length=256,
+        description="the SensorFrame channels the device sends: the session's stack is chosen for them, and an "
+        "estimator asked for that needs another is refused at start; null: unknown, every estimator may run",
+    )
+
+    @field_validator("channels")
+    @classmethod
+    def _known_channels(cls, v: list[str] | None) -> list[str] | None:
+        if v is None:
+            return None
+        unknown = [c for c in v if c not in CHANNELS]
+        if unknown:
+            raise ValueError(f"unknown channel {', '.join(unknown[:5])}; see GET /api/schema (SensorFrame)")
+        return list(dict.fromkeys(v))
 
 
 class UploadSource(_Strict):

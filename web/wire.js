@@ -505,6 +505,7 @@
  * @typedef {object} DeviceSource
  * @property {"device"} [kind="device"]
  * @property {number} [rate_hz=200.0] declared sample rate (Hz) (1..2000)
+ * @property {Array<string> | null} [channels=null] the SensorFrame channels the device sends: the session's stack is chosen for them, and an estimator asked for that needs another is refused at start; null: unknown, every estimator may run
  */
 
 /**
@@ -819,7 +820,7 @@ export const FIELD_LIMITS = deepFreeze({
     created_utc: { maxLength: 40 },
     note: { maxLength: 500 },
   },
-  DeviceSource: { rate_hz: { min: 1.0, max: 2000.0 } },
+  DeviceSource: { rate_hz: { min: 1.0, max: 2000.0 }, channels: { maxItems: 256 } },
   ProtocolStep: {
     speed_m_s: { min: 0.3, max: 2.0 },
     incline_deg: { min: -15.0, max: 15.0 },

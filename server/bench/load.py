@@ -167,7 +167,8 @@ def _run(base: str, sessions: int, clients: int, rate: float, seconds: float, ba
     data = replay_input(sensors)
     frames = [{"type": "frame", **{k: float(v[i]) for k, v in data.signals.items()}} for i in range(len(data.time_s))]
     subject = _post(base, "/api/subjects", {"code": f"LB{time.time_ns() % 10**8}", "leg_length_m": 0.9, "mass_kg": 70})
-    device = {"kind": "device", "rate_hz": rate}
+    # the device declares what it sends, as a real one should: its sessions run the estimators those feed
+    device = {"kind": "device", "rate_hz": rate, "channels": list(data.signals)}
     ids = [
         int(_post(base, "/api/sessions", {"subject_id": subject["id"], "source": device})["id"])  # type: ignore[call-overload]
         for _ in range(sessions)

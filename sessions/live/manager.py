@@ -109,7 +109,7 @@ class SessionManager:
             trial = self.store.get_trial(spec.trial_id)
             return ReplayDevice(self.data_dir / trial.path, spec.speed, spec.loop)
         if isinstance(spec, schema.DeviceSource):
-            return LiveDevice(spec.rate_hz)
+            return LiveDevice(spec.rate_hz, channels=spec.channels)
         raise SessionStateError(f"session {session.id} holds an uploaded log ({spec.filename}); it does not run")
 
     def start(self, session_id: int) -> schema.Session:

@@ -17,7 +17,7 @@ import asyncio
 import itertools
 import math
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Callable, Collection
 from pathlib import Path
 from typing import Protocol
 
@@ -215,11 +215,19 @@ class LiveDevice:
         connected: a device is connected now (one at a time).
     """
 
-    def __init__(self, rate_hz: float = 200.0, headroom: float = 1.25, burst_s: float = 2.0):
+    def __init__(
+        self,
+        rate_hz: float = 200.0,
+        headroom: float = 1.25,
+        burst_s: float = 2.0,
+        channels: Collection[str] | None = None,
+    ):
         if not (math.isfinite(rate_hz) and rate_hz > 0):
             raise ValueError(f"rate_hz must be a positive number, got {rate_hz}")
         self.rate_hz: float | None = rate_hz
-        self.channels: frozenset[str] | None = None  # a device declares none: every estimator may run
+        # the channels the device declared (its session's stack is chosen for them); None: every estimator
+        # may run, on whatever arrives
+        self.channels: frozenset[str] | None = None if channels is None else frozenset(channels)
         self._fill = rate_hz * headroom
         self._capacity = max(1.0, self._fill * burst_s)
         self._tokens = self._capacity

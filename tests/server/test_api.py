@@ -132,3 +132,21 @@ def test_unknown_things_are_404(client: TestClient) -> None:
 def test_models_are_listed_with_provenance(client: TestClient) -> None:
     models = client.get("/api/models").json()
     assert models[0]["name"] == "default" and models[0]["provenance"]["source"] == "default-cohort"
+
+
+def test_a_device_that_declares_its_channels_gets_the_stack_they_feed_and_a_refusal_naming_what_it_lacks(
+    client: TestClient,
+) -> None:
+    sid = _subject(client, "DEV1")
+    source = {"kind": "device", "rate_hz": 100, "channels": ["foot_angle_deg", "foot_vel_dps", "shank_angle_deg"]}
+    r = client.post("/api/sessions", json={"subject_id": sid, "source": source})
+    assert r.status_code == 201, r.text
+    runtime = client.app.state.ctx.manager.get(r.json()["id"])  # type: ignore[attr-defined]
+    assert runtime.estimator.stack.names == ("hs_detector", "phase_ekf", "tbe")
+    client.post(f"/api/sessions/{r.json()['id']}/stop")
+    asked = {"estimators": ["phase_ekf", "fp_avg"]}
+    r = client.post("/api/sessions", json={"subject_id": sid, "source": source, "settings": asked})
+    assert r.status_code == 409 and "fp_avg needs thigh_angle_deg" in r.json()["detail"], r.text
+    bad = {**source, "channels": ["foot_angle_deg", "warp_drive"]}
+    r = client.post("/api/sessions", json={"subject_id": sid, "source": bad})
+    assert r.status_code == 422 and "unknown channel warp_drive" in r.text
