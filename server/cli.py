@@ -361,7 +361,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_loadbench)
 
-    p = sub.add_parser("wire", help="generate the browser's wire types (web/wire.js) from sessions/schema.py")
+    p = sub.add_parser(
+        "wire",
+        help="generate the browser's wire types, limits and estimator labels (web/wire.js) from sessions/schema.py "
+        "and sessions/registry.py",
+    )
     p.add_argument("--out", type=Path, help="file to write (e.g. web/wire.js); default: standard output")
     p.set_defaults(func=cmd_wire)
     return parser

@@ -374,12 +374,16 @@ def run_bench(
         ("gaitscope PhaseEKF", "fast", "samples"),
         ("filterpy reference", "ref", "reference_samples"),
     ):
+        if not e[n]:
+            print(f"  {name:<20} not run (--reference-samples 0)")
+            continue
         med, p95 = e[f"{key}_median_us"], e[f"{key}_p95_us"]
         print(f"  {name:<20} median {med:7.2f} us   p95 {p95:7.2f} us   ({e[n]:.0f} samples)")
-    print(
-        f"  speed-up (median) {e['speedup_median']:.1f}x   max |state diff| {e['max_state_diff']:.2e}"
-        f"   max |P diff| {e['max_cov_diff']:.2e}"
-    )
+    if e["reference_samples"]:
+        print(
+            f"  speed-up (median) {e['speedup_median']:.1f}x   max |state diff| {e['max_state_diff']:.2e}"
+            f"   max |P diff| {e['max_cov_diff']:.2e}"
+        )
     r = replay_throughput(replay_minutes)
     print(
         f"replay, {replay_minutes:g} min at 100 Hz ({r['samples']:.0f} samples) through the CLI path, beyond start-up"
