@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Final, Literal
 
 from estimators.pipeline import TrainedModel
-from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator
+from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, input_names
 from sessions import schema
 from sessions.registry import StackContext, build_stack, channels_of
 from sessions.schema import GaitState, SensorFrame, SessionSettings
@@ -114,6 +114,9 @@ class FrameEstimator:
             extra=extra,
         )
         self._topics = list(schema.estimator_channels(self.stack.names))
+        # channels an estimator of the stack reads beyond those every frame's step fills (below)
+        read = dict.fromkeys(c for est in self.stack.estimators for c in input_names(est))
+        self._extra = tuple(c for c in read if c not in _STEPPED and c in schema.CHANNELS)
         self._json_templates = [
             _outputs_templates(name, outs) for name, outs in zip(self.stack.names, self.stack.outputs, strict=True)
         ]
@@ -256,6 +259,7 @@ class FrameEstimator:
             "heel_up_m": _or_nan(frame.heel_up_m),
             "thigh_angle_deg": _or_nan(frame.thigh_angle_deg),
             "thigh_vel_dps": _or_nan(frame.thigh_vel_dps),
+            **{c: _value(getattr(frame, c)) for c in self._extra},
             HEEL_STRIKE: math.nan if frame.heel_strike is None else float(frame.heel_strike),
         }
         self._derive_velocities(channels, t)
@@ -367,6 +371,18 @@ def _outputs_templates(name: str, outputs: Sequence[str]) -> tuple[str, str]:
 
 def _or_nan(v: float | None) -> float:
     return math.nan if v is None else v
+
+
+def _value(v: float | bool | None) -> float:
+    """A channel's value for an estimator: NaN when absent, flags as 1.0 / 0.0."""
+    return math.nan if v is None else float(v)
+
+
+#: The channels :meth:`FrameEstimator.step` fills for every frame (the rest only when an estimator reads them).
+_STEPPED: Final = frozenset(
+    ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps", "heel_forward_m", "heel_up_m",
+     "thigh_angle_deg", "thigh_vel_dps", HEEL_STRIKE)
+)  # fmt: skip
 
 
 def warm_up(model: TrainedModel, samples: int = 60) -> None:

@@ -121,7 +121,11 @@ export function mountLive(root, sessionId) {
   const [spCell, spV] = cell("speed", "Speed", "m/s");
   const [incCell, incV] = cell("incline", "Incline", "deg");
   const [pkCell, pkV] = cell("peak-torque", "Peak torque, last stride", "N·m");
-  const summary = h("div", { class: "summary", "data-testid": "summary" }, phaseCell, cadCell, slCell, spCell, incCell, pkCell);
+  // seed 001's speed-change intent, when the session runs it (`intent`): what the walker is about to do
+  const [intentCell, intentV] = cell("intent", "Speed-change intent", "");
+  const intentUnit = intentCell.querySelector(".unit");
+  intentCell.hidden = true;
+  const summary = h("div", { class: "summary", "data-testid": "summary" }, phaseCell, cadCell, slCell, spCell, incCell, pkCell, intentCell);
 
   const hv = (key) => h("dd", { "data-testid": `health-${key}`, text: "–" });
   const health = { t: hv("session-time"), rate: hv("rate"), latency: hv("latency"), serverLatency: hv("server-latency"), input: hv("dropped-input"), client: hv("dropped-client"), clients: hv("clients"), samples: hv("samples"), implausible: hv("implausible"), faults: hv("faults"), disk: hv("disk"),
@@ -267,6 +271,7 @@ export function mountLive(root, sessionId) {
         showStack();
       }
     }
+    showIntent(est.intent);
     for (let i = 0; i < states.length; i++) {
       const s = states[i];
       if (s.t < lastT) {
@@ -286,6 +291,27 @@ export function mountLive(root, sessionId) {
       lastBatchAt = performance.now();
       dataDirty = true;
     }
+  }
+
+  /** The intent estimator's last class (1 speeding up, -1 slowing down, 0 steady), desired speed and confidence. */
+  function showIntent(e) {
+    if (!e || !e.columns || !e.columns.intent_code) return;
+    intentCell.hidden = false;
+    const codes = e.columns.intent_code;
+    const last = codes.length - 1;
+    if (e.failed || last < 0 || codes[last] == null) {
+      intentV.textContent = e.failed ? "failed" : "–";
+      intentUnit.textContent = "";
+      intentCell.dataset.intent = "unknown";
+      return;
+    }
+    const code = codes[last];
+    const word = code > 0.5 ? "speeding up" : code < -0.5 ? "slowing down" : "steady";
+    intentV.textContent = word;
+    intentCell.dataset.intent = word.replace(" ", "-");
+    const desired = e.columns.desired_speed_m_s ? e.columns.desired_speed_m_s[last] : null;
+    const conf = e.columns.intent_confidence ? e.columns.intent_confidence[last] : null;
+    intentUnit.textContent = `desired ${fmt(desired, 2)} m/s · ${fmt(conf, 1)} SD`;
   }
 
   function onHealth(m) {

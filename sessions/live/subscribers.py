@@ -15,10 +15,22 @@ from sessions.schema import GaitState
 
 #: Samples a subscriber may have waiting before its oldest are dropped (about 5 s at 200 Hz).
 SUBSCRIBER_CAPACITY = 1000
-#: The estimator outputs a browser gets (those an estimator has): its estimates, to overlay, and the online
-#: fingerprint (seed 004 GF), which the subject page draws moving. Every output is recorded
-#: (``/estimators/<name>``); the primary's are in the gait states already.
-STREAMED_OUTPUTS = ("phase", "phase_rate", "stride_length_m", "incline_deg", "g1", "g2", "g3")
+#: The estimator outputs a browser gets (those an estimator has): its estimates, to overlay, the online
+#: fingerprint (seed 004 GF), which the subject page draws moving, and the speed-change intent (seed 001),
+#: which the live view's indicator reads. Every output is recorded (``/estimators/<name>``); the primary's
+#: are in the gait states already.
+STREAMED_OUTPUTS = (
+    "phase",
+    "phase_rate",
+    "stride_length_m",
+    "incline_deg",
+    "g1",
+    "g2",
+    "g3",
+    "desired_speed_m_s",
+    "intent_code",
+    "intent_confidence",
+)
 #: Decimals kept of a streamed estimator output (1e-5 of a cycle, m, deg: far below what a plot shows).
 STREAMED_DECIMALS = 5
 

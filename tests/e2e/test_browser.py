@@ -222,6 +222,10 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(page.get_by_test_id("health-clients")).not_to_have_text("–")
     expect(page.get_by_test_id("stride-count")).to_contain_text("stride", timeout=20_000)
     assert _number(page.get_by_test_id("summary-cadence").text_content()) > 20  # strides/min while walking
+    # the simulated walker sends what seed 001's intent filter reads: its indicator says what the walker does
+    expect(page.get_by_test_id("summary-intent")).to_have_text(
+        re.compile(r"^(speeding up|steady|slowing down)$"), timeout=20_000
+    )
 
     # --- the subject's baseline: kept per subject in this browser, survives a reload ---------------------
     expect(page.get_by_test_id("baseline-note")).to_have_text("no baseline")

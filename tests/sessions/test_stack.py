@@ -324,3 +324,26 @@ def test_a_running_session_records_streams_and_reports_every_estimator(
     settings_msgs = [m for _, _, m in read_messages(path, ["/settings"])]
     assert [m["primary"] for m in settings_msgs] == ["phase_ekf", "tbe"]
     assert all(math.isfinite(m["torque_Nm"]) for _, _, m in read_messages(path, ["/torque"]))
+
+
+def test_a_session_streams_the_speed_change_intent_the_live_view_reads(client: TestClient) -> None:
+    ctx = client.app.state.ctx  # type: ignore[attr-defined]
+    settings = {"estimators": ["phase_ekf", "intent"]}
+    r = client.post(
+        "/api/sessions",
+        json={"subject_id": _subject(client), "source": {"kind": "device"}, "settings": settings, "start": False},
+    )
+    session = ctx.store.get_session(r.json()["id"])
+    model, _ = ctx.models.get("default")
+    runtime = SessionRuntime(
+        session, ctx.store.get_subject(session.subject_id), model, LiveDevice(), ctx.store, ctx.settings.data_dir
+    )
+    sub = runtime.subscribe(0.0)
+    sensors, _, _ = sensor_trial([(1.0, 0.0, 6), (1.3, 0.0, 6)], rate_hz=100.0)
+    for frame in frames_from_table(sensors):
+        runtime.process(frame, time.time_ns())
+    columns = sub.batch(session.id).estimators["intent"].columns
+    assert set(columns) == {"desired_speed_m_s", "intent_code", "intent_confidence"}
+    codes = [c for c in columns["intent_code"] if c is not None]
+    assert set(codes) <= {-1.0, 0.0, 1.0} and 1.0 in codes  # the walker sped up
+    assert all(v is not None and 0.2 < v < 2.5 for v in columns["desired_speed_m_s"][-100:])
