@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Final, Literal
 
 import numpy as np
@@ -239,16 +239,7 @@ def fit_map(
     fmap = FingerprintMap(
         xi_avg=xi_avg, p_map=p_map, explained=explained, fit_rmse_deg=np.array(rmse), gram=G, order=order
     )
-    training_g = np.array([fmap.ls_fingerprint(*walk) for walk in subjects])
-    return FingerprintMap(
-        xi_avg=xi_avg,
-        p_map=p_map,
-        explained=explained,
-        fit_rmse_deg=np.array(rmse),
-        gram=G,
-        order=order,
-        training_g=training_g,
-    )
+    return replace(fmap, training_g=np.array([fmap.ls_fingerprint(*walk) for walk in subjects]))
 
 
 @dataclass(frozen=True)
@@ -328,6 +319,7 @@ class FingerprintEKF:
             self._p0 = np.array([*p0[:3], p0[3], *([p0[-1]] * (k - 1))]) if len(p0) != 3 + k else np.array(p0)
         else:
             self._q, self._p0 = np.array(self.config.q_fixed), np.array(self.config.p0_fixed)
+        self._scale_noise()
         self._t: float | None = None
         self._pending: Array | None = None
         n, c = 3 + (k if self.mode == "gf" else 0), self.fmap.xi_avg.size
@@ -370,6 +362,13 @@ class FingerprintEKF:
                 raise ValueError(f"{k} must be a positive number, got {v}")
         self._r_scale = float(params.get("measurement_noise_scale", self._r_scale))
         self._q_scale = float(params.get("process_noise_scale", self._q_scale))
+        self._scale_noise()
+
+    def _scale_noise(self) -> None:
+        """The noise a step uses, from the tuning: ``Q`` per step and ``R``'s base variance (once per
+        retune, not per sample)."""
+        self._q_step = self._q * self._q_scale
+        self._r = self.config.r_scale * self.fmap.rbar**2 * self._r_scale
 
     def personalize(self, g: Array) -> None:
         """Run fingerprint ``g`` (mode ``ls``) from the next stride on: it takes over when the phase wraps
@@ -405,8 +404,8 @@ class FingerprintEKF:
             self.fmap.p_map,
             self._xi_fixed,
             gf,
-            self._q * self._q_scale if self._q_scale != 1.0 else self._q,
-            c.r_scale * self.fmap.rbar**2 * self._r_scale,
+            self._q_step,
+            self._r,
             c.edge,
             c.edge_scale[0],
             c.edge_scale[1],
@@ -431,7 +430,7 @@ class FingerprintEKF:
         # F P F^T with F = I + dt e0 e1^T, then + Q
         P[0, :] += dt * P[1, :]
         P[:, 0] += dt * P[:, 1]
-        P[np.diag_indices_from(P)] += self._q * self._q_scale
+        P[np.diag_indices_from(P)] += self._q_step
 
     def _t_step(self, t: float) -> float:
         """The time the next step will predict over (0 on the first sample or after a gap)."""
@@ -467,8 +466,7 @@ class FingerprintEKF:
 
     def noise(self, p: float) -> Array:
         """``R`` at phase ``p`` (diagonal of angle and velocity variances)."""
-        c = self.config
-        r = c.r_scale * self.fmap.rbar**2 * self._r_scale
+        c, r = self.config, self._r
         ra, rv = r, r
         if p < c.edge or p > 1.0 - c.edge:
             ra, rv = r * c.edge_scale[0], r * c.edge_scale[1]

@@ -38,6 +38,8 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
+from estimators.protocol import check_params, elapsed
+
 __all__ = ["ISCI", "UNINJURED", "BKFConfig", "ButtressedKF", "D"]
 
 Array = NDArray[np.float64]
@@ -254,9 +256,7 @@ class IntentEstimator:
         self._out = np.zeros(5)
 
     def retune(self, **params: float) -> None:
-        unknown = sorted(set(params) - set(self.tunables))
-        if unknown:
-            raise TypeError(f"intent has no tuning parameter {', '.join(unknown)}; it has {self.tunables}")
+        check_params(self, params)
         for k, v in params.items():
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"{k} must be a number >= 0, got {v}")
@@ -266,9 +266,8 @@ class IntentEstimator:
     def step(self, t: float, z: Array) -> Array:
         """One sample: ``z`` = the six CoM channels, both hip angles, both foot forces, the last step length,
         then the optional contact flags and motor current (NaN: missing)."""
-        if self._t is not None and not t > self._t:
-            raise ValueError(f"time must increase: {t} after {self._t}")
-        if self._t is not None and t - self._t > 1.0:  # a pause: the walk starts over
+        _, restart = elapsed(self._t, t)
+        if restart:  # a pause: the walk starts over
             self.reset()
         self._t = t
         f_i, f_c, contact_i, contact_c = z[8], z[9], z[11], z[12]

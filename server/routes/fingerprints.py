@@ -13,6 +13,7 @@ from fastapi.responses import JSONResponse
 from estimators.fingerprint import FingerprintMap
 from server.routes.common import Ctx, reviewable_trial
 from sessions import schema
+from sessions.errors import DataFormatError
 from sessions.personalization.calibration import CalibrationRefused, calibrate, read_walk
 
 router = APIRouter(prefix="/api")
@@ -21,7 +22,7 @@ router = APIRouter(prefix="/api")
 def _map(c: Ctx, model: str) -> tuple[FingerprintMap, schema.ModelProvenance]:
     try:
         trained, prov = c.models.get(model)
-    except Exception:
+    except DataFormatError:  # as common.trained_model: no such model file, or not a model
         raise HTTPException(422, f"model {model!r} does not exist") from None
     if trained.fingerprints is None:
         raise HTTPException(422, f"model {model!r} has no fingerprint map (it was trained without thigh angles)")
