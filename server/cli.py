@@ -30,6 +30,16 @@ def _positive(text: str) -> float:
     return v
 
 
+def _fraction(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {text}")
+    return v
+
+
 #: Bounds of the pipeline options, as the dashboard's (``SubjectCreate`` and ``SETTING_LIMITS``):
 #: option -> (description, unit, minimum, maximum).
 _BOUNDS: dict[str, tuple[str, str, float, float]] = {
@@ -182,6 +192,8 @@ def cmd_crossval(a: argparse.Namespace) -> int:
         return _crossval_fingerprints(a)
     if a.study == "ekf":
         return _crossval_ekf_fingerprints(a)
+    if a.study == "intent":
+        return _crossval_intent(a)
     from sessions.offline.crossval import crossvalidate, summary, to_csv, to_markdown
 
     start = time.perf_counter()
@@ -208,6 +220,15 @@ def _crossval_ekf_fingerprints(a: argparse.Namespace) -> int:
     from sessions.offline.ekf_fingerprints import run_study, to_markdown
 
     return _study(a, "ekf_fingerprints.md", lambda: to_markdown(run_study(workers=a.workers)))
+
+
+def _crossval_intent(a: argparse.Namespace) -> int:
+    from sessions.offline.intent_study import run_study, to_markdown
+    from sessions.synth.intent_walks import IntentProtocol
+
+    protocol = IntentProtocol(step_lead=a.step_lead)
+    suffix = "" if a.step_lead == IntentProtocol.step_lead else f"_lead{a.step_lead:g}"
+    return _study(a, f"intent{suffix}.md", lambda: to_markdown(run_study(protocol)))
 
 
 def _study(a: argparse.Namespace, filename: str, run: Callable[[], str]) -> int:
@@ -330,10 +351,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("crossval", help="leave-one-subject-out comparison with a paper's numbers")
     p.add_argument(
         "--study",
-        choices=("phase", "fingerprints", "ekf"),
+        choices=("phase", "fingerprints", "ekf", "intent"),
         default="phase",
         help="phase: seed 000's phase EKF against TBE (default); fingerprints: seed 004's AVG, LS-GF and GF; "
-        "ekf: seed 000's model personalized by fingerprints from 10-120 s calibration walks",
+        "ekf: seed 000's model personalized by fingerprints from 10-120 s calibration walks; "
+        "intent: seed 001's buttressed Kalman filter on speed-change walks",
+    )
+    p.add_argument(
+        "--step-lead",
+        type=_fraction,
+        default=0.5,
+        help="intent study: how far a stride's length is toward the desired speed (0..1; the cohort's 0.5)",
     )
     p.add_argument("--out-dir", type=Path, default=Path("docs/results"))
     p.add_argument("--workers", type=int, default=None)

@@ -342,6 +342,7 @@ def _walk_columns(
     rng: np.random.Generator,
     n_per: int,
     t0: float,
+    stride_scale: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     if n_per < 3:
         raise ValueError(f"samples_per_stride must be >= 3, got {n_per}")
@@ -364,7 +365,13 @@ def _walk_columns(
     jitter = _blend(rng.standard_normal((n + 1, 1)) * subject.stride_timing_sd, sb)[..., 0]
     shift = subject.timing_shift + jitter  # (n, N) timing warp of each sample
 
-    period = np.array([conds[b].stride for b in block]) / speed * (1 + subject.stride_time_cv * eps)
+    stride_mean = np.array([conds[b].stride for b in block])
+    if stride_scale is not None:
+        scale = np.asarray(stride_scale, dtype=np.float64)
+        if scale.shape != (n,) or not (np.isfinite(scale).all() and (scale > 0).all()):
+            raise ValueError(f"stride_scale needs {n} finite values > 0 (one per stride), got shape {scale.shape}")
+        stride_mean = stride_mean * scale
+    period = stride_mean / speed * (1 + subject.stride_time_cv * eps)
     period = np.maximum(period, 0.2)
     stride_len = speed * period
     edges = t0 + np.concatenate([[0.0], np.cumsum(period)])
@@ -522,6 +529,7 @@ def generate_walk(
     rng: np.random.Generator,
     samples_per_stride: int = 150,
     t0: float = 0.0,
+    stride_scale: np.ndarray | None = None,
 ) -> pd.DataFrame:
     """One continuous walk: ``schedule`` blocks of ``(speed_m_s, incline_deg, n_strides)`` in order.
 
@@ -529,8 +537,12 @@ def generate_walk(
     last sample of one stride and the first of the next are the same instant; ``time_s`` runs on from
     ``t0`` across strides and blocks and ``step`` counts strides from 0. The first stride of a new
     block morphs from the previous condition's curves to the new ones so no signal jumps.
+
+    ``stride_scale`` (one value per stride, default 1) multiplies each stride's mean length at its speed;
+    the stride time follows (length / speed), so the walker takes longer or shorter strides at the same
+    speed, as when the step length leads a speed change (:mod:`sessions.synth.intent_walks`).
     """
-    return pd.DataFrame(_walk_columns(subject, schedule, rng, samples_per_stride, t0))
+    return pd.DataFrame(_walk_columns(subject, schedule, rng, samples_per_stride, t0, stride_scale))
 
 
 def _condition_rng(spec: CohortSpec, i: int, speed: float, incline: float) -> np.random.Generator:

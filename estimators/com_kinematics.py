@@ -1,0 +1,97 @@
+"""The centre of mass relative to the stance foot, from leg kinematics (seed 001 Sec. III).
+
+Seed 001 measured no centre of mass: the Ekso's hip and knee angles, with the user's thigh and shank
+lengths and Winter's anthropometry, gave the pelvis's position relative to the stance foot, and the
+centre of mass was taken at the pelvis's centroid; velocities by finite differences. gaitscope does the
+same from the sagittal segment angles a device reports (thigh and shank of both legs, angle from the
+vertical, positive with the distal end forward) and their angular velocities:
+
+- stance leg: the one whose foot carries the larger vertical force (at mid-stance, where the filter
+  reads the estimate, one foot carries nearly all of it);
+- position: the hip joint centre relative to the stance leg's ankle, raised by the ankle height
+  (``x = -(l_t sin th + l_s sin sh)``, ``z = l_t cos th + l_s cos sh + h_a``); the pelvis stands in for
+  the centre of mass (seed 001's choice);
+- velocity: the time derivative of that position from the angular velocities (exact for a foot that
+  does not move), rather than a finite difference of the position;
+- lateral position and velocity are not observable from sagittal angles: NaN (the filter skips them);
+- segment lengths, when not given, from the leg length with Winter's (2009) fractions of height: thigh
+  0.245, shank 0.246, ankle height 0.039, hip height 0.530.
+
+Its error on the virtual cohort (sensor offsets, the heel rather than the ankle under the body, the hip
+below the true centre of mass) is measured by ``gaitscope crossval --study intent`` (``docs/results.md``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ["LegGeometry", "com_from_legs"]
+
+Array = NDArray[np.float64]
+
+#: Winter (2009) segment lengths as fractions of height; the leg length is the hip height.
+_HIP, _THIGH, _SHANK, _ANKLE = 0.530, 0.245, 0.246, 0.039
+
+
+@dataclass(frozen=True)
+class LegGeometry:
+    """Thigh and shank lengths and the ankle's height above the sole (m)."""
+
+    thigh_m: float
+    shank_m: float
+    ankle_height_m: float
+
+    @classmethod
+    def from_leg_length(cls, leg_length_m: float) -> LegGeometry:
+        """Winter's fractions of height, with height = leg length / 0.530."""
+        if not (math.isfinite(leg_length_m) and 0.3 <= leg_length_m <= 1.5):
+            raise ValueError(f"leg length must be 0.3..1.5 m, got {leg_length_m}")
+        height = leg_length_m / _HIP
+        return cls(_THIGH * height, _SHANK * height, _ANKLE * height)
+
+
+#: Order of :func:`com_from_legs`' outputs: the intent filter's centre-of-mass channels.
+OUTPUTS: Final = ("forward_m", "lateral_m", "up_m", "forward_vel_m_s", "lateral_vel_m_s", "up_vel_m_s")
+
+
+def com_from_legs(
+    geometry: LegGeometry,
+    thigh_deg: ArrayLike,
+    shank_deg: ArrayLike,
+    thigh_dps: ArrayLike,
+    shank_dps: ArrayLike,
+    force_n: ArrayLike,
+    thigh_contra_deg: ArrayLike,
+    shank_contra_deg: ArrayLike,
+    thigh_contra_dps: ArrayLike,
+    shank_contra_dps: ArrayLike,
+    force_contra_n: ArrayLike,
+) -> Array:
+    """Centre of mass relative to the stance foot, ``(n, 6)`` in :data:`OUTPUTS` order (m, m/s).
+
+    Every argument is an array of the same length (or a scalar); a sample where a needed angle, rate or
+    either force is not finite gives NaN in the entries that need it.
+    """
+    th, sh = np.radians(thigh_deg), np.radians(shank_deg)
+    thc, shc = np.radians(thigh_contra_deg), np.radians(shank_contra_deg)
+    force, force_c = np.asarray(force_n, dtype=np.float64), np.asarray(force_contra_n, dtype=np.float64)
+    contra = force_c > force
+    known = np.isfinite(force) & np.isfinite(force_c)
+    t = np.where(contra, thc, th)
+    s = np.where(contra, shc, sh)
+    wt = np.radians(np.where(contra, thigh_contra_dps, thigh_dps))
+    ws = np.radians(np.where(contra, shank_contra_dps, shank_dps))
+    g = geometry
+    x = -(g.thigh_m * np.sin(t) + g.shank_m * np.sin(s))
+    z = g.thigh_m * np.cos(t) + g.shank_m * np.cos(s) + g.ankle_height_m
+    vx = -(g.thigh_m * np.cos(t) * wt + g.shank_m * np.cos(s) * ws)
+    vz = -(g.thigh_m * np.sin(t) * wt + g.shank_m * np.sin(s) * ws)
+    nan = np.full(np.broadcast(x, known).shape, np.nan)
+    out = np.stack([x, nan, z, vx, nan, vz], axis=-1)
+    out[~np.broadcast_to(known, nan.shape)] = np.nan
+    return out
