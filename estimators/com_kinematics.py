@@ -17,8 +17,11 @@ vertical, positive with the distal end forward) and their angular velocities:
 - segment lengths, when not given, from the leg length with Winter's (2009) fractions of height: thigh
   0.245, shank 0.246, ankle height 0.039, hip height 0.530.
 
-Its error on the virtual cohort (sensor offsets, the heel rather than the ankle under the body, the hip
-below the true centre of mass) is measured by ``gaitscope crossval --study intent`` (``docs/results.md``).
+As a stack estimator (:class:`KinematicCoM`, ``com_kin``) it derives the sagittal centre-of-mass channels
+for a device that does not send them, so the intent filter runs on leg kinematics (a channel the device
+sends wins over the derived one). Its error on the virtual cohort (sensor offsets, the heel rather than
+the ankle under the body, the hip below the true centre of mass) is measured by ``gaitscope crossval
+--study intent`` (``docs/results.md``).
 """
 
 from __future__ import annotations
@@ -30,7 +33,9 @@ from typing import Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["LegGeometry", "com_from_legs"]
+from estimators.protocol import check_params
+
+__all__ = ["KinematicCoM", "LegGeometry", "com_from_legs"]
 
 Array = NDArray[np.float64]
 
@@ -95,3 +100,79 @@ def com_from_legs(
     out = np.stack([x, nan, z, vx, nan, vz], axis=-1)
     out[~np.broadcast_to(known, nan.shape)] = np.nan
     return out
+
+
+#: Largest plausible magnitudes of the estimate: position (m) and velocity (m/s) of the pelvis over the foot.
+_MAX_POSITION_M, _MAX_VELOCITY_M_S = 3.0, 10.0
+
+
+class KinematicCoM:
+    """:func:`com_from_legs` sample by sample, a stack estimator (``com_kin``) deriving the sagittal
+    centre-of-mass channels (forward and up position and velocity relative to the stance foot).
+
+    Its outputs must stay finite (a stack counts a non-finite output as a failure): while an input is
+    missing or the estimate implausible (beyond 3 m or 10 m/s), the last estimate holds; before the
+    first one they are 0. The intent filter, which reads them at mid-stance, holds and flags its own
+    estimate when the leg channels it watches drop out.
+    """
+
+    name = "com_kin"
+    inputs: tuple[str, ...] = (
+        "thigh_angle_deg",
+        "thigh_vel_dps",
+        "shank_angle_deg",
+        "shank_vel_dps",
+        "thigh_angle_contra_deg",
+        "thigh_vel_contra_dps",
+        "shank_angle_contra_deg",
+        "shank_vel_contra_dps",
+        "foot_force_N",
+        "foot_force_contra_N",
+    )
+    optional_inputs: tuple[str, ...] = ()
+    outputs: tuple[tuple[str, str], ...] = (
+        ("com_forward_m", "m"),
+        ("com_up_m", "m"),
+        ("com_forward_vel_m_s", "m/s"),
+        ("com_up_vel_m_s", "m/s"),
+    )
+    tunables: tuple[str, ...] = ()
+    state = None
+    covariance = None
+
+    def __init__(self, leg_length: float):
+        self.geometry = LegGeometry.from_leg_length(leg_length)
+        self.reset()
+
+    def reset(self) -> None:
+        self._out = [0.0, 0.0, 0.0, 0.0]
+
+    def retune(self, **params: float) -> None:
+        check_params(self, params)
+
+    def step(self, t: float, z: Array) -> Array:
+        """One sample (plain float arithmetic: about a microsecond)."""
+        th, wth, sh, wsh, thc, wthc, shc, wshc, f, fc = z.tolist()
+        if fc > f:  # the other foot carries the load (NaN compares False: checked below)
+            th, wth, sh, wsh = thc, wthc, shc, wshc
+        g = self.geometry
+        a, b = math.radians(th), math.radians(sh)
+        wa, wb = math.radians(wth), math.radians(wsh)
+        try:
+            sa, ca, sb, cb = math.sin(a), math.cos(a), math.sin(b), math.cos(b)
+        except ValueError:  # an infinite angle
+            return np.array(self._out)
+        x = -(g.thigh_m * sa + g.shank_m * sb)
+        up = g.thigh_m * ca + g.shank_m * cb + g.ankle_height_m
+        vx = -(g.thigh_m * ca * wa + g.shank_m * cb * wb)
+        vz = -(g.thigh_m * sa * wa + g.shank_m * sb * wb)
+        if (
+            f == f
+            and fc == fc
+            and abs(x) < _MAX_POSITION_M
+            and abs(up) < _MAX_POSITION_M
+            and abs(vx) < _MAX_VELOCITY_M_S
+            and abs(vz) < _MAX_VELOCITY_M_S
+        ):  # NaN and inf fail every comparison
+            self._out = [x, up, vx, vz]
+        return np.array(self._out)

@@ -13,7 +13,9 @@ The state is the centre of mass relative to the stance foot and the walker's des
 - at **mid-stance** a Kalman update on the measured centre-of-mass position and velocity, ``H_M = [I_6 0]``
   (eqs. 7-9).
 
-Intent is the change of ``v_x^d`` from one mid-stance to the next (speed up > 0, slow down < 0).
+Intent is the change of ``v_x^d`` from one mid-stance to the next (speed up > 0, slow down < 0), read as
+soon as the touchdown has updated it (seed 001 Fig. 6: "the intent of the user as inferred at TD"), a
+quarter step before the mid-stance whose speed it anticipates (``BKFConfig.intent_at``).
 
 Choices where the paper is silent (parameters; ``docs/estimators.md``):
 
@@ -22,25 +24,27 @@ Choices where the paper is silent (parameters; ``docs/estimators.md``):
 - A touchdown without a mid-stance since the last one (a doubled touchdown) is ignored; a mid-stance
   without a touchdown since the last (a missed touchdown) propagates and updates without the Bayesian
   step, so the intent of that step is 0 and its confidence low.
-- Initial state: the first mid-stance's measurement with ``v_x^d = v_x``, covariance ``P0``.
+- Initial state: the first mid-stance's measurement with ``v_x^d = v_x``, covariance ``P0``; it needs the
+  sagittal entries (forward and vertical position, forward velocity); a lateral one not measured (as
+  from sagittal leg kinematics, :mod:`estimators.com_kinematics`) starts at 0 and is never updated.
 - Initial covariance (not given): ``1e-4`` for the CoM states, ``1e-2`` (0.1 m/s SD) for ``v_x^d``
   (``BKFConfig.p0``).
 - Confidence of an intent: ``|delta v_x^d| / sqrt(var(v_x^d))``, the change in standard deviations of the
   desired speed (a z-score); the paper reports no confidence.
+
+The filter on a sample stream (events, holds on bad input) is :class:`estimators.intent_estimator.IntentEstimator`.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Final
+from typing import Final, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.protocol import check_params, elapsed
-
-__all__ = ["ISCI", "UNINJURED", "BKFConfig", "ButtressedKF", "D"]
+__all__ = ["COHORT", "ISCI", "UNINJURED", "BKFConfig", "ButtressedKF", "D"]
 
 Array = NDArray[np.float64]
 
@@ -61,6 +65,10 @@ class BKFConfig:
         q_m: propagation noise ``Q_M`` diagonal (eq. 6).
         r_m: mid-stance measurement noise ``R_M`` diagonal.
         p0: initial variances of the state.
+        intent_at: where the intent is read: ``"touchdown"`` (the default: desired speed after the
+            touchdown update minus that after the last mid-stance, seed 001 Fig. 6's "intent inferred at
+            TD", a quarter step before the mid-stance) or ``"midstance"`` (the change from mid-stance to
+            mid-stance, Sec. II-C's wording). At a mid-stance the touchdown's intent holds.
     """
 
     kappa: tuple[float, float, float] = (0.3325, 0.2635, 0.3757)
@@ -70,12 +78,18 @@ class BKFConfig:
     q_m: tuple[float, ...] = tuple(1e-4 * np.array([1, 1, 1, 1, 1, 1, 10.0]))
     r_m: tuple[float, ...] = tuple(1e-10 * np.array([1e4, 1e4, 1e4, 1e5, 1, 1]))
     p0: tuple[float, ...] = (1e-4,) * 6 + (1e-2,)
+    intent_at: Literal["touchdown", "midstance"] = "touchdown"
 
 
 #: The paper's uninjured tuning.
 UNINJURED: Final = BKFConfig()
 #: The paper's tuning for users with an incomplete spinal cord injury (with the hip-current model).
 ISCI: Final = BKFConfig(kappa=(0.0818, 0.0551, 0.4045), alpha=(8.6067, 4.2420), q_t=1e-3, r_t=(1e-4, 1e-4))
+#: For a new walker with no training of their own (beyond the paper): the step-length model regressed on
+#: the virtual cohort's speed-change walks with seed 001's labels, the paper's uninjured noise otherwise.
+#: Source: ``gaitscope crossval --study intent`` ("the cohort's kappa", ``docs/results.md``); seed 001's
+#: kappa came from one Ekso GT user, whose steps are shorter than unassisted walking's.
+COHORT: Final = BKFConfig(kappa=(0.2420, 0.3557, 0.4193))
 
 
 @dataclass
@@ -84,7 +98,8 @@ class ButtressedKF:
 
     Attributes:
         z, P: the state and its covariance (after the last event).
-        intent: ``v_x^d`` change over the last mid-stance to mid-stance step (m/s).
+        intent: ``v_x^d`` change over the step since the last mid-stance (m/s), read at the touchdown
+            (``BKFConfig.intent_at``); 0 for a step without a touchdown.
         confidence: that change in standard deviations of ``v_x^d`` (0 when unknown).
     """
 
@@ -143,7 +158,15 @@ class ButtressedKF:
         self.P = self.P - gain @ H @ self.P
         self.P = (self.P + self.P.T) / 2.0
         self._touched = True
+        if self.config.intent_at == "touchdown":
+            self._set_intent()
         return True
+
+    def _set_intent(self) -> None:
+        """Intent: the desired speed now minus after the last mid-stance; confidence in its SDs now."""
+        vxd = float(self.z[_VXD])
+        self.intent = vxd - (self._last_vxd if self._last_vxd is not None else vxd)
+        self.confidence = abs(self.intent) / math.sqrt(max(float(self.P[_VXD, _VXD]), 1e-18))
 
     # --- mid-stance -----------------------------------------------------------------------------
     def midstance(self, com: Array) -> float:
@@ -154,9 +177,9 @@ class ButtressedKF:
         com = np.asarray(com, dtype=np.float64).reshape(6)
         c = self.config
         if not self.started:
-            if not np.isfinite(com).all():
+            if not np.isfinite(com[[0, 2, 3]]).all():  # the sagittal entries; lateral ones may be unknown
                 return 0.0
-            self.z = np.array([*com, com[3]])
+            self.z = np.where(np.isfinite(np.r_[com, com[3]]), np.r_[com, com[3]], 0.0)
             self.P = np.diag(c.p0)
             self.started, self._touched = True, False
             self._last_vxd = float(self.z[_VXD])
@@ -172,12 +195,11 @@ class ButtressedKF:
             self.z = self.z + K @ (com[ok] - H @ self.z)
             self.P = (np.eye(7) - K @ H) @ self.P
             self.P = (self.P + self.P.T) / 2.0
-        vxd = float(self.z[_VXD])
-        touched = self._touched
-        self.intent = vxd - (self._last_vxd if self._last_vxd is not None else vxd) if touched else 0.0
-        sd = math.sqrt(max(float(self.P[_VXD, _VXD]), 1e-18))
-        self.confidence = abs(self.intent) / sd if touched else 0.0
-        self._last_vxd = vxd
+        if not self._touched:
+            self.intent = self.confidence = 0.0
+        elif self.config.intent_at == "midstance":
+            self._set_intent()
+        self._last_vxd = float(self.z[_VXD])
         self._touched = False
         return self.intent
 
@@ -185,120 +207,7 @@ class ButtressedKF:
     def desired_speed(self) -> float:
         return float(self.z[_VXD])
 
-
-#: Channels the stack's intent estimator reads (SensorFrame wire names).
-COM_CHANNELS: Final = (
-    "com_forward_m",
-    "com_lateral_m",
-    "com_up_m",
-    "com_forward_vel_m_s",
-    "com_lateral_vel_m_s",
-    "com_up_vel_m_s",
-)
-
-
-class IntentEstimator:
-    """The buttressed Kalman filter as a stack estimator (``intent``): events from the sample stream.
-
-    - Touchdown (seed 001 Sec. II-B): both feet's vertical force above ``contact_fraction`` of the largest
-      force seen so far (5 %), or both contact flags when a device sends them; the rising edge of that
-      double support is a touchdown, and the step length is the frame's ``step_length_m`` there.
-    - Mid-stance: a zero crossing of ipsilateral minus contralateral hip angle.
-    - Between events the outputs hold: desired speed, intent (the last mid-stance's change of desired
-      speed), its class (``intent_code``: 1 speeding up, -1 slowing down, 0 steady, when the change is
-      below ``deadband_m_s`` or its confidence below ``min_confidence`` standard deviations) and
-      confidence. The bookkeeping of a sample between events is a few comparisons.
-    - The hip-motor current (``motor_current_A``, optional) feeds the iSCI variant's current model when
-      the configuration has ``alpha``: its RMS over the swing before the touchdown.
-    """
-
-    name = "intent"
-    inputs: tuple[str, ...] = (*COM_CHANNELS, "hip_angle_deg", "hip_angle_contra_deg", "foot_force_N",
-                               "foot_force_contra_N", "step_length_m")  # fmt: skip
-    optional_inputs: tuple[str, ...] = ("foot_contact", "foot_contact_contra", "motor_current_A")
-    outputs: tuple[tuple[str, str], ...] = (
-        ("desired_speed_m_s", "m/s"),
-        ("intent_m_s", "m/s"),
-        ("intent_code", "code"),
-        ("intent_confidence", "1"),
-        ("speed_m_s", "m/s"),
-    )
-    tunables: tuple[str, ...] = ("deadband_m_s", "min_confidence")
-
-    def __init__(
-        self,
-        leg_length: float,
-        config: BKFConfig = UNINJURED,
-        contact_fraction: float = 0.05,
-        deadband_m_s: float = 0.01,
-        min_confidence: float = 1.0,
-    ):
-        self.filter = ButtressedKF(leg_length, config)
-        self.contact_fraction = contact_fraction
-        self.deadband_m_s, self.min_confidence = deadband_m_s, min_confidence
-        self.reset()
-
     @property
-    def state(self) -> Array:
-        return self.filter.z
-
-    @property
-    def covariance(self) -> Array:
-        return self.filter.P
-
-    def reset(self) -> None:
-        self.filter.reset()
-        self._t: float | None = None
-        self._max_force = 0.0
-        self._double = False
-        self._hip_diff = math.nan
-        self._current_sq, self._current_n = 0.0, 0
-        self._out = np.zeros(5)
-
-    def retune(self, **params: float) -> None:
-        check_params(self, params)
-        for k, v in params.items():
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"{k} must be a number >= 0, got {v}")
-        self.deadband_m_s = float(params.get("deadband_m_s", self.deadband_m_s))
-        self.min_confidence = float(params.get("min_confidence", self.min_confidence))
-
-    def step(self, t: float, z: Array) -> Array:
-        """One sample: ``z`` = the six CoM channels, both hip angles, both foot forces, the last step length,
-        then the optional contact flags and motor current (NaN: missing)."""
-        _, restart = elapsed(self._t, t)
-        if restart:  # a pause: the walk starts over
-            self.reset()
-        self._t = t
-        f_i, f_c, contact_i, contact_c = z[8], z[9], z[11], z[12]
-        for f in (f_i, f_c):
-            if f > self._max_force:  # NaN compares False
-                self._max_force = f
-        if contact_i == contact_i and contact_c == contact_c:  # both flags sent (not NaN)
-            double = contact_i > 0.5 and contact_c > 0.5
-        else:
-            limit = self.contact_fraction * self._max_force
-            double = self._max_force > 0 and f_i > limit and f_c > limit
-        current = z[13]
-        if current == current and not double:
-            self._current_sq += current * current
-            self._current_n += 1
-        if double and not self._double:
-            rms = math.sqrt(self._current_sq / self._current_n) if self._current_n else math.nan
-            self.filter.touchdown(float(z[10]), rms)
-            self._current_sq, self._current_n = 0.0, 0
-        self._double = double
-        diff = z[6] - z[7]
-        if diff == diff:
-            if self._hip_diff == self._hip_diff and (diff > 0) != (self._hip_diff > 0):
-                self.filter.midstance(z[:6])
-                self._classify()
-            self._hip_diff = diff
-        return self._out.copy()
-
-    def _classify(self) -> None:
-        f = self.filter
-        code = 0.0
-        if abs(f.intent) >= self.deadband_m_s and f.confidence >= self.min_confidence:
-            code = 1.0 if f.intent > 0 else -1.0
-        self._out[:] = (f.desired_speed, f.intent, code, f.confidence, float(f.z[_VX]))
+    def touched(self) -> bool:
+        """A touchdown update since the last mid-stance (the next mid-stance will have an intent)."""
+        return self._touched

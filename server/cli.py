@@ -367,7 +367,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=None)
     p.set_defaults(func=cmd_crossval)
 
-    p = sub.add_parser("bench", help="measure the EKF, each estimator, the stack, replay and cross-validation speed")
+    p = sub.add_parser(
+        "bench",
+        help="measure the EKF, each estimator, the stack, the intent estimator, replay and cross-validation speed",
+    )
     p.add_argument("--skip-crossval", action="store_true")
     p.add_argument("--reference-samples", type=int, default=3000)
     p.add_argument(

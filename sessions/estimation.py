@@ -17,6 +17,7 @@ from typing import Final, Literal
 from estimators.pipeline import TrainedModel
 from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, input_names
 from sessions import schema
+from sessions.intent_boost import IntentBoost
 from sessions.registry import StackContext, build_stack, channels_of
 from sessions.schema import GaitState, SensorFrame, SessionSettings
 from sessions.stack import EstimatorStack, StackSample
@@ -121,6 +122,8 @@ class FrameEstimator:
             _outputs_templates(name, outs) for name, outs in zip(self.stack.names, self.stack.outputs, strict=True)
         ]
         self.settings = settings
+        #: assistance follows intent (the ``intent_gain_boost`` setting; off by default)
+        self.intent_boost = IntentBoost(self.stack.names, self.stack.outputs)
         self.soft_start = soft_start
         self.max_jump_s = max_jump_s
         self.reorder_window_s = reorder_window_s
@@ -285,6 +288,11 @@ class FrameEstimator:
         self.last_t = t
         self._last_recv_ns = recv_ns
         self._prev = (t, frame.foot_angle_deg, frame.shank_angle_deg, frame.thigh_angle_deg)
+        torque = e.torque_Nm
+        s = self.settings
+        if self.intent_boost.active(s.intent_gain_boost):  # one comparison while it is off
+            self.intent_boost.update(t, e.outputs, s.intent_gain_boost, s.torque_gain)
+            torque = self.intent_boost.torque(torque, s.max_torque_Nm)
         return GaitState(
             seq=frame.seq,
             t=t,
@@ -292,7 +300,7 @@ class FrameEstimator:
             phase_rate=e.phase_rate,
             stride_length_m=e.stride_length_m,
             incline_deg=e.incline_deg,
-            torque_Nm=e.torque_Nm,
+            torque_Nm=torque,
             tbe_phase=e.tbe_phase,
             heel_strike=e.heel_strike,
             backup_reset=e.backup_reset,

@@ -21,10 +21,11 @@ from typing import Any, Final
 
 import numpy as np
 
+from estimators.com_kinematics import KinematicCoM
 from estimators.detector import HeelStrikeDetector
 from estimators.fingerprint import FingerprintEKF, Mode
 from estimators.heel_strike import HeelStrikeBackup
-from estimators.intent import IntentEstimator
+from estimators.intent_estimator import IntentEstimator
 from estimators.phase_ekf_estimator import PhaseEKFEstimator
 from estimators.pipeline import PipelineConfig, TrainedModel
 from estimators.protocol import ANGLE_CHANNELS, Estimator, Output, output_names
@@ -101,6 +102,7 @@ ESTIMATORS: Final[dict[str, Callable[[StackContext], Estimator]]] = {
     "fp_avg": lambda c: _fingerprint_ekf(c, "avg"),
     "fp_ls": lambda c: _fingerprint_ekf(c, "ls"),
     "fp_gf": lambda c: _fingerprint_ekf(c, "gf"),
+    "com_kin": lambda c: KinematicCoM(c.leg_length),
     "intent": lambda c: IntentEstimator(c.leg_length),
 }
 
@@ -146,6 +148,7 @@ DECLARED: Final[dict[str, Declared]] = {
     "fp_gf": Declared(
         "Online fingerprint EKF (seed 004 GF)", _FP_INPUTS, (*_FP_OUTPUTS, ("g1", "deg"), ("g2", "deg"), ("g3", "deg"))
     ),
+    "com_kin": _declared("Centre of mass from leg kinematics (seed 001)", KinematicCoM),
     "intent": _declared("Speed-change intent (seed 001)", IntentEstimator),
 }
 

@@ -183,6 +183,7 @@ SETTING_LIMITS: Final[dict[str, tuple[float, float, float]]] = {
     "max_torque_Nm": (0.0, 80.0, 10.0),
     "measurement_noise_scale": (0.1, 10.0, 5.0),
     "process_noise_scale": (0.1, 10.0, 5.0),
+    "intent_gain_boost": (0.0, 0.3, 0.1),
 }
 
 
@@ -215,6 +216,12 @@ class SessionSettings(_Strict):
     max_torque_Nm: float = _setting("max_torque_Nm", 30.0, "hard bound on the command")
     measurement_noise_scale: float = _setting("measurement_noise_scale", 1.0)
     process_noise_scale: float = _setting("process_noise_scale", 1.0)
+    intent_gain_boost: float = _setting(
+        "intent_gain_boost",
+        0.0,
+        "assistance follows intent (beyond seed 001; 0: off): while the intent estimator says speeding up "
+        "(slowing down) the torque gain rises (falls) by up to this fraction, scaled by its confidence",
+    )
     model: str = Field(default="default", pattern=_CODE, description="name of a model in the model store")
     primary: EstimatorName = Field(
         default="phase_ekf", description="the estimator of the stack whose phase drives the torque profile"
@@ -234,6 +241,7 @@ class SettingsChange(_Strict):
     max_torque_Nm: float | None = _setting("max_torque_Nm", None)
     measurement_noise_scale: float | None = _setting("measurement_noise_scale", None)
     process_noise_scale: float | None = _setting("process_noise_scale", None)
+    intent_gain_boost: float | None = _setting("intent_gain_boost", None)
     primary: EstimatorName | None = Field(
         default=None,
         description=f"switched at most every {PRIMARY_SWITCH_INTERVAL_S:g} s; the torque blends over "
@@ -359,7 +367,9 @@ class Trial(BaseModel):
     duration_s: float = 0.0
 
 
-EventKind = Literal["setting", "annotation", "system", "recording"]
+#: ``intent``: the speed-change intent estimator detected a change (:mod:`sessions.live.runtime`), one event
+#: per onset of speeding up or slowing down.
+EventKind = Literal["setting", "annotation", "system", "recording", "intent"]
 
 
 class AnnotationCreate(_Strict):
@@ -368,7 +378,8 @@ class AnnotationCreate(_Strict):
 
 
 class Event(BaseModel):
-    """A setting change, an annotation or a system event: when, what, before, after, who."""
+    """A setting change, an annotation, a system event or a detected speed-change intent: when, what,
+    before, after, who."""
 
     id: int
     session_id: int
@@ -555,6 +566,23 @@ class RerunChoices(BaseModel):
     )
     refused: dict[EstimatorName, str] = Field(
         default_factory=dict, description="the other registered estimators, each with why it cannot run"
+    )
+
+
+class IntentSeries(BaseModel):
+    """A trial's speed-change intent over time (``GET /api/trials/{id}/intent``): the recorded outputs of
+    its ``intent`` estimator (seed 001), decimated as a trial's series, or why there are none."""
+
+    recorded: bool = Field(description="the trial records the intent estimator's outputs (its stack ran it)")
+    missing: list[str] = Field(
+        default_factory=list,
+        description="when not recorded: the channels the intent estimator requires that the trial lacks (empty: "
+        "it can run, a re-run shows it)",
+    )
+    series: dict[str, list[float | None]] = Field(
+        default_factory=dict,
+        description="'t' (session time, s) and each output of the estimator (desired_speed_m_s, speed_m_s, ...), "
+        "row for row; empty when not recorded",
     )
 
 
@@ -1006,5 +1034,5 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     AnnotationCreate, RecordingControl, UploadCreate, Upload, RerunRequest, RerunChoices, ModelInfo, ViewerFocus,
     ViewerShow, SensorFrame, GaitState, TorqueCommand, StreamBatch, Health, EventMessage, SettingsMessage, Hello,
     FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs, CalibrationRequest, PersonalizationChange,
-    Personalization, CohortPoint, Fingerprints, PersonalizationExport,
+    Personalization, CohortPoint, Fingerprints, PersonalizationExport, IntentSeries,
 )  # fmt: skip

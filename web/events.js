@@ -1,10 +1,12 @@
-// The events list (setting changes, annotations, system and recording events), newest first.
+// The events list (setting changes, annotations, system and recording events, detected speed-change intents),
+// newest first.
 
 import { SETTING_LIMITS } from "./settings.js";
 import { fmt, h } from "./ui.js";
 
 /** Marker colours on timelines, per event kind. */
-export const EVENT_COLORS = { setting: "#c2410c", annotation: "#0b5cad", recording: "#1d7a3a", system: "#4b5563" };
+export const EVENT_COLORS = { setting: "#c2410c", annotation: "#0b5cad", recording: "#1d7a3a", system: "#4b5563",
+  intent: "#a21caf" };
 
 function _value(field, v) {
   if (v === null || v === undefined) return "–";

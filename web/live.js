@@ -1,18 +1,19 @@
 // Live view (`#/sessions/{id}`): the session's stream in plots redrawn once per animation frame, the
 // per-stride overlay, data health, controls, events and the 3D leg view. The phase plot overlays the phase
-// of every estimator of the session's stack (the primary, which drives the torque, drawn widest).
+// of every estimator of the session's stack (the primary, which drives the torque, drawn widest). A stack with
+// the speed-change intent estimator (seed 001) adds its desired vs actual speed, its detections marked.
 
 import { api, errorText, openSessionStream } from "./api.js";
 import { actorSelect, mountControls } from "./controls.js";
-import { EventList } from "./events.js";
-import { COLORS, Plot, Ring, StrideOverlay } from "./plots.js";
+import { EVENT_COLORS, EventList } from "./events.js";
+import { COLORS, markersPlugin, Plot, Ring, StrideOverlay } from "./plots.js";
 import { errorBox, fmt, h, runAction, showError } from "./ui.js";
 
 export const WINDOW_S = 10; // seconds of full-rate history the live plots show
 const RING_CAPACITY = 2048; // > 10 s at the 60 Hz the stream is asked for (34 s), bounded memory
 const STALE_MS = 1000;
 const COLUMNS = ["t", "phase_pct", "tbe_pct", "phase_rate", "incline_deg", "stride_length_m", "torque_Nm",
-  "foot_angle_deg", "foot_pred_deg", "shank_angle_deg", "shank_pred_deg"];
+  "foot_angle_deg", "foot_pred_deg", "shank_angle_deg", "shank_pred_deg", "desired_speed_m_s", "speed_m_s"];
 
 /** The plots of a gait-state series; `review.js` uses the same list. */
 export const PLOT_SPECS = [
@@ -27,6 +28,18 @@ export const PLOT_SPECS = [
   { key: "shank", title: "Shank angle: measured and predicted", yLabel: "deg", cols: ["shank_angle_deg", "shank_pred_deg"],
     series: [{ label: "measured", color: COLORS.blue }, { label: "predicted", color: COLORS.orange, dash: [6, 4] }] },
 ];
+
+/**
+ * The speed-change intent estimator's (`intent`, seed 001) desired and actual speed; `review.js` uses it too.
+ * Both hold between mid-stances (twice per step), where the filter updates them; 0 before its first one.
+ */
+export const INTENT_SPEC = {
+  key: "intent", title: "Speed-change intent: desired vs actual speed", yLabel: "m/s", cols: ["desired_speed_m_s", "speed_m_s"],
+  series: [{ label: "desired", color: COLORS.blue, width: 2.5 }, { label: "actual (CoM, mid-stance)", color: COLORS.teal, dash: [6, 4] }],
+};
+
+/** An intent output as plotted: null before the filter has started (0). */
+export const intentValue = (v) => (v == null || !(v > 0) ? null : v);
 
 /** A `GaitState` as one row of plot columns (phase in % of the cycle). */
 export function stateRow(s) {
@@ -97,6 +110,14 @@ export function mountLive(root, sessionId) {
   const stack = { names: [], primary: null, failed: new Map(), key: "" };
   const overlay = new StrideOverlay(["torque_Nm", "foot_angle_deg", "phase_rate", "stride_length_m", "incline_deg"]);
   const events = new EventList("events-list");
+  let intentMarks = []; // the detected intents, marked on the intent plot
+  const addEvents = (...evs) => {
+    events.add(...evs);
+    if (evs.some((e) => e.kind === "intent")) {
+      intentMarks = [...events.events.values()].filter((e) => e.kind === "intent")
+        .map((e) => ({ t: e.t, color: EVENT_COLORS.intent, width: 2, dash: [4, 3] }));
+    }
+  };
   let lastT = -Infinity;
   let lastBatchAt = 0;
   let dataDirty = false;
@@ -159,6 +180,10 @@ export function mountLive(root, sessionId) {
     plotsBox.append(div);
     return { spec, div, plot: new Plot(div, { ...spec, xRange: follow }) };
   });
+  // desired vs actual speed: shown once a batch says the stack has the intent estimator
+  const intentDiv = h("div", { class: "plot", "data-testid": "plot-intent-speed", hidden: true });
+  plotsBox.insertBefore(intentDiv, plots[1].div);
+  const intentPlot = new Plot(intentDiv, { ...INTENT_SPEC, xRange: follow, plugins: [markersPlugin(() => intentMarks)] });
   // The stack is known (or changed): a ring with a column per estimator phase and the phase plot redrawn.
   function showStack() {
     const failed = new Set(stack.failed.keys());
@@ -222,7 +247,7 @@ export function mountLive(root, sessionId) {
   // --- controls, events, leg view ------------------------------------------------------------------
   let subjectCode = "";
   const controls = mountControls(sessionId, {
-    onEvent: (ev) => events.add(ev),
+    onEvent: (ev) => addEvents(ev),
     onSession: (s) => {
       title.textContent = `Session ${sessionId} · ${subjectCode || `subject ${s.subject_id}`} · ${s.source.kind} · ${s.state}`;
     },
@@ -272,6 +297,8 @@ export function mountLive(root, sessionId) {
       }
     }
     showIntent(est.intent);
+    const intentCols = est.intent && est.intent.columns && est.intent.columns.desired_speed_m_s ? est.intent.columns : null;
+    if (intentCols && intentDiv.hidden) intentDiv.hidden = false;
     for (let i = 0; i < states.length; i++) {
       const s = states[i];
       if (s.t < lastT) {
@@ -280,6 +307,7 @@ export function mountLive(root, sessionId) {
       }
       lastT = s.t;
       const row = stateRow(s);
+      if (intentCols) for (const c of INTENT_SPEC.cols) row[c] = intentValue(intentCols[c] ? intentCols[c][i] : null);
       for (const n of stack.names) {
         const v = est[n] && est[n].columns.phase ? est[n].columns.phase[i] : null;
         row[estColumn(n)] = v == null ? null : v * 100;
@@ -359,7 +387,7 @@ export function mountLive(root, sessionId) {
           onHealth(msg);
           break;
         case "event":
-          events.add(msg.event);
+          addEvents(msg.event);
           if (msg.event.kind === "recording" || msg.event.kind === "system") controls.refreshRecording();
           break;
         case "settings":
@@ -391,6 +419,7 @@ export function mountLive(root, sessionId) {
     if (dataDirty) {
       dataDirty = false;
       for (const { spec, plot } of plots) plot.setData(ring.window("t", spec.cols, WINDOW_S));
+      if (!intentDiv.hidden) intentPlot.setData(ring.window("t", INTENT_SPEC.cols, WINDOW_S));
     }
     if (strideDirty) {
       strideDirty = false;
@@ -421,7 +450,7 @@ export function mountLive(root, sessionId) {
   }
   raf = requestAnimationFrame(frame);
 
-  api("GET", `/api/sessions/${sessionId}/events`).then((evs) => events.add(...evs)).catch((err) => showError(streamError, err));
+  api("GET", `/api/sessions/${sessionId}/events`).then((evs) => addEvents(...evs)).catch((err) => showError(streamError, err));
 
   return {
     unmount() {
@@ -429,6 +458,7 @@ export function mountLive(root, sessionId) {
       cancelAnimationFrame(raf);
       stream.close();
       for (const p of plots) p.plot.destroy();
+      intentPlot.destroy();
       for (const b of bands) b.plot.destroy();
     },
   };

@@ -2,12 +2,14 @@
 // zoom (server fetch of the range), a scrubbed cursor the leg view follows, the live view's plots, and a
 // re-run overlaid on the original: of the estimators picked (the recorded stack by default; each one's
 // outputs in its own colour), with the recorded settings (the default: what ran, setting changes
-// replayed where they happened) or "what if" (the editor's settings held over the whole trial).
+// replayed where they happened) or "what if" (the editor's settings held over the whole trial). The
+// speed-change intent (seed 001) as the trial recorded it, desired vs actual speed (or the channels the trial
+// lacks for it), with a re-run's overlaid when the re-run ran the intent estimator.
 
 import { api, errorText, query } from "./api.js";
 import { EstimatorPicker, estimatorLabel, estimatorOverlay, listText, overlayLegend, rerunEstimators } from "./estimators.js";
 import { EVENT_COLORS, EventList } from "./events.js";
-import { bandPlot, legView, PLOT_SPECS } from "./live.js";
+import { bandPlot, INTENT_SPEC, intentValue, legView, PLOT_SPECS } from "./live.js";
 import { COLORS, decimateMinMax, markersPlugin, Plot, StrideOverlay, uPlot } from "./plots.js";
 import { SettingsEditor } from "./settings.js";
 import { errorBox, fmt, fmtUtc, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
@@ -17,6 +19,8 @@ const MAX_POINTS = 2000; // per request, as the server decimates
 const RERUN_POINTS = 10000; // kept of a re-run, decimated again to MAX_POINTS per view
 const RERUN_COLS = { phase: "phase_pct", torque: "torque_Nm", incline: "incline_deg" }; // plot key -> column
 const RERUN_STYLE = { label: "re-run", color: COLORS.purple, width: 2 }; // the re-run's gait state
+const INTENT_RERUN_COLS = INTENT_SPEC.cols.map((c) => `intent.${c}`); // a re-run's intent outputs
+const INTENT_RERUN_SERIES = INTENT_SPEC.series.map((s) => ({ ...s, label: `${s.label}, re-run`, width: 1.5, dash: [2, 3] }));
 
 /** Series columns plus phase in % (the plots' unit); nulls kept. */
 function derive(series) {
@@ -25,7 +29,8 @@ function derive(series) {
 }
 
 export function mountReview(root, trialId) {
-  const st = { trial: null, full: null, view: null, range: null, cursor: null, events: [], rerun: null, alive: true };
+  const st = { trial: null, full: null, view: null, range: null, cursor: null, events: [], rerun: null, alive: true,
+    intent: null, intentView: null }; // IntentSeries of the whole trial, and of the view
   const error = errorBox("review-error");
   const title = h("h1", { "data-testid": "review-title", text: `Trial ${trialId}` });
   const info = h("p", { class: "hint", "data-testid": "trial-info" });
@@ -60,6 +65,12 @@ export function mountReview(root, trialId) {
     plotsBox.append(div);
     return { spec, plot: new Plot(div, { ...spec, series: [...spec.series, ...overlaySeries(spec.key)], plugins: [markersPlugin(marks)] }) };
   });
+  // desired vs actual speed: the recorded intent, or why there is none
+  const intentNote = h("p", { class: "hint", "data-testid": "review-intent-note", text: "Loading the speed-change intent…" });
+  const intentDiv = h("div", { class: "plot", "data-testid": "review-plot-intent", hidden: true });
+  const intentCard = h("section", { class: "card", "data-testid": "review-intent" },
+    h("h2", { text: "Speed-change intent (seed 001): desired vs actual speed" }), intentNote, intentDiv);
+  const intentPlot = new Plot(intentDiv, { ...INTENT_SPEC, plugins: [markersPlugin(marks)] });
   const strideNote = h("span", { class: "hint", "data-testid": "review-stride-count" });
   const bandT = h("div", { class: "plot" });
   const bandF = h("div", { class: "plot" });
@@ -126,7 +137,7 @@ export function mountReview(root, trialId) {
     h("div", { class: "page-head" }, title, download, h("a", { class: "button", href: "#/", text: "← Sessions" })),
     info, error, timelineCard,
     h("div", { class: "live-grid" },
-      h("div", { class: "main-col" }, plotsBox, overlayCard),
+      h("div", { class: "main-col" }, plotsBox, overlayCard, intentCard),
       h("aside", { class: "side-col" }, legView(null), rerunCard,
         h("section", { class: "card" }, h("h2", { text: "Events of the trial" }), events.el)))));
 
@@ -174,10 +185,53 @@ export function mountReview(root, trialId) {
     for (let i = 0; i < s.t.length; i++) ov.push(s.t[i], { torque_Nm: s.torque_Nm[i], foot_angle_deg: s.foot_angle_deg[i] }, !!s.heel_strike[i]);
     for (const b of bands) b.plot.setData(ov.bandData(b.c));
     strideNote.textContent = ov.count ? `${ov.count} strides` : "no complete stride in view";
+    drawIntent();
+  }
+
+  /** The intent plot: the recorded desired and actual speed in view, and a re-run's when it ran the estimator. */
+  function drawIntent() {
+    const iv = st.intentView;
+    const recorded = !!(iv && iv.recorded && iv.series.t && iv.series.t.length);
+    const rerun = !!(st.rerun && st.rerun.intent && st.range);
+    const series = [...(recorded ? INTENT_SPEC.series : []), ...(rerun ? INTENT_RERUN_SERIES : [])];
+    intentDiv.hidden = !series.length;
+    if (!series.length) return;
+    intentPlot.setSeries(series);
+    const base = recorded ? [iv.series.t, ...INTENT_SPEC.cols.map((c) => (iv.series[c] || []).map(intentValue))] : null;
+    const rr = rerun ? rerunSlice(st.range[0], st.range[1], INTENT_RERUN_COLS) : null;
+    const over = rr && rr.t.length ? [rr.t, ...INTENT_RERUN_COLS.map((c) => rr[c].map(intentValue))] : null;
+    if (base && over) intentPlot.setData(uPlot.join([base, over]));
+    else if (base) intentPlot.setData(rerun ? [...base, ...INTENT_RERUN_COLS.map(() => base[0].map(() => null))] : base);
+    else if (over) intentPlot.setData(over);
+    else intentPlot.setData([[], ...series.map(() => [])]);
+  }
+
+  /** What the intent card says: where its plot comes from, or the channels the trial lacks (by name). */
+  function showIntentNote() {
+    const i = st.intent;
+    if (!i) return;
+    const rerun = !!(st.rerun && st.rerun.intent);
+    intentNote.dataset.state = i.recorded ? "recorded" : i.missing.length ? "missing" : "not-run";
+    if (i.recorded) {
+      intentNote.textContent = "As the trial's intent estimator ran: the desired speed it estimated and the centre of mass's speed, "
+        + "both updated at every mid-stance. Purple markers: the detected speed changes (events)."
+        + `${rerun ? " Dotted: the re-run's." : ""}`;
+    } else if (i.missing.length) {
+      intentNote.textContent = `No speed-change intent: this trial does not record ${listText(i.missing)}, which the intent estimator needs.`;
+    } else {
+      intentNote.textContent = rerun ? "The intent estimator did not run when the trial was recorded; shown: the re-run's."
+        : `The intent estimator did not run when the trial was recorded: re-run it with "${estimatorLabel("intent")}" checked to see it.`;
+    }
+  }
+
+  async function loadIntent(t0, t1) {
+    const range = t0 == null ? {} : { t0, t1 };
+    return api("GET", `/api/trials/${trialId}/intent${query({ ...range, max_points: MAX_POINTS })}`);
   }
 
   function redrawMarks() {
     timeline.redraw();
+    intentPlot.redraw();
     for (const { plot } of plots) plot.redraw();
   }
 
@@ -192,9 +246,13 @@ export function mountReview(root, trialId) {
       return;
     }
     try {
-      const s = derive(await api("GET", `/api/trials/${trialId}/series${query({ t0, t1, max_points: MAX_POINTS })}`));
+      const [s, intent] = await Promise.all([
+        api("GET", `/api/trials/${trialId}/series${query({ t0, t1, max_points: MAX_POINTS })}`).then(derive),
+        st.intent && st.intent.recorded ? loadIntent(t0, t1) : Promise.resolve(st.intent),
+      ]);
       if (!st.alive) return;
       st.view = s;
+      st.intentView = intent;
       st.range = [t0, t1];
       from.value = t0.toFixed(2);
       to.value = t1.toFixed(2);
@@ -207,6 +265,7 @@ export function mountReview(root, trialId) {
 
   function showAll() {
     st.view = st.full;
+    st.intentView = st.intent;
     st.range = [st.full.t[0], st.full.t[st.full.t.length - 1]];
     from.value = st.range[0].toFixed(2);
     to.value = st.range[1].toFixed(2);
@@ -278,8 +337,10 @@ export function mountReview(root, trialId) {
       // The server puts the re-run on the recording's session times: no alignment here.
       const names = rerunEstimators(res);
       const overlay = estimatorOverlay(names, res);
-      st.rerun = { t: r.t, cols: { ...Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c]])), ...overlay.cols },
-        series: overlay.series };
+      const intent = INTENT_RERUN_COLS.every((c) => Array.isArray(res[c]));
+      st.rerun = { t: r.t, cols: { ...Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c]])), ...overlay.cols,
+        ...(intent ? Object.fromEntries(INTENT_RERUN_COLS.map((c) => [c, res[c]])) : {}) }, series: overlay.series, intent };
+      showIntentNote();
       overlayLegend(rerunLegend, names, overlay.drawn);
       rerunClear.disabled = false;
       const changes = st.events.filter((e) => e.kind === "setting").length;
@@ -300,6 +361,7 @@ export function mountReview(root, trialId) {
     rerunClear.disabled = true;
     rerunOk.textContent = "";
     overlayLegend(rerunLegend, [], {});
+    showIntentNote();
     drawView();
   });
 
@@ -311,12 +373,18 @@ export function mountReview(root, trialId) {
   });
   (async () => {
     try {
-      const [trial, series, evs] = await Promise.all([
+      const [trial, series, evs, intent] = await Promise.all([
         api("GET", `/api/trials/${trialId}`),
         api("GET", `/api/trials/${trialId}/series${query({ max_points: MAX_POINTS })}`),
         api("GET", `/api/trials/${trialId}/events`),
+        loadIntent().catch((err) => {
+          intentNote.textContent = `The speed-change intent could not be loaded: ${errorText(err)}.`;
+          return null;
+        }),
       ]);
       if (!st.alive) return;
+      st.intent = intent;
+      showIntentNote();
       st.trial = trial;
       title.textContent = `Trial ${trial.id}${trial.name ? ` · ${trial.name}` : ""}`;
       info.textContent = `${trial.status}, ${fmt(trial.duration_s, 1)} s, ${trial.samples} samples, session ${trial.session_id}, started ${fmtUtc(trial.started_utc)}`;
@@ -353,6 +421,7 @@ export function mountReview(root, trialId) {
     unmount() {
       st.alive = false;
       timeline.destroy();
+      intentPlot.destroy();
       for (const { plot } of plots) plot.destroy();
       for (const b of bands) b.plot.destroy();
     },

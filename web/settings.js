@@ -1,4 +1,4 @@
-// The four clinician-adjustable settings: bounds, and an editor (number box + slider per setting) used by
+// The clinician-adjustable settings: bounds, and an editor (number box + slider per setting) used by
 // the live view's "Apply" and the review view's "Re-run with settings".
 
 import { SETTING_LIMITS as WIRE_LIMITS } from "./wire.js";
@@ -10,6 +10,8 @@ const PRESENTATION = {
   max_torque_Nm: { label: "Maximum torque", unit: "N·m", step: 1, digits: 1 },
   measurement_noise_scale: { label: "Measurement-noise scale", unit: "×", step: 0.1, digits: 2 },
   process_noise_scale: { label: "Process-noise scale", unit: "×", step: 0.1, digits: 2 },
+  // sessions/intent_boost.py: gain x (1 ± boost x confidence) while the intent estimator says speeding up / slowing down
+  intent_gain_boost: { label: "Intent gain boost: assistance follows intent, 0 = off", unit: "fraction of gain", step: 0.05, digits: 2 },
 };
 
 /**

@@ -54,6 +54,7 @@
  * @property {number} [max_torque_Nm=30.0] hard bound on the command (0..80)
  * @property {number} [measurement_noise_scale=1.0] (0.1..10)
  * @property {number} [process_noise_scale=1.0] (0.1..10)
+ * @property {number} [intent_gain_boost=0.0] assistance follows intent (beyond seed 001; 0: off): while the intent estimator says speeding up (slowing down) the torque gain rises (falls) by up to this fraction, scaled by its confidence (0..0.3)
  * @property {string} [model="default"] name of a model in the model store
  * @property {string} [primary="phase_ekf"] the estimator of the stack whose phase drives the torque profile
  * @property {Array<string> | null} [estimators=null] the session's estimator stack, chosen at start and fixed while it runs; null: every estimator the source's channels allow
@@ -66,6 +67,7 @@
  * @property {number | null} [max_torque_Nm=null] (0..80)
  * @property {number | null} [measurement_noise_scale=null] (0.1..10)
  * @property {number | null} [process_noise_scale=null] (0.1..10)
+ * @property {number | null} [intent_gain_boost=null] (0..0.3)
  * @property {string | null} [primary=null] switched at most every 2 s; the torque blends over 0.5 s
  * @property {string} [actor="clinician"]
  * @property {string} [reason=""]
@@ -85,13 +87,14 @@
  */
 
 /**
- * A setting change, an annotation or a system event: when, what, before, after, who.
+ * A setting change, an annotation, a system event or a detected speed-change intent: when, what,
+ * before, after, who.
  * @typedef {object} Event
  * @property {number} id
  * @property {number} session_id
  * @property {number} t session time (s) of the sample at which it took effect
  * @property {string} wall_utc
- * @property {"setting" | "annotation" | "system" | "recording"} kind
+ * @property {"setting" | "annotation" | "system" | "recording" | "intent"} kind
  * @property {string} text
  * @property {string | null} [field=null]
  * @property {number | string | null} [before=null]
@@ -497,6 +500,15 @@
  */
 
 /**
+ * A trial's speed-change intent over time (``GET /api/trials/{id}/intent``): the recorded outputs of
+ * its ``intent`` estimator (seed 001), decimated as a trial's series, or why there are none.
+ * @typedef {object} IntentSeries
+ * @property {boolean} recorded the trial records the intent estimator's outputs (its stack ran it)
+ * @property {Array<string>} [missing] when not recorded: the channels the intent estimator requires that the trial lacks (empty: it can run, a re-run shows it)
+ * @property {Object<string, Array<number | null>>} [series] 't' (session time, s) and each output of the estimator (desired_speed_m_s, speed_m_s, ...), row for row; empty when not recorded
+ */
+
+/**
  * A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames.
  *
  * ``rate_hz`` is the device's declared sample rate: the server takes up to ``1.25 x rate_hz``
@@ -578,6 +590,7 @@ export const SETTING_LIMITS = deepFreeze({
   max_torque_Nm: { min: 0.0, max: 80.0, rate: 10.0 },
   measurement_noise_scale: { min: 0.1, max: 10.0, rate: 5.0 },
   process_noise_scale: { min: 0.1, max: 10.0, rate: 5.0 },
+  intent_gain_boost: { min: 0.0, max: 0.3, rate: 0.1 },
 });
 
 /**
@@ -671,6 +684,7 @@ export const DEFAULT_SETTINGS = deepFreeze({
   max_torque_Nm: 30.0,
   measurement_noise_scale: 1.0,
   process_noise_scale: 1.0,
+  intent_gain_boost: 0.0,
   model: "default",
   primary: "phase_ekf",
   estimators: null,
@@ -765,6 +779,7 @@ export const FIELD_LIMITS = deepFreeze({
     max_torque_Nm: { min: 0.0, max: 80.0 },
     measurement_noise_scale: { min: 0.1, max: 10.0 },
     process_noise_scale: { min: 0.1, max: 10.0 },
+    intent_gain_boost: { min: 0.0, max: 0.3 },
     model: { pattern: "^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$" },
     primary: { pattern: "^[a-z][a-z0-9_]{0,31}$" },
     estimators: { maxItems: 16 },
@@ -774,6 +789,7 @@ export const FIELD_LIMITS = deepFreeze({
     max_torque_Nm: { min: 0.0, max: 80.0 },
     measurement_noise_scale: { min: 0.1, max: 10.0 },
     process_noise_scale: { min: 0.1, max: 10.0 },
+    intent_gain_boost: { min: 0.0, max: 0.3 },
     primary: { pattern: "^[a-z][a-z0-9_]{0,31}$" },
     actor: { maxLength: 64 },
     reason: { maxLength: 500 },

@@ -1,5 +1,5 @@
-"""``/api/trials``: recorded and uploaded trials: their events, decimated series, MCAP download,
-recorded settings, the estimators a re-run can run, and re-runs through them."""
+"""``/api/trials``: recorded and uploaded trials: their events, decimated series, speed-change intent, MCAP
+download, recorded settings, the estimators a re-run can run, and re-runs through them."""
 
 from __future__ import annotations
 
@@ -51,6 +51,18 @@ async def trial_series(
 
     _, path = reviewable_trial(c, trial_id)
     return await asyncio.to_thread(read_series, path, t0, t1, max_points)
+
+
+@router.get("/trials/{trial_id}/intent")
+async def trial_intent(
+    trial_id: int, c: Ctx, t0: _SeriesTime = None, t1: _SeriesTime = None, max_points: _MaxPoints = 2000
+) -> schema.IntentSeries:
+    """The speed-change intent over the trial (desired and actual speed, decimated as ``/series``) as its
+    ``intent`` estimator recorded it, or the channels that estimator needs and the trial lacks."""
+    from sessions.review.intent import intent_series
+
+    _, path = reviewable_trial(c, trial_id)
+    return await asyncio.to_thread(intent_series, path, t0, t1, max_points)
 
 
 @router.get("/trials/{trial_id}/download")

@@ -42,6 +42,7 @@ __all__ = [
     "count_messages",
     "decimate",
     "iter_sensor_frames",
+    "read_estimator_series",
     "read_events",
     "read_messages",
     "read_sensor_frames",
@@ -226,8 +227,8 @@ def read_events(path: str | Path) -> list[dict[str, Any]]:
 
     Keys come from the Foxglove event's metadata (written by :meth:`Recorder.write_event`): ``id`` and
     ``session_id`` as int, ``t`` as float, ``before``/``after`` as float when ``field`` is a numeric
-    setting (:data:`~sessions.schema.SETTING_LIMITS`), else str; absent keys (events written by other
-    tools) are left out.
+    setting (:data:`~sessions.schema.SETTING_LIMITS`) or the event is an ``intent`` (desired speeds),
+    else str; absent keys (events written by other tools) are left out.
     """
     out = []
     for _, log_time, msg in read_messages(path, ["/events"]):
@@ -236,7 +237,7 @@ def read_events(path: str | Path) -> list[dict[str, Any]]:
             for key, cast in (("id", int), ("session_id", int), ("t", float)):
                 if key in event:
                     event[key] = cast(event[key])
-            if event.get("field") in schema.SETTING_LIMITS:
+            if event.get("field") in schema.SETTING_LIMITS or event.get("kind") == "intent":
                 for key in ("before", "after"):
                     if key in event:
                         event[key] = float(event[key])
@@ -277,13 +278,14 @@ class SeriesBuilder:
     """Builds :data:`SERIES_COLUMNS` from gait states fed one at a time, in memory bounded by
     ``max_points`` and one bucket: with more than ``max_points`` of the ``n`` expected rows, each of
     ``max_points // 2`` buckets of consecutive rows becomes two rows as :func:`read_series` describes.
-    ``extra`` columns (float or None: estimator outputs) are decimated like the plotted floats."""
+    ``extra`` columns (float or None: estimator outputs) are decimated like the plotted floats; ``base``
+    replaces :data:`SERIES_COLUMNS` (``("t",)``: an estimator's outputs alone, :func:`read_estimator_series`)."""
 
-    def __init__(self, n: int, max_points: int, extra: Sequence[str] = ()):
+    def __init__(self, n: int, max_points: int, extra: Sequence[str] = (), base: Sequence[str] = SERIES_COLUMNS):
         if max_points < 2:
             raise ValueError(f"max_points must be at least 2, got {max_points}")
-        self._columns = (*SERIES_COLUMNS, *extra)
-        self._plot = (*_PLOT_COLUMNS, *extra)
+        self._columns = (*base, *extra)
+        self._plot = (*(c for c in _PLOT_COLUMNS if c in base), *extra)
         self._out: dict[str, list[Any]] = {c: [] for c in self._columns}
         self._bucketed = n > max_points
         self._edges = [int(e) for e in np.linspace(0, n, max_points // 2 + 1).round()][1:] if self._bucketed else []
@@ -337,6 +339,37 @@ def read_series(path: str | Path, t0: float | None, t1: float | None, max_points
             raise DataFormatError(f"/gait_state message without t at {message.log_time} ns", file=str(path))
         builder.add(row)
     return builder.result()
+
+
+def read_estimator_series(
+    path: str | Path, name: str, t0: float | None, t1: float | None, max_points: int
+) -> dict[str, list[Any]] | None:
+    """Columns ``t`` and each output of estimator ``name`` (``/estimators/<name>``, in the order of its first
+    message's ``values``) with ``t0 <= t <= t1``, decimated as :func:`read_series` (min and max per bucket of
+    each output; None where it had failed). None: the file records no such estimator.
+    """
+    if max_points < 2:
+        raise ValueError(f"max_points must be at least 2, got {max_points}")
+    topic = f"{schema.ESTIMATOR_TOPIC_PREFIX}{name}"
+    with open(path, "rb") as f:
+        _, summary = _indexed_summary(f, str(path))
+    if not any(c.topic == topic for c in summary.channels.values()):
+        return None
+    window = series_window(path, t0, t1)
+    if window is None:
+        return {"t": []}
+    starting_at, ending_at = window
+    n = count_messages(path, topic, starting_at, ending_at)
+    builder: SeriesBuilder | None = None
+    for channel, message in _iter_raw(path, [topic], starting_at, ending_at, file_order=True):
+        msg = _decode(str(path), channel, message)
+        values = msg.get("values") if isinstance(msg, dict) else None
+        if not isinstance(values, dict) or not isinstance(msg.get("t"), int | float):
+            raise DataFormatError(f"{topic} message without t or values at {message.log_time} ns", file=str(path))
+        if builder is None:
+            builder = SeriesBuilder(n, max_points, tuple(values), base=("t",))
+        builder.add({"t": msg["t"], **values})
+    return {"t": []} if builder is None else builder.result()
 
 
 def decimate(rows: Sequence[Mapping[str, Any]], max_points: int) -> dict[str, list[Any]]:

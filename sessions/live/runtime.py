@@ -10,8 +10,9 @@ oldest entries (counted) when the client does not keep up.
 Safety:
 
 - the torque that leaves the runtime is always a finite number in ``[0, max_torque_Nm]``
-  (:func:`safe_torque`), whatever the estimators did; an estimator that fails is isolated by the stack
-  (:mod:`sessions.stack`), its failure is a system event and data health lists it;
+  (:func:`safe_torque`), whatever the estimators did and whatever the optional intent boost of the gain
+  (:mod:`sessions.intent_boost`, off by default, applied by the frame estimator) does; an estimator that fails is
+  isolated by the stack (:mod:`sessions.stack`), its failure is a system event and data health lists it;
 - a change of settings is stored with its events in one transaction first and applied only then, so
   that what runs is always what the database (and the rate limits) say;
 - every task of the session is supervised: an error ends the session as ``failed`` with an event,
@@ -28,11 +29,12 @@ import logging
 import math
 import time
 from collections import deque
-from collections.abc import Awaitable, Callable, Coroutine
+from collections.abc import Awaitable, Callable, Coroutine, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from estimators.pipeline import TrainedModel
 from sessions import schema
@@ -40,6 +42,7 @@ from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused, to
 from sessions.formats.mcap_io import recover
 from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, SAMPLE_PERIOD_KEY, Recorder
 from sessions.live.disk import DiskLevel
+from sessions.live.intent_events import IntentOnsets
 from sessions.live.sources import FrameSource, LiveDevice
 from sessions.live.subscribers import SUBSCRIBER_CAPACITY, Subscriber
 from sessions.schema import GaitState, SensorFrame, SessionSettings, SettingsChange
@@ -135,6 +138,8 @@ class SessionRuntime:
             channels=getattr(source, "channels", None),
             fingerprint=self.fingerprint,
         )
+        #: onsets of speeding up / slowing down of the stack's intent estimator: each one an ``intent`` event
+        self.intent_onsets = IntentOnsets(self.estimator.stack.names, self.estimator.stack.outputs)
         self.subscribers: set[Subscriber] = set()
         self.recorder: Recorder | None = None
         self.trial: schema.Trial | None = None
@@ -266,6 +271,8 @@ class SessionRuntime:
             self._notes()
         sample = self.estimator.last
         outputs = sample.outputs if sample is not None else []
+        if self.intent_onsets.active:
+            self._intent_event(outputs)
         t = state.t
         self.samples += 1
         self._recent_recv.append(recv_ns)
@@ -290,6 +297,14 @@ class SessionRuntime:
         for text in self.estimator.events:
             self._event("system", text)
         self.estimator.events.clear()
+
+    def _intent_event(self, outputs: Sequence[NDArray[np.float64] | None]) -> None:
+        """An onset of speeding up or slowing down at this sample: an ``intent`` event (at most one per
+        mid-stance, see :mod:`sessions.live.intent_events`)."""
+        onset = self.intent_onsets.update(outputs)
+        if onset is not None:
+            before, after = round(onset.desired_before_m_s, 3), round(onset.desired_m_s, 3)
+            self._event("intent", onset.text, field="desired_speed_m_s", before=before, after=after)
 
     def _notes(self) -> None:
         """Turn the estimator's notes into system events, at most one per NOTE_INTERVAL_S."""

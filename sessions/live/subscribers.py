@@ -17,8 +17,8 @@ from sessions.schema import GaitState
 SUBSCRIBER_CAPACITY = 1000
 #: The estimator outputs a browser gets (those an estimator has): its estimates, to overlay, the online
 #: fingerprint (seed 004 GF), which the subject page draws moving, and the speed-change intent (seed 001),
-#: which the live view's indicator reads. Every output is recorded (``/estimators/<name>``); the primary's
-#: are in the gait states already.
+#: which the live view's indicator and its desired-vs-actual speed plot read. Every output is recorded
+#: (``/estimators/<name>``); the primary's are in the gait states already.
 STREAMED_OUTPUTS = (
     "phase",
     "phase_rate",
@@ -30,6 +30,7 @@ STREAMED_OUTPUTS = (
     "desired_speed_m_s",
     "intent_code",
     "intent_confidence",
+    "speed_m_s",
 )
 #: Decimals kept of a streamed estimator output (1e-5 of a cycle, m, deg: far below what a plot shows).
 STREAMED_DECIMALS = 5

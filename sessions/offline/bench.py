@@ -19,10 +19,14 @@ measured in one run; every comparison is against a baseline measured in the same
    estimator output by output.
 4. Per-sample cost of the whole default estimator stack (:mod:`sessions.stack`, every registered
    estimator, as a live session runs it) against the seed-000 pipeline's :meth:`GaitStatePipeline.step`.
-5. Wall time of the full leave-one-subject-out cross-validation.
+5. Per-sample cost of the speed-change intent estimator (:mod:`sessions.offline.intent_bench`) on a simulated
+   walk, between events and at events, against seed 001 on filterpy's ``KalmanFilter`` (row 3 feeds it the
+   default trial, which lacks its channels, so it sees no events there).
+6. Wall time of the full leave-one-subject-out cross-validation.
 
 Targets: issue #2, gaitscope >= 20x faster than the reference and < 10 us per sample, states agree to
-1e-9, cross-validation under 5 minutes on 2 cores; issue #7, replay >= 200,000 samples/s.
+1e-9, cross-validation under 5 minutes on 2 cores; issue #7, replay >= 200,000 samples/s; issue #9, the intent
+estimator's bookkeeping between events <= 2 us per sample.
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ from sessions import schema
 from sessions.formats.models import default_model_path, load_model
 from sessions.formats.replay_io import read_replay_csv, write_replay_output
 from sessions.offline.baselines import BASELINES, Stepper
+from sessions.offline.intent_bench import intent_cost
 from sessions.offline.replay import measurements, replay_file, run
 from sessions.registry import ESTIMATORS, OPT_IN, StackContext, build_stack
 from sessions.synth.trials import minutes_schedule, replay_columns, replay_input, sensor_trial
@@ -409,6 +414,18 @@ def run_bench(
         f"  GaitStatePipeline.step      median {s['pipeline_median_us']:7.2f} us   p95 {s['pipeline_p95_us']:7.2f} us"
         f"   (stack / pipeline {s['stack_median_us'] / s['pipeline_median_us']:.1f}x)"
     )
+    i = intent_cost(max(2, samples // 200))  # 30 strides of each speed at the default 6000 samples
+    print(
+        f"intent estimator per sample, a simulated walk (1.0 then 1.3 m/s, forces, {i['samples']:.0f} samples,"
+        f" {i['events']:.0f} at events; target between events <= 2 us):"
+    )
+    for part, label in (("between", "between events"), ("events", "at events")):
+        print(
+            f"  {label:<16} IntentEstimator.step median {i[f'{part}_median_us']:7.2f} us   p95"
+            f" {i[f'{part}_p95_us']:7.2f} us   filterpy KalmanFilter, same events median"
+            f" {i[f'ref_{part}_median_us']:7.2f} us   ratio {i[f'{part}_ratio']:.1f}x"
+        )
+    print(f"  max |output diff| {i['max_output_diff']:.2e}")
     cal = calibration_cost()
     print(
         f"fingerprint calibration from a {cal['walk_s']:.0f} s walk ({cal['strides']:.0f} strides), best of 5: "
@@ -419,6 +436,7 @@ def run_bench(
     out.update({f"calibration_{k}": v for k, v in cal.items()})
     out.update({f"estimator_{name}_{k}": v for name, row in per.items() for k, v in row.items()})
     out.update({f"stack_{k}": v for k, v in s.items()})
+    out.update({f"intent_{k}": v for k, v in i.items()})
     if crossval:
         wall = crossval_time()
         print(f"cross-validation (10 folds, {os.cpu_count()} workers): {wall:.1f} s wall")

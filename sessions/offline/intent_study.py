@@ -5,7 +5,7 @@ section 4), with :mod:`sessions.synth.intent_walks` standing in for the Ekso tri
 
 - each cohort subject walks three commanded speed-ups (SU) and three slow-downs (SD), command at step 8,
   and one self-paced walk with changes at steps of its own choosing; sensors at 100 Hz with the cohort's
-  noise; the filter runs on the sample stream as it does live (:class:`estimators.intent.IntentEstimator`:
+  noise; the filter runs on the sample stream as it does live (:class:`estimators.intent_estimator.IntentEstimator`:
   touchdown from both foot forces above 5 % of their maximum, mid-stance from the hip-angle difference);
 - step ``j`` is the stretch from mid-stance ``j - 1`` to mid-stance ``j``; its touchdown's step length
   and the speed measured at its mid-stance (the centre of mass's forward velocity there) are the data;
@@ -38,7 +38,8 @@ import numpy as np
 from scipy import stats
 
 from estimators.com_kinematics import LegGeometry, com_from_legs
-from estimators.intent import UNINJURED, BKFConfig, ButtressedKF, IntentEstimator
+from estimators.intent import UNINJURED, BKFConfig, ButtressedKF
+from estimators.intent_estimator import IntentEstimator
 from sessions.synth.cohort import CohortSpec
 from sessions.synth.intent_walks import IntentProtocol, IntentTrial, intent_trials
 
@@ -66,6 +67,8 @@ PAPER_STEP_RMSE_M: Final = 0.025
 #: speed changed this much over the last step (choices: about the steady stride-to-stride variation).
 STEP_THRESHOLD_M: Final = 0.01
 SPEED_THRESHOLD_M_S: Final = 0.02
+#: Dead bands of the live class (``IntentEstimator.deadband_m_s``) whose trade-off the study reports.
+DEAD_BANDS_M_S: Final = (0.01, 0.03, 0.05, 0.08)
 
 
 class _LoggedKF(ButtressedKF):
@@ -146,9 +149,10 @@ def _inputs(trial: IntentTrial, kinematic: bool) -> tuple[np.ndarray, np.ndarray
     return z, true
 
 
-def run_filter(trial: IntentTrial, config: BKFConfig = UNINJURED, kinematic: bool = False) -> StepLog:
-    """Run the live estimator over a trial's samples and log its events."""
-    est = IntentEstimator(trial.subject.leg_length_m, config)
+def run_filter(trial: IntentTrial, config: BKFConfig = UNINJURED, kinematic: bool = False, **options: float) -> StepLog:
+    """Run the live estimator (with ``options``, e.g. ``min_confidence``) over a trial's samples and log
+    its events."""
+    est = IntentEstimator(trial.subject.leg_length_m, config, **options)  # type: ignore[arg-type]
     kf = _LoggedKF(trial.subject.leg_length_m, config)
     est.filter = kf
     z, true = _inputs(trial, kinematic)
@@ -330,6 +334,8 @@ class IntentStudy:
     step_rmse_held_out_m: float
     cohort_kappa: np.ndarray
     com_rmse: np.ndarray  # forward position, up position, forward velocity, up velocity at mid-stance
+    #: the live class's dead band -> the commanded trials' scores and calls per step of the self-paced walks
+    dead_bands: dict[float, tuple[Scores, float]]
 
 
 def _config(kappa: np.ndarray) -> BKFConfig:
@@ -381,6 +387,12 @@ def run_study(protocol: IntentProtocol | None = None, spec: CohortSpec | None = 
         out["step_change"] = score(tr, base, _step_change, False)
         return out
 
+    dead_bands = {}
+    for band in DEAD_BANDS_M_S:
+        lg = [run_filter(t, _config(cohort_kappa[t.subject.code]), deadband_m_s=band) for t in trials]
+        sc = score([trials[i] for i in commanded], [lg[i] for i in commanded], _filter_prediction, False)
+        calls = [lg[i].ms_code[2:] != 0 for i in self_paced]
+        dead_bands[band] = (sc, float(np.mean(np.concatenate(calls))))
     com_err = np.vstack([lg.com_error for lg in logs["kinematic"]])[:, [0, 2, 3, 5]]
     return IntentStudy(
         protocol=protocol,
@@ -391,6 +403,7 @@ def run_study(protocol: IntentProtocol | None = None, spec: CohortSpec | None = 
         step_rmse_held_out_m=float(np.sqrt(np.mean(np.concatenate(held_out) ** 2))),
         cohort_kappa=fit(commanded),
         com_rmse=np.sqrt(np.nanmean(com_err**2, axis=0)),
+        dead_bands=dead_bands,
     )
 
 
@@ -456,5 +469,15 @@ def to_markdown(study: IntentStudy) -> str:
         "(seed 001's uninjured subject: [0.3325, 0.2635, 0.3757]).",
         f"- Centre of mass from leg kinematics, RMSE at mid-stance: forward {100 * r[0]:.1f} cm, "
         f"up {100 * r[1]:.1f} cm, forward velocity {r[2]:.3f} m/s, up velocity {r[3]:.3f} m/s.",
+        "",
+        "The live class (`intent_code`) against its dead band (cohort kappa, `min_confidence` 2): commanded "
+        "changes caught on time against calls while the speed is steady.",
+        "",
+        "| dead band (m/s) | detected on the command step or one later (missed) | calls per steady step "
+        "| calls per step, self-paced walks |",
+        "|---|---|---|---|",
     ]
+    for band, (sc, calls) in study.dead_bands.items():
+        rate = sc.steady_calls / sc.steady_steps if sc.steady_steps else math.nan
+        lines.append(f"| {band:g} | {sc.on_time} of {n_cmd} ({sc.missed}) | {rate:.2f} | {calls:.2f} |")
     return "\n".join(lines) + "\n"

@@ -51,7 +51,7 @@ from sessions.live.runtime import safe_torque
 from sessions.registry import OPT_IN, channels_of, feeds
 from sessions.schema import RerunChoices, SensorFrame, SessionSettings
 
-__all__ = ["recorded_settings", "recorded_stack", "rerun_choices", "rerun_series"]
+__all__ = ["recorded_settings", "recorded_stack", "rerun_choices", "rerun_series", "trial_channels"]
 
 #: What ran before the stack was recorded: the phase EKF (with its detector) and the timing-based estimate.
 _BEFORE_STACKS: Final = ("phase_ekf", "tbe")
@@ -117,7 +117,7 @@ def rerun_series(
         names = settings.estimators
     ran = names is None and (names := recorded_stack(path)) is not None
     # the channels are checked unless the stack is the recorded one (it ran: on a device, whatever came)
-    channels = None if ran else _channels(path)
+    channels = None if ran else trial_channels(path)
     current = settings
     estimator: FrameEstimator | None = None
     topics = ["/sensor", "/settings"] if settings is None else ["/sensor"]
@@ -194,7 +194,7 @@ def rerun_choices(path: Path, fingerprint: Sequence[float] | None = None) -> Rer
         DataFormatError: a bad file.
     """
     recorded = recorded_stack(path)
-    fed = feeds(_channels(path))
+    fed = feeds(trial_channels(path))
     ran = set(recorded or ())
     runnable = [n for n, f in fed.items() if (n in ran or not f.missing) and (n != "fp_ls" or fingerprint is not None)]
     if recorded is not None:
@@ -242,7 +242,7 @@ def recorded_stack(path: Path) -> tuple[str, ...] | None:
     return _BEFORE_STACKS if SAMPLE_PERIOD_KEY in meta else None
 
 
-def _channels(path: Path) -> set[str]:
+def trial_channels(path: Path) -> set[str]:
     """The channels the trial's first :data:`_PROBE` frames send (:func:`~sessions.registry.channels_of`)."""
     return channels_of(f for _, f in itertools.islice(iter_sensor_frames(path), _PROBE))
 

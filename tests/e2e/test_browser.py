@@ -226,6 +226,11 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(page.get_by_test_id("summary-intent")).to_have_text(
         re.compile(r"^(speeding up|steady|slowing down)$"), timeout=20_000
     )
+    # ... and its desired vs actual speed are plotted, as the stack has the intent estimator
+    intent_plot = page.get_by_test_id("plot-intent-speed")
+    expect(intent_plot.locator("canvas")).to_be_visible()
+    expect(intent_plot.locator(".u-title")).to_have_text("Speed-change intent: desired vs actual speed")
+    expect(intent_plot.locator(".u-legend")).to_contain_text("desired")
 
     # --- the subject's baseline: kept per subject in this browser, survives a reload ---------------------
     expect(page.get_by_test_id("baseline-note")).to_have_text("no baseline")
@@ -287,7 +292,9 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(page.get_by_test_id("annotation-error")).to_be_hidden()
     note = page.get_by_test_id("event-row").and_(page.locator("[data-kind=annotation]"))
     expect(note).to_contain_text("comfortable push-off")
-    expect(page.get_by_test_id("event-row").first).to_contain_text("comfortable push-off")  # newest first
+    # newest first (of the clinician's and the system's: the walker's detected speed changes come any time)
+    not_intent = page.locator("[data-testid=event-row]:not([data-kind=intent])")
+    expect(not_intent.first).to_contain_text("comfortable push-off")
     page.wait_for_timeout(1500)  # a few more strides in the overlay for the screenshot
     page.screenshot(path=str(ARTIFACTS / "live.png"), full_page=True)
 
@@ -308,6 +315,9 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(page.get_by_test_id("trial-info")).to_contain_text("uploaded")
     expect(page.get_by_test_id("timeline").locator("canvas")).to_be_visible()
     expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
+    # a replay CSV has no centre of mass: the intent card names what is missing instead of an empty plot
+    expect(page.get_by_test_id("review-intent-note")).to_contain_text("does not record com_forward_m, com_lateral_m")
+    expect(page.get_by_test_id("review-plot-intent")).to_be_hidden()
     scrubber = page.get_by_test_id("scrubber")
     t_max = float(scrubber.get_attribute("max") or "nan")
     assert 15.0 < t_max < 40.0  # 20 strides at 1.2 m/s

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from estimators.com_kinematics import LegGeometry, com_from_legs
+from estimators.com_kinematics import KinematicCoM, LegGeometry, com_from_legs
 
 G = LegGeometry(0.42, 0.41, 0.07)
 
@@ -54,3 +54,34 @@ def test_geometry_from_leg_length_uses_winters_fractions() -> None:
     assert g.thigh_m + g.shank_m + g.ankle_height_m == pytest.approx(0.9, rel=0.01)
     with pytest.raises(ValueError, match="leg length"):
         LegGeometry.from_leg_length(math.nan)
+
+
+def test_the_stack_estimator_matches_the_function_and_holds_when_inputs_go_bad() -> None:
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    est = KinematicCoM(0.9)
+    assert [n for n, _ in est.outputs] == ["com_forward_m", "com_up_m", "com_forward_vel_m_s", "com_up_vel_m_s"]
+    z = np.array([-10.0, -60.0, 5.0, -30.0, 20.0, 90.0, 10.0, 40.0, 650.0, 30.0])
+
+    def ref(v: np.ndarray) -> np.ndarray:
+        th, wth, sh, wsh, thc, wthc, shc, wshc, f, fc = v
+        return com_from_legs(est.geometry, th, sh, wth, wsh, f, thc, shc, wthc, wshc, fc)[[0, 2, 3, 5]]
+
+    y = est.step(0.0, z)
+    assert np.allclose(y, ref(z))
+    z2 = z.copy()
+    z2[[8, 9]] = [30.0, 650.0]  # the other foot loaded: the other leg's angles
+    assert np.allclose(est.step(0.01, z2), ref(z2))
+    assert not np.allclose(est.step(0.02, z2), y)
+    bad = z.copy()
+    bad[0] = math.inf
+    assert np.array_equal(est.step(0.03, bad), est.step(0.04, z2))  # held, then the same estimate
+
+    @settings(max_examples=200, deadline=None)
+    @given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=10, max_size=10))
+    def finite_whatever(values: list[float]) -> None:
+        out = KinematicCoM(0.9).step(0.0, np.array(values))
+        assert np.isfinite(out).all() and out.shape == (4,)
+
+    finite_whatever()

@@ -30,6 +30,7 @@ def test_each_registered_estimator_declares_what_it_is_built_as() -> None:
         "fp_avg": "Average thigh model (seed 004)",
         "fp_ls": "Personalized thigh model (seed 004 LS-GF)",
         "fp_gf": "Online fingerprint EKF (seed 004 GF)",
+        "com_kin": "Centre of mass from leg kinematics (seed 001)",
         "intent": "Speed-change intent (seed 001)",
     }
 
@@ -57,9 +58,12 @@ def test_a_fingerprint_filter_the_session_cannot_build_is_left_out_or_refused_wi
 
 def test_feeds_counts_a_channel_an_earlier_estimator_derives() -> None:
     every = {"foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps", "thigh_angle_deg", HS}
-    intent = set(DECLARED["intent"].inputs)
-    assert feeds(every | intent) == {n: Feed((), {}) for n in ESTIMATORS}
+    intent, kin = set(DECLARED["intent"].inputs), set(DECLARED["com_kin"].inputs)
+    assert feeds(every | intent | kin) == {n: Feed((), {}) for n in ESTIMATORS}
     assert feeds(every)["intent"].missing == DECLARED["intent"].inputs
+    # no centre of mass sent: the leg kinematics give it (seed 001's way)
+    com = {"com_forward_m", "com_up_m", "com_forward_vel_m_s", "com_up_vel_m_s"}
+    assert feeds(every | kin | (intent - com))["intent"] == Feed((), {c: ("com_kin",) for c in sorted(com)})
     # the foot angle alone: its velocity is differentiated, heel strikes come from the detector or the EKF
     foot = feeds({"foot_angle_deg"})
     assert foot["hs_detector"] == foot["phase_ekf"] == Feed((), {})

@@ -63,9 +63,11 @@ def test_the_default_stack_is_every_estimator_the_channels_allow(small_model: Tr
     def names(channels: set[str] | None, asked: list[str] | None = None) -> list[str]:
         return [e.name for e in resolve(asked, channels, ctx)]
 
-    assert list(ESTIMATORS) == ["hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_ls", "fp_gf", "intent"]
+    assert list(ESTIMATORS) == [
+        "hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_ls", "fp_gf", "com_kin", "intent"
+    ]  # fmt: skip
     # hs_backup is opt-in (OPT_IN); fp_ls needs the subject's calibrated fingerprint
-    assert names(None) == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "intent"]
+    assert names(None) == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent"]
     assert names({"foot_angle_deg", "thigh_angle_deg"}) == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf"]
     assert names(None, ["phase_ekf", "hs_backup"]) == ["phase_ekf", "hs_backup"]
     # a foot angle alone: its velocity is derived, heel strikes detected (the detector feeds the TBE)
@@ -85,7 +87,7 @@ def test_the_default_stack_keeps_the_gait_state_of_the_phase_ekf(small_model: Tr
     """The primary's outputs are the gait state; the other estimators change nothing of it."""
     full, est = _run(small_model, walk)
     alone, _ = _run(small_model, walk, estimators=["phase_ekf", "tbe"])
-    assert est.stack.names == ("hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "intent")
+    assert est.stack.names == ("hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent")
     assert est.primary == "phase_ekf"
     for a, b in zip(full, alone, strict=True):
         assert a.model_dump() == b.model_dump()
@@ -343,7 +345,7 @@ def test_a_session_streams_the_speed_change_intent_the_live_view_reads(client: T
     for frame in frames_from_table(sensors):
         runtime.process(frame, time.time_ns())
     columns = sub.batch(session.id).estimators["intent"].columns
-    assert set(columns) == {"desired_speed_m_s", "intent_code", "intent_confidence"}
+    assert set(columns) == {"desired_speed_m_s", "intent_code", "intent_confidence", "speed_m_s"}
     codes = [c for c in columns["intent_code"] if c is not None]
     assert set(codes) <= {-1.0, 0.0, 1.0} and 1.0 in codes  # the walker sped up
     assert all(v is not None and 0.2 < v < 2.5 for v in columns["desired_speed_m_s"][-100:])

@@ -62,7 +62,8 @@ def test_killed_server_loses_at_most_a_second_and_restart_recovers(tmp_path: Pat
         assert 0.0 <= lost_s <= 1.0, f"kill -9 lost {lost_s:.3f} s"
         session = client.get("/api/sessions/1").json()
         assert session["state"] == "stopped"
-        events = client.get("/api/sessions/1/events").json()
+        # intent events (the simulated walker's) may come at any time, even after the last sample kept
+        events = [e for e in client.get("/api/sessions/1/events").json() if e["kind"] != "intent"]
         assert events[-2]["kind"] == "system" and events[-2]["text"].startswith(
             f"server restarted: the recording of {trial['name']} was interrupted and has been recovered ("
         )

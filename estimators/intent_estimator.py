@@ -1,0 +1,241 @@
+"""The buttressed Kalman filter (seed 001) as a stack estimator: gait events from the sample stream.
+
+:class:`IntentEstimator` (``intent`` in the registry) finds touchdowns and mid-stances in the samples a
+device sends, feeds them to :class:`estimators.intent.ButtressedKF`, and holds and flags its estimate
+when the events cannot be trusted (standing, walking backwards, a lost leg channel); beyond the paper.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimators.intent import _VX, COHORT, BKFConfig, ButtressedKF
+from estimators.protocol import MAX_GAP_S, check_params
+
+__all__ = ["COM_CHANNELS", "COM_LATERAL", "IntentEstimator"]
+
+Array = NDArray[np.float64]
+
+#: The centre-of-mass channels the intent estimator needs (SensorFrame wire names): the sagittal ones, which
+#: a device sends or :class:`estimators.com_kinematics.KinematicCoM` derives from leg kinematics.
+COM_CHANNELS: Final = ("com_forward_m", "com_up_m", "com_forward_vel_m_s", "com_up_vel_m_s")
+#: The lateral ones, used when sent (sagittal kinematics cannot give them).
+COM_LATERAL: Final = ("com_lateral_m", "com_lateral_vel_m_s")
+#: Channel values beyond these are treated as missing (absurd for a person walking): CoM position (m) and
+#: velocity (m/s), foot force (N), hip-angle difference (deg), step length (m).
+_MAX_COM, _MAX_FORCE_N, _MAX_HIP_DEG, _MAX_STEP_M = 100.0, 1e5, 360.0, 5.0
+
+
+class IntentEstimator:
+    """The buttressed Kalman filter as a stack estimator (``intent``): events from the sample stream.
+
+    - Touchdown (seed 001 Sec. II-B): both feet's vertical force above ``contact_fraction`` of the largest
+      force seen so far (5 %), or both contact flags when a device sends them; the rising edge of that
+      double support is a touchdown, and the step length is the frame's ``step_length_m`` there.
+    - Mid-stance: a zero crossing of ipsilateral minus contralateral hip angle, counted only once the
+      difference has been more than ``hip_arm_deg`` away from zero since the last one (hysteresis without
+      delay: sensor noise around zero while standing makes no mid-stances; a walking step swings it by
+      tens of degrees).
+    - Between events the outputs hold: desired speed, intent (the last mid-stance's change of desired
+      speed), its class (``intent_code``: 1 speeding up, -1 slowing down, 0 steady, when the change is
+      below ``deadband_m_s`` (0.05 m/s) or its confidence below ``min_confidence`` (2) standard deviations;
+      the trade-off of missed changes against false calls on the cohort is in ``docs/results.md``) and
+      confidence. The bookkeeping of a sample between events is a few float comparisons (no numpy).
+    - The hip-motor current (``motor_current_A``, optional) feeds the iSCI variant's current model when
+      the configuration has ``alpha``: its RMS over the swing before the touchdown.
+
+    When the events cannot be trusted, the estimator **holds and flags**: desired speed and speed keep
+    their last values, ``intent_m_s``, ``intent_code`` and ``intent_confidence`` are 0 (a confidence of 0
+    is the flag: "not sure"), and the filter restarts at the next trustworthy mid-stance (as at the start
+    of a walk, ``v_x^d = v_x``); codes come back after ``recover_steps`` more steps each with one
+    touchdown and one mid-stance. The start of a walk is treated the same way: the desired speed starts at
+    the first mid-stance's speed and its first steps settle it, so they get no code. That happens when
+
+    - **standing**: no mid-stance for ``standing_s`` (2 s; a step at 0.4 m/s takes about 1 s), whatever
+      the forces say (standing is double support throughout, so there is no touchdown either);
+    - **not walking forwards**: the forward CoM velocity at a mid-stance is below ``min_speed_m_s``
+      (0.1 m/s; walking backwards is negative): the step-length model (eq. 1) is for forward walking, so
+      the filter is not updated;
+    - **a lost leg channel**: a hip angle, or a foot force when no contact flags come, missing (NaN or
+      absurd) for longer than ``max_dropout_s`` (a dropout of a sample or two only delays an event);
+    - the filter's numbers stop being finite (a safety net; it restarts).
+
+    A missed touchdown gives that step an intent of 0 with confidence 0 (the filter's rule), a doubled
+    touchdown is ignored; neither needs a hold. A pause longer than :data:`MAX_GAP_S` restarts everything.
+    Channel values beyond physical sense (CoM beyond 100 m or m/s, forces beyond 1e5 N, step lengths
+    beyond 5 m) are treated as missing, so every output is always finite.
+    """
+
+    name = "intent"
+    inputs: tuple[str, ...] = (*COM_CHANNELS, "hip_angle_deg", "hip_angle_contra_deg", "foot_force_N",
+                               "foot_force_contra_N", "step_length_m")  # fmt: skip
+    optional_inputs: tuple[str, ...] = (*COM_LATERAL, "foot_contact", "foot_contact_contra", "motor_current_A")
+    outputs: tuple[tuple[str, str], ...] = (
+        ("desired_speed_m_s", "m/s"),
+        ("intent_m_s", "m/s"),
+        ("intent_code", "code"),
+        ("intent_confidence", "1"),
+        ("speed_m_s", "m/s"),
+    )
+    tunables: tuple[str, ...] = ("deadband_m_s", "min_confidence")
+
+    def __init__(
+        self,
+        leg_length: float,
+        config: BKFConfig = COHORT,
+        contact_fraction: float = 0.05,
+        deadband_m_s: float = 0.05,
+        min_confidence: float = 2.0,
+        *,
+        standing_s: float = 2.0,
+        min_speed_m_s: float = 0.1,
+        max_dropout_s: float = 0.05,
+        hip_arm_deg: float = 2.0,
+        recover_steps: int = 2,
+    ):
+        self.filter = ButtressedKF(leg_length, config)
+        self.contact_fraction = contact_fraction
+        self.deadband_m_s, self.min_confidence = deadband_m_s, min_confidence
+        self.standing_s, self.min_speed_m_s = standing_s, min_speed_m_s
+        self.max_dropout_s, self.hip_arm_deg, self.recover_steps = max_dropout_s, hip_arm_deg, recover_steps
+        self.reset()
+
+    @property
+    def state(self) -> Array:
+        return self.filter.z
+
+    @property
+    def covariance(self) -> Array:
+        return self.filter.P
+
+    @property
+    def holding(self) -> bool:
+        """True while the outputs are held and flagged (see the class docstring)."""
+        return self._held or self._pending > 0
+
+    def reset(self) -> None:
+        self.filter.reset()
+        self._t: float | None = None
+        self._max_force = 0.0
+        self._double = False
+        self._hip_diff = math.nan
+        self._armed = False
+        self._current_sq, self._current_n = 0.0, 0
+        self._out = np.zeros(5)
+        self._last_mid = math.inf  # time of the last mid-stance (inf: none yet, set at the first sample)
+        self._seen = math.inf  # time of the last sample with every event channel
+        self._lost = False
+        self._held = False  # holding: the next trustworthy mid-stance restarts the filter
+        self._pending = self.recover_steps  # steps still to see before codes come back (none at the start)
+
+    def retune(self, **params: float) -> None:
+        check_params(self, params)
+        for k, v in params.items():
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{k} must be a number >= 0, got {v}")
+        self.deadband_m_s = float(params.get("deadband_m_s", self.deadband_m_s))
+        self.min_confidence = float(params.get("min_confidence", self.min_confidence))
+
+    def step(self, t: float, z: Array) -> Array:
+        """One sample: ``z`` = the four sagittal CoM channels, both hip angles, both foot forces, the last
+        step length, then the optional lateral CoM channels, contact flags and motor current (NaN: missing)."""
+        last = self._t
+        if last is None:
+            self._last_mid = self._seen = t
+        elif not t - last > 0:
+            raise ValueError(f"time must increase: {t} after {last}")
+        elif t - last > MAX_GAP_S:  # a pause: the walk starts over (as estimators.protocol.elapsed)
+            self.reset()
+            self._last_mid = self._seen = t
+        self._t = t
+        v = z.tolist()  # plain floats: a sample between events does no numpy
+        hip_i, hip_c, f_i, f_c, contact_i, contact_c = v[4], v[5], v[6], v[7], v[11], v[12]
+        if self._max_force < f_i < _MAX_FORCE_N:  # NaN compares False
+            self._max_force = f_i
+        if self._max_force < f_c < _MAX_FORCE_N:
+            self._max_force = f_c
+        if contact_i == contact_i and contact_c == contact_c:  # both flags sent (not NaN)
+            double = contact_i > 0.5 and contact_c > 0.5
+            forces = True
+        else:
+            limit = self.contact_fraction * self._max_force
+            double = limit > 0 and limit < f_i < _MAX_FORCE_N and limit < f_c < _MAX_FORCE_N
+            forces = -_MAX_FORCE_N < f_i < _MAX_FORCE_N and -_MAX_FORCE_N < f_c < _MAX_FORCE_N
+        diff = hip_i - hip_c
+        hip_ok = -_MAX_HIP_DEG < diff < _MAX_HIP_DEG
+        if forces and hip_ok:
+            self._seen = t
+            if self._lost:
+                self._lost = False
+        elif t - self._seen > self.max_dropout_s and not self._lost:
+            self._lost = True
+            self._hip_diff, self._armed = math.nan, False  # no crossing across the gap
+            self._hold()
+        current = v[13]
+        if current == current and not double:
+            self._current_sq += current * current
+            self._current_n += 1
+        if double and not self._double:
+            self._touchdown(v[8])
+        self._double = double
+        if hip_ok:
+            if (diff > 0) != (self._hip_diff > 0) and self._armed:  # a NaN _hip_diff is never armed
+                self._armed = False
+                self._midstance(t, v)
+            elif not self._armed and (diff > self.hip_arm_deg or diff < -self.hip_arm_deg):
+                self._armed = True
+            self._hip_diff = diff
+        if t - self._last_mid > self.standing_s and not self._held:
+            self._hold()  # standing (or a channel lost for good)
+        return self._out.copy()
+
+    def _touchdown(self, length: float) -> None:
+        rms = math.sqrt(self._current_sq / self._current_n) if self._current_n else math.nan
+        self._current_sq, self._current_n = 0.0, 0
+        f = self.filter
+        if not self._held and -_MAX_STEP_M < length < _MAX_STEP_M and f.touchdown(length, rms):
+            if f.config.intent_at == "touchdown" and self._pending == 0:
+                self._classify()  # the step's intent, a quarter step before its mid-stance
+
+    def _midstance(self, t: float, v: list[float]) -> None:
+        self._last_mid = t
+        com = [x if -_MAX_COM < x < _MAX_COM else math.nan for x in (v[0], v[9], v[1], v[2], v[10], v[3])]
+        if com[3] < self.min_speed_m_s:  # not walking forwards (a lost velocity is NaN: updates the rest)
+            self._hold()
+            return
+        f = self.filter
+        if self._held:
+            if self._lost:  # a channel is still lost: keep holding
+                return
+            f.reset()  # the walk starts over from this mid-stance
+            self._held, self._pending = False, self.recover_steps
+        counts = f.started and f.touched
+        try:
+            f.midstance(np.array(com))
+        except np.linalg.LinAlgError:
+            f.z[:] = math.nan  # caught below
+        if not math.isfinite(f.desired_speed + f.intent + f.confidence + float(f.z[_VX])):
+            f.reset()  # a safety net: restart at the next mid-stance
+            self._hold()
+            return
+        if self._pending > 0:
+            self._pending -= counts
+            self._out[:] = (f.desired_speed, 0.0, 0.0, 0.0, float(f.z[_VX]))
+            return
+        self._classify()
+
+    def _hold(self) -> None:
+        """Hold desired speed and speed, flag intent, code and confidence 0 until the walk is trusted again."""
+        self._held = True
+        self._out[1:4] = 0.0
+
+    def _classify(self) -> None:
+        f = self.filter
+        code = 0.0
+        if abs(f.intent) >= self.deadband_m_s and f.confidence >= self.min_confidence:
+            code = 1.0 if f.intent > 0 else -1.0
+        self._out[:] = (f.desired_speed, f.intent, code, f.confidence, float(f.z[_VX]))
