@@ -52,6 +52,7 @@ from sessions.formats.replay_io import read_replay_csv, write_replay_output
 from sessions.offline.baselines import BASELINES, Stepper
 from sessions.offline.intent_bench import intent_cost
 from sessions.offline.replay import measurements, replay_file, run
+from sessions.offline.timing import step_times
 from sessions.registry import ESTIMATORS, OPT_IN, StackContext, build_stack
 from sessions.synth.trials import minutes_schedule, replay_columns, replay_input, sensor_trial
 
@@ -215,14 +216,7 @@ def _context(model: TrainedModel, sensors: pd.DataFrame, leg: float, mass: float
 
 def _timed(step: Callable[[float, np.ndarray], object], t: list[float], z: np.ndarray) -> tuple[float, float]:
     """Median and p95 (us) of ``step(t[k], z[k])``, sample by sample, with nothing else between them."""
-    ns = np.empty(len(t), dtype=np.int64)
-    clock = time.perf_counter_ns
-    for k, tk in enumerate(t):
-        zk = z[k]
-        t0 = clock()
-        step(tk, zk)
-        ns[k] = clock() - t0
-    return _percentiles(ns)
+    return _percentiles(step_times(step, t, z))
 
 
 def _agreement(est: Estimator, ref: Stepper, t: list[float], z: np.ndarray) -> dict[str, float]:

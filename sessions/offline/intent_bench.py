@@ -22,7 +22,6 @@ Nothing here runs at run time.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -33,6 +32,7 @@ from numpy.typing import NDArray
 from estimators.intent import COHORT, BKFConfig, D
 from estimators.intent_estimator import IntentEstimator
 from estimators.protocol import input_names
+from sessions.offline.timing import step_times
 from sessions.synth.trials import sensor_trial
 
 __all__ = ["ReferenceIntent", "intent_cost", "walk_inputs"]
@@ -130,17 +130,6 @@ def _event_samples(est: IntentEstimator, t: list[float], z: Array) -> NDArray[np
     return mask
 
 
-def _times(step: Callable[[float, Array], object], t: list[float], z: Array) -> NDArray[np.int64]:
-    ns = np.empty(len(t), dtype=np.int64)
-    clock = time.perf_counter_ns
-    for k, tk in enumerate(t):
-        zk = z[k]
-        t0 = clock()
-        step(tk, zk)
-        ns[k] = clock() - t0
-    return ns
-
-
 def intent_cost(strides: int = 30) -> dict[str, float]:
     """Median and p95 (us) of the estimator's and the baseline's ``step``, between events and at events,
     with the ratios of the medians (baseline / estimator) and the largest output difference.
@@ -152,7 +141,7 @@ def intent_cost(strides: int = 30) -> dict[str, float]:
     """
     t, z, leg = walk_inputs(strides)
     events = _event_samples(IntentEstimator(leg), t, z)
-    ours, ref = _times(IntentEstimator(leg).step, t, z), _times(ReferenceIntent(leg).step, t, z)
+    ours, ref = step_times(IntentEstimator(leg).step, t, z), step_times(ReferenceIntent(leg).step, t, z)
     out: dict[str, float] = {"samples": float(len(t)), "events": float(events.sum())}
     for prefix, ns in (("", ours), ("ref_", ref)):
         for part, mask in (("between", ~events), ("events", events)):

@@ -126,6 +126,12 @@ class StepLog:
     com_error: np.ndarray
 
 
+#: The centre-of-mass channels in :func:`com_from_legs`' order.
+_COM: Final = (
+    "com_forward_m", "com_lateral_m", "com_up_m", "com_forward_vel_m_s", "com_lateral_vel_m_s", "com_up_vel_m_s"
+)  # fmt: skip
+
+
 def _inputs(trial: IntentTrial, kinematic: bool) -> tuple[np.ndarray, np.ndarray]:
     """The estimator's input matrix over the trial (its ``inputs`` then ``optional_inputs``; contact flags
     and motor current left NaN, so touchdown comes from forces as in seed 001), and the true CoM."""
@@ -135,8 +141,7 @@ def _inputs(trial: IntentTrial, kinematic: bool) -> tuple[np.ndarray, np.ndarray
     for i, name in enumerate(names):
         if name in f and not name.startswith(("foot_contact", "motor_current")):
             z[:, i] = f[name].to_numpy(np.float64)
-    com_idx = [names.index(n) for n in ("com_forward_m", "com_lateral_m", "com_up_m",
-                                         "com_forward_vel_m_s", "com_lateral_vel_m_s", "com_up_vel_m_s")]  # fmt: skip
+    com_idx = [names.index(n) for n in _COM]
     true = z[:, com_idx].copy()
     if kinematic:
         col = {c: f[c].to_numpy(np.float64) for c in f.columns}
@@ -156,6 +161,8 @@ def run_filter(trial: IntentTrial, config: BKFConfig = UNINJURED, kinematic: boo
     kf = _LoggedKF(trial.subject.leg_length_m, config)
     est.filter = kf
     z, true = _inputs(trial, kinematic)
+    names = [*IntentEstimator.inputs, *IntentEstimator.optional_inputs]
+    com = [names.index(n) for n in _COM]
     t = trial.sensors["time_s"].to_numpy(np.float64)
     outs, errors, true_speed, n_ms = [], [], [], 0
     for i in range(len(t)):
@@ -164,7 +171,7 @@ def run_filter(trial: IntentTrial, config: BKFConfig = UNINJURED, kinematic: boo
         if len(kf.ms) > n_ms:
             n_ms = len(kf.ms)
             outs.append(out)
-            errors.append(z[i, :6] - true[i])
+            errors.append(z[i, com] - true[i])
             true_speed.append(true[i, 3])
     ms = np.array(kf.ms, dtype=np.float64).reshape(-1, 4)
     td = np.array(kf.td, dtype=np.float64).reshape(-1, 4)

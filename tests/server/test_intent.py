@@ -17,9 +17,10 @@ from sessions.formats.mcap_io import read_events, read_messages
 from sessions.live.sources import frames_from_table
 from sessions.registry import DECLARED
 from sessions.synth.trials import replay_columns, sensor_trial
+from tests.uploads import upload
 
 #: Channels of the centre of mass relative to the stance foot, which a replay CSV does not have.
-COM = ("com_forward_m", "com_lateral_m", "com_up_m", "com_forward_vel_m_s", "com_lateral_vel_m_s", "com_up_vel_m_s")
+COM = ("com_forward_m", "com_up_m", "com_forward_vel_m_s", "com_up_vel_m_s")  # required (lateral: optional)
 
 
 def _subject(client: TestClient) -> int:
@@ -112,17 +113,7 @@ def test_review_names_the_channels_a_trial_lacks_for_the_intent_estimator(client
     table = replay_columns(sensors)  # the replay CSV: foot and shank angles, heel position: no centre of mass
     path = tmp_path / "no_com.csv"
     table.to_csv(path, index=False, float_format="%.6f")
-    data = path.read_bytes()
-    r = client.post("/api/uploads", json={"filename": path.name, "size": len(data), "subject_id": _subject(client)})
-    assert r.status_code == 201, r.text
-    up = r.json()
-    for off in range(0, len(data), up["chunk_size"]):
-        assert client.put(
-            f"/api/uploads/{up['id']}?offset={off}", content=data[off : off + up["chunk_size"]]
-        ).is_success
-    r = client.post(f"/api/uploads/{up['id']}/finish")
-    assert r.status_code == 201, r.text
-    trial_id = r.json()["id"]
+    trial_id = upload(client, path, _subject(client))["id"]
 
     review = client.get(f"/api/trials/{trial_id}/intent").json()
     missing = [c for c in DECLARED["intent"].inputs if c not in table.columns]

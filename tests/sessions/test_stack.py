@@ -22,6 +22,7 @@ from sessions.registry import ESTIMATORS, MissingChannels, StackContext, resolve
 from sessions.schema import PRIMARY_BLEND_S, GaitState, SensorFrame, SessionSettings
 from sessions.synth.trials import replay_columns, sensor_trial
 from tests.estimator_doubles import Scripted
+from tests.uploads import upload
 
 PERIOD = 0.01
 SETTINGS = SessionSettings(torque_gain=2.0, max_torque_Nm=40.0)
@@ -228,27 +229,13 @@ def _subject(client: TestClient) -> int:
     return int(r.json()["id"])
 
 
-def _upload(client: TestClient, path: Path, subject_id: int) -> dict[str, Any]:
-    data = path.read_bytes()
-    r = client.post("/api/uploads", json={"filename": path.name, "size": len(data), "subject_id": subject_id})
-    assert r.status_code == 201, r.text
-    up = r.json()
-    for off in range(0, len(data), up["chunk_size"]):
-        assert client.put(
-            f"/api/uploads/{up['id']}?offset={off}", content=data[off : off + up["chunk_size"]]
-        ).is_success
-    r = client.post(f"/api/uploads/{up['id']}/finish")
-    assert r.status_code == 201, r.text
-    return r.json()
-
-
 def test_a_session_refuses_an_estimator_its_source_cannot_feed(client: TestClient, tmp_path: Path) -> None:
     sensors, _, _ = sensor_trial([(1.0, 0.0, 4)], rate_hz=100.0)
     table = replay_columns(sensors)[["time_s", "shank_angle_deg", "heel_strike"]]  # no foot sensor
     path = tmp_path / "shank_only.csv"
     table.to_csv(path, index=False, float_format="%.6f")
     subject = _subject(client)
-    trial = _upload(client, path, subject)
+    trial = upload(client, path, subject)
     source = {"kind": "replay", "trial_id": trial["id"], "speed": 50.0}
     asked = {"subject_id": subject, "source": source, "settings": {"estimators": ["phase_ekf", "tbe"]}}
     r = client.post("/api/sessions", json=asked)
