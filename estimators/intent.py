@@ -38,13 +38,14 @@ The filter on a sample stream (events, holds on bad input) is :class:`estimators
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Final, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["COHORT", "ISCI", "UNINJURED", "BKFConfig", "ButtressedKF", "D"]
+__all__ = ["COHORT", "ISCI", "UNINJURED", "BKFConfig", "ButtressedKF", "D", "fit_alpha", "fit_kappa"]
 
 Array = NDArray[np.float64]
 
@@ -211,3 +212,35 @@ class ButtressedKF:
     def touched(self) -> bool:
         """A touchdown update since the last mid-stance (the next mid-stance will have an intent)."""
         return self._touched
+
+
+# --- the models' regressions (seed 001 Sec. III-A) --------------------------------------------------------
+Steps = tuple[Array, Array, Array]
+
+
+def fit_kappa(walks: Sequence[Steps], leg_length_m: Sequence[float]) -> Array:
+    """Eq. 1 by least squares with seed 001's labels: ``l_(k+1) = [v_k, v_(k+1) - v_k, l_leg] kappa`` over
+    the steps of every walk, each ``(v_k, v_(k+1), l_(k+1))`` (speeds at consecutive mid-stances and the
+    step between them) with its walker's leg length (for one walker it acts as the intercept)."""
+    rows = [
+        np.column_stack([v0, v1 - v0, np.full(len(v0), leg)])
+        for (v0, v1, _), leg in zip(walks, leg_length_m, strict=True)
+    ]
+    return _lstsq(rows, [w[2] for w in walks], "kappa")
+
+
+def fit_alpha(walks: Sequence[Steps]) -> Array:
+    """The iSCI variant's current model (seed 001 eq. 14) by least squares with the same labels:
+    ``I_(k+1) = [v_k, v_(k+1) - v_k] alpha`` over every walk's ``(v_k, v_(k+1), I_(k+1))``, ``I`` the RMS
+    hip-motor current of the swing before touchdown ``k+1`` (A)."""
+    rows = [np.column_stack([v0, v1 - v0]) for v0, v1, _ in walks]
+    return _lstsq(rows, [w[2] for w in walks], "alpha")
+
+
+def _lstsq(rows: list[Array], y: list[Array], what: str) -> Array:
+    a, b = np.vstack(rows), np.concatenate(y)
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b)
+    if ok.sum() < a.shape[1] + 1:
+        raise ValueError(f"need at least {a.shape[1] + 1} steps with finite values to fit {what}, got {ok.sum()}")
+    coef: Array = np.asarray(np.linalg.lstsq(a[ok], b[ok], rcond=None)[0], dtype=np.float64)
+    return coef

@@ -38,7 +38,7 @@ import numpy as np
 from scipy import stats
 
 from estimators.com_kinematics import LegGeometry, com_from_legs
-from estimators.intent import UNINJURED, BKFConfig, ButtressedKF
+from estimators.intent import UNINJURED, BKFConfig, ButtressedKF, fit_kappa
 from estimators.intent_estimator import IntentEstimator
 from sessions.synth.cohort import CohortSpec
 from sessions.synth.intent_walks import IntentProtocol, IntentTrial, intent_trials
@@ -51,7 +51,6 @@ __all__ = [
     "STEP_THRESHOLD_M",
     "IntentStudy",
     "StepLog",
-    "fit_kappa",
     "run_filter",
     "run_study",
     "step_data",
@@ -199,19 +198,6 @@ def step_data(log: StepLog) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     td = _td_before(log)
     j = np.flatnonzero((td >= 0) & (np.arange(len(td)) >= 1))
     return log.ms_speed[j - 1], log.ms_speed[j], log.td_step[td[j]]
-
-
-def fit_kappa(data: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], leg_length_m: Sequence[float]) -> np.ndarray:
-    """Seed 001's regression of eq. 1: ``l_(k+1) = [v_k, v_(k+1) - v_k, l_leg] kappa`` by least squares over
-    the steps of every walk in ``data`` (``step_data``'s triples), each with its walker's leg length."""
-    rows, y = [], []
-    for (v0, v1, step), leg in zip(data, leg_length_m, strict=True):
-        rows.append(np.column_stack([v0, v1 - v0, np.full(len(v0), leg)]))
-        y.append(step)
-    a, b = np.vstack(rows), np.concatenate(y)
-    if len(b) < 3:
-        raise ValueError(f"need at least 3 steps to fit kappa, got {len(b)}")
-    return np.linalg.lstsq(a, b, rcond=None)[0]
 
 
 def _model_rmse(kappa: np.ndarray, data: tuple[np.ndarray, np.ndarray, np.ndarray], leg: float) -> np.ndarray:

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from estimators.intent import ISCI, UNINJURED, BKFConfig, ButtressedKF, D
+from estimators.intent import ISCI, UNINJURED, BKFConfig, ButtressedKF, D, fit_alpha, fit_kappa
 from estimators.intent_estimator import IntentEstimator
 from estimators.protocol import input_names
 from sessions.synth.trials import sensor_trial
@@ -270,3 +270,21 @@ def test_any_input_never_raises_and_every_output_is_finite(
         y = est.step(float(tk), zk)
         assert y.shape == (5,) and np.isfinite(y).all()
         assert y[2] in (-1.0, 0.0, 1.0) and y[3] >= 0.0
+
+
+def test_the_regressions_recover_kappa_and_alpha_with_seed_001s_labels() -> None:
+    rng = np.random.default_rng(1)
+    kappa, alpha = np.array([0.25, 0.35, 0.42]), np.array([8.6, 4.2])
+    walks, currents, legs = [], [], []
+    for leg in (0.82, 0.9, 0.95):
+        v0 = rng.uniform(0.8, 1.4, 40)
+        v1 = v0 + rng.normal(0, 0.1, 40)
+        walks.append((v0, v1, kappa[0] * v0 + kappa[1] * (v1 - v0) + kappa[2] * leg))
+        currents.append((v0, v1, alpha[0] * v0 + alpha[1] * (v1 - v0)))
+        legs.append(leg)
+    assert np.allclose(fit_kappa(walks, legs), kappa)
+    assert np.allclose(fit_alpha(currents), alpha)
+    gappy = (np.r_[walks[0][0], np.nan], np.r_[walks[0][1], 1.0], np.r_[walks[0][2], 0.7])
+    assert np.allclose(fit_kappa([gappy, *walks[1:]], legs), kappa)  # a step with a lost value is left out
+    with pytest.raises(ValueError, match="at least 4 steps"):
+        fit_kappa([(np.ones(2), np.ones(2), np.ones(2))], [0.9])

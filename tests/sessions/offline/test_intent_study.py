@@ -8,23 +8,9 @@ import numpy as np
 import pytest
 
 from server.cli import main
-from sessions.offline.intent_study import fit_kappa, run_filter, run_study, step_data, to_markdown
+from sessions.offline.intent_study import run_filter, run_study, step_data, to_markdown
 from sessions.synth.cohort import CohortSpec, make_subjects
 from sessions.synth.intent_walks import IntentProtocol, commanded_trial
-
-
-def test_fit_kappa_recovers_the_coefficients_of_eq_1() -> None:
-    rng = np.random.default_rng(1)
-    kappa = np.array([0.25, 0.35, 0.42])
-    data, legs = [], []
-    for leg in (0.82, 0.9, 0.95):
-        v0 = rng.uniform(0.8, 1.4, 40)
-        v1 = v0 + rng.normal(0, 0.1, 40)
-        data.append((v0, v1, kappa[0] * v0 + kappa[1] * (v1 - v0) + kappa[2] * leg))
-        legs.append(leg)
-    assert np.allclose(fit_kappa(data, legs), kappa)
-    with pytest.raises(ValueError, match="at least 3 steps"):
-        fit_kappa([(np.ones(2), np.ones(2), np.ones(2))], [0.9])
 
 
 def test_the_filter_sees_every_step_of_a_trial() -> None:
