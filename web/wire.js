@@ -742,6 +742,11 @@ export const ESTIMATORS = deepFreeze({
     },
     opt_in: false,
   },
+  com_kin: {
+    label: "Centre of mass from leg kinematics (seed 001)",
+    outputs: { com_forward_m: "m", com_up_m: "m", com_forward_vel_m_s: "m/s", com_up_vel_m_s: "m/s" },
+    opt_in: false,
+  },
   intent: {
     label: "Speed-change intent (seed 001)",
     outputs: {

@@ -316,7 +316,7 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(page.get_by_test_id("timeline").locator("canvas")).to_be_visible()
     expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
     # a replay CSV has no centre of mass: the intent card names what is missing instead of an empty plot
-    expect(page.get_by_test_id("review-intent-note")).to_contain_text("does not record com_forward_m, com_lateral_m")
+    expect(page.get_by_test_id("review-intent-note")).to_contain_text("does not record com_forward_m, com_up_m")
     expect(page.get_by_test_id("review-plot-intent")).to_be_hidden()
     scrubber = page.get_by_test_id("scrubber")
     t_max = float(scrubber.get_attribute("max") or "nan")

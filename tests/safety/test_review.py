@@ -271,10 +271,10 @@ def test_the_estimators_a_rerun_can_run_are_the_recorded_stack_and_those_the_cha
     r = client.get(f"/api/trials/{tid}/estimators")
     assert r.status_code == 200, r.text
     assert r.json() == {
-        "recorded": ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "intent"],
-        "default": ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "intent"],
+        "recorded": ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent"],
+        "default": ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent"],
         # the opt-in backup too; the personalized filter needs the subject's fingerprint
-        "runnable": ["hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_gf", "intent"],
+        "runnable": ["hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_gf", "com_kin", "intent"],
         "derived": {},
         "refused": {"fp_ls": "needs the subject's calibrated gait fingerprint"},
     }
@@ -300,7 +300,7 @@ def test_a_subset_without_the_estimator_that_derives_a_channel_is_refused(client
     assert choices["recorded"] is None and choices["refused"] == {
         "fp_ls": "needs the subject's calibrated gait fingerprint"
     }
-    assert choices["default"] == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "intent"]
+    assert choices["default"] == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent"]
     strikes = {"heel_strike": ["hs_detector", "phase_ekf"]}
     assert choices["derived"] == {"tbe": strikes, "hs_backup": strikes}
     what_if = {"settings": {"torque_gain": 1.0}}
