@@ -23,6 +23,7 @@ from sessions.formats.recording import METADATA_NAME, SAMPLE_PERIOD_KEY, Recorde
 from sessions.live.runtime import SessionRuntime
 from sessions.live.sources import LiveDevice, frames_from_table
 from sessions.synth.trials import replay_columns, sensor_trial
+from tests.uploads import upload
 
 RATE_HZ = 100.0  # the device's rate; the live estimator, not told it, runs with DEFAULT_PERIOD
 ALL = 20000  # max_points above every trial's length: no decimation
@@ -182,19 +183,6 @@ def test_live_session_rerun_reproduces_a_change_made_over_the_api(client: TestCl
     assert _differences(what_if, recorded)["stride_length_m"] > 1e-6
 
 
-def _upload(client: TestClient, path: Path, subject_id: int) -> dict[str, Any]:
-    data = path.read_bytes()
-    r = client.post("/api/uploads", json={"filename": path.name, "size": len(data), "subject_id": subject_id})
-    assert r.status_code == 201, r.text
-    up = r.json()
-    for off in range(0, len(data), up["chunk_size"]):
-        chunk = data[off : off + up["chunk_size"]]
-        assert client.put(f"/api/uploads/{up['id']}?offset={off}", content=chunk).status_code == 200
-    r = client.post(f"/api/uploads/{up['id']}/finish")
-    assert r.status_code == 201, r.text
-    return r.json()
-
-
 def test_default_rerun_reproduces_an_imported_log_whose_clock_does_not_start_at_0(
     client: TestClient, tmp_path: Path
 ) -> None:
@@ -203,7 +191,7 @@ def test_default_rerun_reproduces_an_imported_log_whose_clock_does_not_start_at_
     table["time_s"] += 3.25  # the device's clock; the review's session time starts at 0
     path = tmp_path / "walk.csv"
     table.to_csv(path, index=False, float_format="%.6f")
-    trial = _upload(client, path, _subject(client))
+    trial = upload(client, path, _subject(client))
     recorded = client.get(f"/api/trials/{trial['id']}/series?max_points={ALL}").json()
     assert recorded["t"][0] == 0.0
     again = _rerun(client, trial["id"])
@@ -220,7 +208,7 @@ def test_a_trial_without_recorded_settings_has_no_as_recorded_rerun(client: Test
         for f, state in zip(frames, states, strict=True):  # from some other tool: no /settings
             rec.write("/sensor", f.t, f)
             rec.write("/gait_state", f.t, state)
-    trial = _upload(client, path, _subject(client))
+    trial = upload(client, path, _subject(client))
     for r in (client.post(f"/api/trials/{trial['id']}/rerun"), client.get(f"/api/trials/{trial['id']}/settings")):
         assert r.status_code == 422 and "not recorded" in r.json()["detail"], r.text
     what_if = _rerun(client, trial["id"], {"settings": {"torque_gain": 1.0}})
@@ -295,7 +283,7 @@ def test_a_subset_without_the_estimator_that_derives_a_channel_is_refused(client
         for f, state in zip(frames, states, strict=True):
             rec.write("/sensor", f.t, f)
             rec.write("/gait_state", f.t, state)
-    tid = _upload(client, path, _subject(client))["id"]
+    tid = upload(client, path, _subject(client))["id"]
     choices = client.get(f"/api/trials/{tid}/estimators").json()
     assert choices["recorded"] is None and choices["refused"] == {
         "fp_ls": "needs the subject's calibrated gait fingerprint"
