@@ -194,6 +194,8 @@ def cmd_crossval(a: argparse.Namespace) -> int:
         return _crossval_ekf_fingerprints(a)
     if a.study == "intent":
         return _crossval_intent(a)
+    if a.study == "robust":
+        return _crossval_robust(a)
     from sessions.offline.crossval import crossvalidate, summary, to_csv, to_markdown
 
     start = time.perf_counter()
@@ -229,6 +231,12 @@ def _crossval_intent(a: argparse.Namespace) -> int:
     protocol = IntentProtocol(step_lead=a.step_lead)
     suffix = "" if a.step_lead == IntentProtocol.step_lead else f"_lead{a.step_lead:g}"
     return _study(a, f"intent{suffix}.md", lambda: to_markdown(run_study(protocol)))
+
+
+def _crossval_robust(a: argparse.Namespace) -> int:
+    from sessions.offline.robust_study import run_study, to_markdown
+
+    return _study(a, "robust.md", lambda: to_markdown(run_study()))
 
 
 def _study(a: argparse.Namespace, filename: str, run: Callable[[], str]) -> int:
@@ -351,11 +359,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("crossval", help="leave-one-subject-out comparison with a paper's numbers")
     p.add_argument(
         "--study",
-        choices=("phase", "fingerprints", "ekf", "intent"),
+        choices=("phase", "fingerprints", "ekf", "intent", "robust"),
         default="phase",
         help="phase: seed 000's phase EKF against TBE (default); fingerprints: seed 004's AVG, LS-GF and GF; "
         "ekf: seed 000's model personalized by fingerprints from 10-120 s calibration walks; "
-        "intent: seed 001's buttressed Kalman filter on speed-change walks",
+        "intent: seed 001's buttressed Kalman filter on speed-change walks; "
+        "robust: the phase EKF on walks with starts, stops, standing, turns and sensor faults",
     )
     p.add_argument(
         "--step-lead",
