@@ -19,6 +19,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from estimators.lock import LockConfig, LockSupervisor
 from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
 from estimators.protocol import HEEL_STRIKE, SENSOR_CHANNELS, Output, check_params
 
@@ -26,6 +27,7 @@ __all__ = ["PhaseEKFEstimator"]
 
 #: The pipeline's faults as :data:`~estimators.protocol.FAULTS` codes; its own torque is not an output.
 _FAULT_CODE = {"": 0.0, "gap": 1.0, "diverged": 2.0, "torque": 0.0}
+_LOST, _RESUMED = 4.0, 5.0  # FAULTS.index("lost"), FAULTS.index("resumed")
 
 
 class PhaseEKFEstimator:
@@ -55,17 +57,30 @@ class PhaseEKFEstimator:
         ("fault", "code"),
         ("foot_pred_deg", "deg"),
         ("shank_pred_deg", "deg"),
+        ("standing", "1"),
     )
     tunables: tuple[str, ...] = ("measurement_noise_scale", "process_noise_scale")
 
-    def __init__(self, model: TrainedModel, config: PipelineConfig | None = None, sample_period: float = 0.01):
+    def __init__(
+        self,
+        model: TrainedModel,
+        config: PipelineConfig | None = None,
+        sample_period: float = 0.01,
+        lock: LockConfig | None = None,
+    ):
         self._model = model
         self._sample_period = sample_period
         self.pipeline = GaitStatePipeline(model, config, sample_period)
+        self.supervisor = LockSupervisor(lock)
+        #: why the filter last lost track (empty: never)
+        self.lost_reason = ""
+        self._walking: NDArray[np.float64] | None = None  # the EKF's state at the last sample walking
 
     def reset(self) -> None:
         """A fresh pipeline with the current tuning."""
         self.pipeline = GaitStatePipeline(self._model, self.pipeline.config, self._sample_period)
+        self.supervisor.reset()
+        self._walking = None
 
     def retune(self, **params: float) -> None:
         """``measurement_noise_scale`` and ``process_noise_scale`` (x ``Sigma_R`` and x ``Q``)."""
@@ -89,20 +104,47 @@ class PhaseEKFEstimator:
 
     def step(self, t: float, z: NDArray[np.float64]) -> NDArray[np.float64]:
         """``z``: the six sensor channels (raw heel positions) then the heel strike (NaN: detect it)."""
-        hs = z[6]
-        e = self.pipeline.step(t, z[:6], None if math.isnan(hs) else bool(hs > 0.5))
-        pred = self.pipeline.predicted
+        p, sup = self.pipeline, self.supervisor
+        foot, foot_dps, shank_dps, hs = float(z[0]), float(z[1]), float(z[3]), float(z[6])
+        event = sup.motion(t, foot_dps, shank_dps, p.ekf.phase)
+        pred = p.predicted
+        if sup.standing:  # phase held, rate 0, the filters wait (they restart when walking resumes)
+            ekf = p.ekf
+            l_m = ekf.stride_length_norm * p.config.leg_length
+            return np.array([sup.held_phase, 0.0, _finite(l_m), _finite(ekf.incline), 0.0, 0.0, 0.0,
+                             _finite(pred[0]), _finite(pred[2]), sup.standing_weight])  # fmt: skip
+        shank_hs = sup.shank.step(shank_dps)
+        given = None if math.isnan(hs) else bool(hs > 0.5)
+        if given is None and math.isnan(foot) and not math.isnan(shank_dps) and sup.config.enabled:
+            given = shank_hs  # no foot sensor to detect heel strikes from: the shank's
+        if event == "resumed":  # start again at the cadence, stride and slope of the walking before
+            x0 = p.config.ekf.initial_state() if self._walking is None else self._walking.copy()
+            x0[0] = sup.config.resume_phase
+            p.restart(x0)
+        e = p.step(t, z[:6], given)
+        fault = _RESUMED if event == "resumed" else _FAULT_CODE[e.fault]
+        why = sup.lost(t, e.heel_strike, e.phase_rate)
+        phase, rate = e.phase, e.phase_rate
+        if why and not e.fault:
+            p.reset_from_backup()
+            self.lost_reason, fault = f"lost track at {t:.2f} s ({why})", _LOST
+            phase, rate = p.ekf.phase, p.ekf.phase_rate
+        lo, hi = sup.config.phase_rate_range
+        if e.heel_strike and lo <= rate <= hi:  # the cadence, stride and slope at the last heel strike walking
+            self._walking = p.ekf.x.copy()
+        pred = p.predicted
         return np.array(
             [
-                e.phase,
-                e.phase_rate,
+                phase,
+                rate,
                 e.stride_length_m,
                 e.incline_deg,
                 1.0 if e.heel_strike else 0.0,
                 1.0 if e.backup_reset else 0.0,
-                _FAULT_CODE[e.fault],
+                fault,
                 _finite(pred[0]),
                 _finite(pred[2]),
+                sup.standing_weight,
             ]
         )
 

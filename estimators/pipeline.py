@@ -317,6 +317,20 @@ class GaitStatePipeline:
         """
         return _batch.run(self, t, z, heel_strike, heel_filtered)
 
+    def restart(self, initial: Array | None = None) -> None:
+        """Restart every filter (the walker starts again), keeping the tuning: the EKF from ``initial``
+        (``[p, pdot, lp, r]``; None: its initial state). The next :meth:`step` is the first of a new
+        stream (no prediction over the time since the last one, and no gap)."""
+        self._start_filters()
+        self.restarts += 1
+        self._t = None
+        if initial is not None:
+            self.ekf.reset(np.asarray(initial, dtype=np.float64), self.config.ekf.initial_covariance())
+
+    def reset_from_backup(self) -> None:
+        """Reset the EKF from the heel-strike backup, else the timing-based estimate (as after divergence)."""
+        self._reset_diverged()
+
     def _healthy(self) -> bool:
         """The EKF's state and covariance are finite and within :class:`HealthLimits`."""
         lim = self.config.health

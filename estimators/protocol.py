@@ -69,8 +69,10 @@ ANGLE_CHANNELS: Final = {
 HEEL_STRIKE: Final = "heel_strike"
 #: Codes of an estimator's optional ``fault`` output (unit ``code``), by index: 0 nothing, 1 restarted
 #: after a gap, 2 reset after its state diverged (the torque of such a sample is 0 when it drives it),
-#: 3 its own torque was forced to 0 (the pipeline's; a stack computes its torque itself).
-FAULTS: Final = ("", "gap", "diverged", "torque")
+#: 3 its own torque was forced to 0 (the pipeline's; a stack computes its torque itself), 4 it lost
+#: track and was reset from a backup (torque 0 on that sample, as 2), 5 it restarted as walking resumed
+#: after standing still (:mod:`estimators.lock`).
+FAULTS: Final = ("", "gap", "diverged", "torque", "lost", "resumed")
 #: A longer gap between two samples (s) restarts a streaming estimator, as it restarts the pipeline
 #: (``PipelineConfig.max_gap_s``): the walker may have stopped.
 MAX_GAP_S: Final = 1.0

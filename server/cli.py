@@ -196,6 +196,10 @@ def cmd_crossval(a: argparse.Namespace) -> int:
         return _crossval_intent(a)
     if a.study == "robust":
         return _crossval_robust(a)
+    if a.study == "imu":
+        return _crossval_imu(a)
+    if a.study == "sdre":
+        return _crossval_sdre(a)
     from sessions.offline.crossval import crossvalidate, summary, to_csv, to_markdown
 
     start = time.perf_counter()
@@ -237,6 +241,18 @@ def _crossval_robust(a: argparse.Namespace) -> int:
     from sessions.offline.robust_study import run_study, to_markdown
 
     return _study(a, "robust.md", lambda: to_markdown(run_study()))
+
+
+def _crossval_imu(a: argparse.Namespace) -> int:
+    from sessions.offline.imu_study import run_study, to_markdown
+
+    return _study(a, "imu.md", lambda: to_markdown(run_study()))
+
+
+def _crossval_sdre(a: argparse.Namespace) -> int:
+    from sessions.offline.sdre_study import run_study, to_markdown
+
+    return _study(a, "sdre.md", lambda: to_markdown(run_study()))
 
 
 def _study(a: argparse.Namespace, filename: str, run: Callable[[], str]) -> int:
@@ -359,12 +375,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("crossval", help="leave-one-subject-out comparison with a paper's numbers")
     p.add_argument(
         "--study",
-        choices=("phase", "fingerprints", "ekf", "intent", "robust"),
+        choices=("phase", "fingerprints", "ekf", "intent", "robust", "imu", "sdre"),
         default="phase",
         help="phase: seed 000's phase EKF against TBE (default); fingerprints: seed 004's AVG, LS-GF and GF; "
         "ekf: seed 000's model personalized by fingerprints from 10-120 s calibration walks; "
         "intent: seed 001's buttressed Kalman filter on speed-change walks; "
-        "robust: the phase EKF on walks with starts, stops, standing, turns and sensor faults",
+        "robust: the phase EKF on walks with starts, stops, standing, turns and sensor faults; "
+        "imu: the IMU front end's orientation filters on the cohort's simulated IMUs; "
+        "sdre: seed 002's SDRE joint-angle estimator on simulated FES legs and cohort IMUs",
     )
     p.add_argument(
         "--step-lead",

@@ -138,6 +138,7 @@ class FrameEstimator:
         self._prev: tuple[float, float | None, float | None, float | None] | None = None
         self._ramp_t0 = 0.0
         self._ramping = soft_start
+        self._standing = False
         self._min_next_t = -math.inf
         self._last_recv_ns = 0
         self.retune(settings)
@@ -272,12 +273,20 @@ class FrameEstimator:
         self.events.extend(e.events)
         if e.fault:
             self.faults += 1
-        restarted = e.fault in ("gap", "diverged")
+        restarted = e.fault in ("gap", "diverged", "lost", "resumed")
         for name in e.resets:
             if name != e.primary:
                 self.notes.append(f"estimator {name} diverged at {t:.3f} s and was reset")
+        if e.standing and not self._standing:
+            self.notes.append(f"standing still from {t:.3f} s: phase held, torque to its standing value (0)")
+        self._standing = e.standing
         if restarted:
-            what = f"a gap of over {MAX_GAP_S:g} s" if e.fault == "gap" else f"{e.primary} diverged; reset"
+            what = {
+                "gap": f"a gap of over {MAX_GAP_S:g} s",
+                "diverged": f"{e.primary} diverged; reset",
+                "lost": f"{e.primary} {self._lost_reason(e.primary)}; reset from the backup filter",
+                "resumed": "walking resumed after standing still",
+            }[e.fault]
             self.notes.append(f"estimator restarted at {t:.3f} s ({what}); assistance ramps up again")
             if self.soft_start:
                 self._ramp_t0, self._ramping = t, True
@@ -313,6 +322,12 @@ class FrameEstimator:
             sent_ns=frame.sent_ns,
             recv_ns=recv_ns,
         )
+
+    def _lost_reason(self, name: str | None) -> str:
+        """Why estimator ``name`` lost track (its ``lost_reason``, :mod:`estimators.lock`)."""
+        if name is None or name not in self.stack.names:
+            return "lost track"
+        return str(getattr(self.stack.estimators[self.stack.names.index(name)], "lost_reason", "") or "lost track")
 
     def _apply_ramp(self, t: float) -> None:
         """Cap gain and bound at their rate limits times the time since the ramp started."""

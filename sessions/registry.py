@@ -1,8 +1,8 @@
 """Which estimators a session runs: the registry, and a stack chosen against a source's channels.
 
 A session's stack is chosen at its start (:func:`resolve`): the estimators its settings name, or by
-default every registered one (:data:`ESTIMATORS`, less the :data:`OPT_IN` ones) whose required channels
-the source sends. A named
+default every registered one (:data:`ESTIMATORS`, less the :data:`OPT_IN` ones, and less the
+:data:`DERIVERS` whose channels the source already sends) whose required channels the source sends. A named
 one the source cannot feed refuses the start, naming the missing channels (:class:`MissingChannels`).
 The order of :data:`ESTIMATORS` is the order a stack runs them in: a channel an estimator derives
 (``heel_strike``) reaches only those after it. :func:`build_stack` wraps the chosen estimators in a
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Collection, Iterable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Final
 
 import numpy as np
@@ -25,16 +26,20 @@ from estimators.com_kinematics import KinematicCoM
 from estimators.detector import HeelStrikeDetector
 from estimators.fingerprint import FingerprintEKF, Mode
 from estimators.heel_strike import HeelStrikeBackup
+from estimators.imu_frontend import SEGMENTS as IMU_SEGMENTS
+from estimators.imu_frontend import FrontEndConfig, ImuFrontEnd
 from estimators.intent_estimator import IntentEstimator
 from estimators.phase_ekf_estimator import PhaseEKFEstimator
 from estimators.pipeline import PipelineConfig, TrainedModel
 from estimators.protocol import ANGLE_CHANNELS, Estimator, Output, output_names
+from estimators.sdre_estimator import SDREKnee
 from estimators.tbe import TimingBasedEstimator
 from sessions.schema import CHANNELS, PRIMARY_BLEND_S, SensorFrame, missing_channels
 from sessions.stack import EstimatorStack
 
 __all__ = [
     "DECLARED",
+    "DERIVERS",
     "ESTIMATORS",
     "OPT_IN",
     "Declared",
@@ -88,9 +93,15 @@ def _fingerprint_ekf(c: StackContext, mode: Mode) -> FingerprintEKF:
     return FingerprintEKF(fmap, mode=mode, g=g)
 
 
+def _imu_front_end(segment: str, c: StackContext) -> ImuFrontEnd:
+    return ImuFrontEnd(segment, FrontEndConfig.for_segment(segment, sample_period=c.sample_period))
+
+
 #: Every estimator a session can stack, by name, in the order a stack runs them (a channel an
 #: estimator derives reaches only those after it).
 ESTIMATORS: Final[dict[str, Callable[[StackContext], Estimator]]] = {
+    # the IMU front ends first: the angle channels they derive feed every estimator after them
+    **{f"imu_{seg}": partial(_imu_front_end, seg) for seg in IMU_SEGMENTS},
     "hs_detector": lambda c: HeelStrikeDetector(),
     "phase_ekf": lambda c: PhaseEKFEstimator(
         c.model, PipelineConfig(leg_length=c.leg_length, body_mass_kg=c.mass_kg), c.sample_period
@@ -104,13 +115,18 @@ ESTIMATORS: Final[dict[str, Callable[[StackContext], Estimator]]] = {
     "fp_gf": lambda c: _fingerprint_ekf(c, "gf"),
     "com_kin": lambda c: KinematicCoM(c.leg_length),
     "intent": lambda c: IntentEstimator(c.leg_length),
+    "sdre_knee": lambda c: SDREKnee(c.leg_length, c.mass_kg),
 }
 
 
 #: Registered but run only when a session names them: the standalone heel-strike backup duplicates the
 #: one inside ``phase_ekf`` (which uses it to reset the filter) and costs about half of the stack's
 #: time per sample; it is there to be inspected and compared, in review or by choice.
-OPT_IN: Final = frozenset({"hs_backup"})
+OPT_IN: Final = frozenset({"hs_backup", "sdre_knee"})
+#: Registered to derive channels a source may not send (sensor front ends): a default stack leaves one
+#: out when the source already sends (or an earlier estimator derives) every channel it would derive,
+#: since a sent channel wins over a derived one and its work would be thrown away.
+DERIVERS: Final = frozenset({*(f"imu_{seg}" for seg in IMU_SEGMENTS), "com_kin"})
 
 
 @dataclass(frozen=True)
@@ -138,6 +154,10 @@ _FP_OUTPUTS: Final[tuple[Output, ...]] = (
 #: Every estimator of :data:`ESTIMATORS` (same order) as its class declares it, with its name on screen.
 #: ``tests/sessions/test_registry.py`` checks that each built estimator declares the same.
 DECLARED: Final[dict[str, Declared]] = {
+    **{
+        f"imu_{seg}": Declared(f"IMU front end ({seg.replace('_', ' ')})", e.inputs, e.outputs)
+        for seg, e in ((seg, ImuFrontEnd(seg)) for seg in IMU_SEGMENTS)
+    },
     "hs_detector": _declared("Heel-strike detector", HeelStrikeDetector),
     "phase_ekf": _declared("Phase EKF (seed 000)", PhaseEKFEstimator),
     "tbe": _declared("Timing-based estimate", TimingBasedEstimator),
@@ -150,6 +170,7 @@ DECLARED: Final[dict[str, Declared]] = {
     ),
     "com_kin": _declared("Centre of mass from leg kinematics (seed 001)", KinematicCoM),
     "intent": _declared("Speed-change intent (seed 001)", IntentEstimator),
+    "sdre_knee": _declared("SDRE knee angle from IMUs (seed 002)", SDREKnee),
 }
 
 
@@ -216,6 +237,10 @@ def resolve(names: Sequence[str] | None, channels: Collection[str] | None, ctx: 
             if names is not None:
                 missing.append(f"{name} needs {', '.join(lacking)}")
             continue
+        if names is None and name in DERIVERS and available is not None:
+            derives = [n for n in output_names(est) if n in _CHANNELS]
+            if derives and all(n in available for n in derives):
+                continue  # the source sends all of it already
         stack.append(est)
         if available is not None:
             available.update(n for n in output_names(est) if n in _CHANNELS)

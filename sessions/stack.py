@@ -47,6 +47,8 @@ MAX_VARIANCE: Final = 1e3
 #: Outputs named as a sensor channel fill that channel for the estimators after them (``heel_strike``).
 _CHANNELS: Final = frozenset(CHANNELS)
 _DIVERGED: Final = 2.0  # estimators.protocol.FAULTS.index("diverged")
+_LOST: Final = 4.0  # FAULTS.index("lost"): reset from a backup, torque 0 on that sample as for "diverged"
+_RESUMED: Final = 5.0  # FAULTS.index("resumed"): restarted as walking resumed after standing still
 
 
 @dataclass
@@ -63,9 +65,12 @@ class StackSample:
         heel_strike: the heel-strike channel (the source's, else the first estimator's to derive it).
         backup_reset, foot_pred_deg, shank_pred_deg: the primary's when it has them (the predictions: else
             the first healthy estimator's that has them, else 0).
+        standing: the primary says the walker stands still (its ``standing`` output, :mod:`estimators.lock`).
         fault: ``""``; ``"gap"`` (samples further apart than ``max_gap_s``: the estimators restarted);
-            ``"diverged"`` (the primary reset its state: torque 0); ``"failed"`` (the primary failed here);
-            ``"torque"`` (the command was not a finite number within the bound and was forced to 0).
+            ``"diverged"`` (the primary reset its state: torque 0); ``"lost"`` (the primary lost track and
+            reset from a backup: torque 0); ``"resumed"`` (the primary restarted as walking resumed after
+            standing still); ``"failed"`` (the primary failed here); ``"torque"`` (the command was not a
+            finite number within the bound and was forced to 0).
         resets: estimators that reset a diverged state at this sample.
         events: what happened that belongs in the session's event log (failures, primary switches).
     """
@@ -82,6 +87,7 @@ class StackSample:
     backup_reset: bool
     foot_pred_deg: float
     shank_pred_deg: float
+    standing: bool = False
     fault: str = ""
     resets: list[str] = field(default_factory=list)
     events: list[str] = field(default_factory=list)
@@ -216,6 +222,7 @@ class EstimatorStack:
         outputs: list[NDArray[np.float64] | None] = []
         resets: list[str] = []
         primary_failed = False
+        primary_code = ""
         for k, est in enumerate(self.estimators):
             name = self.names[k]
             if name in self.failed:
@@ -237,13 +244,19 @@ class EstimatorStack:
                 if math.isnan(channels.get(channel, math.nan)):
                     channels[channel] = float(y[i])
             fault = self._index[k].get("fault")
-            if fault is not None and y[fault] == _DIVERGED:
-                resets.append(name)
+            if fault is not None and y[fault] >= _DIVERGED:
+                code = y[fault]
+                if code == _DIVERGED or code == _LOST:
+                    resets.append(name)
+                if name == self.primary and (code == _LOST or code == _RESUMED):
+                    primary_code = "lost" if code == _LOST else "resumed"
         sample = self._sample(t, outputs, channels)
         sample.events, self._pending = self._pending, []
         sample.resets = resets
         if primary_failed:
             sample.fault = "failed"
+        elif primary_code:
+            sample.fault = primary_code
         elif self.primary in resets:
             sample.fault = "diverged"
         elif gap:
@@ -298,15 +311,20 @@ class EstimatorStack:
         if y is None:
             return 0.0
         fault = idx.get("fault")
-        if fault is not None and y[fault] == _DIVERGED:
+        if fault is not None and (y[fault] == _DIVERGED or y[fault] == _LOST):
             return 0.0
+        i = idx.get("standing")
+        still = 0.0 if i is None else float(y[i])
+        if not 0.0 <= still <= 1.0:  # NaN too: walking
+            still = 0.0
         stride = idx.get("stride_length_m")
         incline = idx.get("incline_deg")
         l_norm = NOMINAL_STRIDE if stride is None else float(y[stride]) / self.leg_length
         r = 0.0 if incline is None else float(y[incline])
-        return self.torque.torque_at(
+        command = self.torque.torque_at(
             float(y[idx["phase"]]), l_norm, r, self.mass_kg * self.torque_gain, self.max_torque
         )
+        return command * (1.0 - still)  # standing still: to the standing value (0), ramped by the estimator
 
     def _sample(self, t: float, outputs: list[NDArray[np.float64] | None], channels: dict[str, float]) -> StackSample:
         primary = self.primary
@@ -323,7 +341,7 @@ class EstimatorStack:
         hs = channels.get(HEEL_STRIKE, math.nan)
         phase = rate = incline = 0.0
         stride = NOMINAL_STRIDE * self.leg_length
-        backup_reset = False
+        backup_reset = standing = False
         if primary is not None:  # the primary's outputs, read once (a live session does this 200 times a second)
             k = self._position[primary]
             y = outputs[k]
@@ -338,6 +356,8 @@ class EstimatorStack:
                 incline = 0.0 if i is None else values[i]
                 i = idx.get("backup_reset")
                 backup_reset = i is not None and values[i] > 0.5
+                i = idx.get("standing")
+                standing = i is not None and values[i] > 0.5
         return StackSample(
             outputs=outputs,
             torque_Nm=torque,
@@ -349,6 +369,7 @@ class EstimatorStack:
             tbe_phase=self._value("tbe", "phase", outputs, 0.0),
             heel_strike=bool(hs > 0.5),
             backup_reset=backup_reset,
+            standing=standing,
             foot_pred_deg=self._first("foot_pred_deg", primary, outputs),
             shank_pred_deg=self._first("shank_pred_deg", primary, outputs),
         )

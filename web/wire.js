@@ -697,6 +697,42 @@ export const DEFAULT_SETTINGS = deepFreeze({
  * @type {Readonly<Record<string, {label: string, outputs: Record<string, string>, opt_in: boolean}>>}
  */
 export const ESTIMATORS = deepFreeze({
+  imu_foot: {
+    label: "IMU front end (foot)",
+    outputs: { foot_angle_deg: "deg", foot_vel_dps: "deg/s", imu_code: "code", foot_flat: "bool", toe_off: "bool" },
+    opt_in: false,
+  },
+  imu_shank: {
+    label: "IMU front end (shank)",
+    outputs: { shank_angle_deg: "deg", shank_vel_dps: "deg/s", imu_code: "code" },
+    opt_in: false,
+  },
+  imu_thigh: {
+    label: "IMU front end (thigh)",
+    outputs: { thigh_angle_deg: "deg", thigh_vel_dps: "deg/s", imu_code: "code" },
+    opt_in: false,
+  },
+  imu_foot_contra: {
+    label: "IMU front end (foot contra)",
+    outputs: {
+      foot_angle_contra_deg: "deg",
+      foot_vel_contra_dps: "deg/s",
+      imu_code: "code",
+      foot_flat: "bool",
+      toe_off: "bool",
+    },
+    opt_in: false,
+  },
+  imu_shank_contra: {
+    label: "IMU front end (shank contra)",
+    outputs: { shank_angle_contra_deg: "deg", shank_vel_contra_dps: "deg/s", imu_code: "code" },
+    opt_in: false,
+  },
+  imu_thigh_contra: {
+    label: "IMU front end (thigh contra)",
+    outputs: { thigh_angle_contra_deg: "deg", thigh_vel_contra_dps: "deg/s", imu_code: "code" },
+    opt_in: false,
+  },
   hs_detector: { label: "Heel-strike detector", outputs: { heel_strike: "bool" }, opt_in: false },
   phase_ekf: {
     label: "Phase EKF (seed 000)",
@@ -710,6 +746,7 @@ export const ESTIMATORS = deepFreeze({
       fault: "code",
       foot_pred_deg: "deg",
       shank_pred_deg: "deg",
+      standing: "1",
     },
     opt_in: false,
   },
@@ -757,6 +794,11 @@ export const ESTIMATORS = deepFreeze({
       speed_m_s: "m/s",
     },
     opt_in: false,
+  },
+  sdre_knee: {
+    label: "SDRE knee angle from IMUs (seed 002)",
+    outputs: { knee_sdre_deg: "deg", thigh_sdre_deg: "deg" },
+    opt_in: true,
   },
 });
 

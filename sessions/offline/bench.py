@@ -152,9 +152,9 @@ def replay_throughput(minutes: float = 10.0, repeats: int = 3) -> dict[str, floa
 
 def estimator_costs(samples: int = 6000, reference_samples: int = 3000) -> dict[str, dict[str, float]]:
     """Per-sample cost of every registered estimator's ``step(t, z)`` on the first ``samples`` samples of
-    the default trial, each estimator on its own, fed the source's channels (the six sensors and the true
-    heel strikes) as the default stack feeds it; and of its library baseline, where it has one, on the
-    first ``reference_samples`` of them.
+    the default trial, each estimator on its own, fed every channel the simulated device sends (the six
+    sensors, the true heel strikes, both legs, raw IMUs, feet, centre of mass) as a stack feeds it; and of
+    its library baseline, where it has one, on the first ``reference_samples`` of them.
 
     Each is timed in a pass of its own: run in lock step, filterpy's work between two samples of a
     compiled estimator (hundreds of numpy calls) doubled the estimator's median. A baseline of the same
@@ -173,8 +173,10 @@ def estimator_costs(samples: int = 6000, reference_samples: int = 3000) -> dict[
     n = min(samples, data.time_s.size)
     n_ref = min(reference_samples, n)
     ctx = _context(model, sensors, leg, mass)
-    thigh = {c: sensors[c].to_numpy(np.float64) for c in THIGH_CHANNELS}
-    source = {**data.signals, **thigh, HEEL_STRIKE: (sensors[HEEL_STRIKE].to_numpy() > 0.5).astype(np.float64)}
+    # every channel the simulated device sends (raw IMUs, both legs, feet, centre of mass): each
+    # estimator is timed on what it reads, not on the missing-input path
+    sent = {c: sensors[c].to_numpy().astype(np.float64) for c in sensors.columns if c in schema.CHANNELS}
+    source = {**sent, **data.signals, HEEL_STRIKE: (sensors[HEEL_STRIKE].to_numpy() > 0.5).astype(np.float64)}
     missing = np.full(data.time_s.size, np.nan)
     t = data.time_s[:n].tolist()
     out: dict[str, dict[str, float]] = {}

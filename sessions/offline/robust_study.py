@@ -5,7 +5,9 @@ each with a start, a 90 deg turn and a stop; sensor offsets, gyro bias, the turn
 seen through four sensor subsets: foot + shank + heel, foot + shank, foot only, shank only. Through
 each run, sample by sample as a session runs them (heel strikes detected, never given):
 
-- ``EKF``: the ``phase_ekf`` stack estimator (:class:`estimators.phase_ekf_estimator.PhaseEKFEstimator`);
+- ``EKF``: the ``phase_ekf`` stack estimator (:class:`estimators.phase_ekf_estimator.PhaseEKFEstimator`),
+  with its lock supervisor (:mod:`estimators.lock`: standing, shank heel strikes, lock loss);
+- ``EKF as published``: the same without the supervisor (seed 000's filter, backup and detector);
 - ``TBE``: the timing-based estimate inside it, on the same detected heel strikes;
 - ``no-task EKF``: the same with stride length and incline frozen (seed 000's ablation).
 
@@ -26,6 +28,7 @@ from typing import Final
 import numpy as np
 import pandas as pd
 
+from estimators.lock import LockConfig
 from estimators.phase_ekf import EKFConfig
 from estimators.phase_ekf_estimator import PhaseEKFEstimator
 from estimators.pipeline import PipelineConfig, TrainedModel
@@ -43,7 +46,7 @@ SUBSETS: Final = {
     "foot only": ("foot_angle_deg", "foot_vel_dps"),
     "shank only": ("shank_angle_deg", "shank_vel_dps"),
 }
-ESTIMATORS: Final = ("EKF", "TBE", "no-task EKF")
+ESTIMATORS: Final = ("EKF", "EKF as published", "TBE", "no-task EKF")
 WALKING: Final = ("steady", "turn", "start", "stop")
 #: A stall: this long walking with the estimated phase advancing less than ``STALL_CYCLES``.
 STALL_S, STALL_CYCLES = 3.0, 0.25
@@ -68,6 +71,7 @@ def _estimate(model: TrainedModel, subject: SubjectParams, walk: pd.DataFrame, k
     t = walk[s.REPLAY_TIME].to_numpy(np.float64)
     cfg = PipelineConfig(leg_length=subject.leg_length_m, body_mass_kg=subject.mass_kg)
     ekf = PhaseEKFEstimator(model, cfg)
+    bare = PhaseEKFEstimator(model, cfg, lock=LockConfig(enabled=False))
     notask = PhaseEKFEstimator(model, replace(cfg, ekf=EKFConfig(no_task=True)))
     out = {name: np.empty(len(t)) for name in ESTIMATORS}
     rate = np.empty(len(t))
@@ -75,6 +79,7 @@ def _estimate(model: TrainedModel, subject: SubjectParams, walk: pd.DataFrame, k
         y = ekf.step(float(t[k]), z[k])
         out["EKF"][k], rate[k] = y[0], y[1]
         out["TBE"][k] = ekf.pipeline.tbe.phase
+        out["EKF as published"][k] = bare.step(float(t[k]), z[k])[0]
         out["no-task EKF"][k] = notask.step(float(t[k]), z[k])[0]
     return Run(out, rate, walk)
 

@@ -16,7 +16,7 @@ import pytest
 from fastapi.testclient import TestClient
 from mcap.reader import make_reader
 
-from sessions import schema
+from sessions import registry, schema
 from sessions.estimation import DEFAULT_PERIOD, estimate
 from sessions.formats.mcap_io import SERIES_COLUMNS, read_messages
 from sessions.formats.recording import METADATA_NAME, SAMPLE_PERIOD_KEY, Recorder
@@ -258,11 +258,14 @@ def test_the_estimators_a_rerun_can_run_are_the_recorded_stack_and_those_the_cha
     tid, _ = _driven_trial(client)
     r = client.get(f"/api/trials/{tid}/estimators")
     assert r.status_code == 200, r.text
+    # a device that declared no channels runs every estimator but the opt-in ones (and the personalized
+    # filter, which needs the subject's fingerprint); its frames feed all of them
+    every = [n for n in registry.ESTIMATORS if n != "fp_ls"]
+    ran = [n for n in every if n not in registry.OPT_IN]
     assert r.json() == {
-        "recorded": ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent"],
-        "default": ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent"],
-        # the opt-in backup too; the personalized filter needs the subject's fingerprint
-        "runnable": ["hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_gf", "com_kin", "intent"],
+        "recorded": ran,
+        "default": ran,
+        "runnable": every,  # the opt-in backup too
         "derived": {},
         "refused": {"fp_ls": "needs the subject's calibrated gait fingerprint"},
     }
@@ -288,7 +291,9 @@ def test_a_subset_without_the_estimator_that_derives_a_channel_is_refused(client
     assert choices["recorded"] is None and choices["refused"] == {
         "fp_ls": "needs the subject's calibrated gait fingerprint"
     }
-    assert choices["default"] == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent"]
+    # as a session would run them: not the opt-in backup, nor the front ends deriving channels the log has
+    left_out = registry.OPT_IN | registry.DERIVERS | {"fp_ls"}
+    assert choices["default"] == [n for n in registry.ESTIMATORS if n not in left_out]
     strikes = {"heel_strike": ["hs_detector", "phase_ekf"]}
     assert choices["derived"] == {"tbe": strikes, "hs_backup": strikes}
     what_if = {"settings": {"torque_gain": 1.0}}

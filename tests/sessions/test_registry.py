@@ -23,6 +23,12 @@ def test_each_registered_estimator_declares_what_it_is_built_as() -> None:
         est = make(ctx)
         assert (est.name, est.inputs, est.outputs) == (name, DECLARED[name].inputs, DECLARED[name].outputs)
     assert {n: d.label for n, d in DECLARED.items()} == {
+        "imu_foot": "IMU front end (foot)",
+        "imu_shank": "IMU front end (shank)",
+        "imu_thigh": "IMU front end (thigh)",
+        "imu_foot_contra": "IMU front end (foot contra)",
+        "imu_shank_contra": "IMU front end (shank contra)",
+        "imu_thigh_contra": "IMU front end (thigh contra)",
         "hs_detector": "Heel-strike detector",
         "phase_ekf": "Phase EKF (seed 000)",
         "tbe": "Timing-based estimate",
@@ -32,6 +38,7 @@ def test_each_registered_estimator_declares_what_it_is_built_as() -> None:
         "fp_gf": "Online fingerprint EKF (seed 004 GF)",
         "com_kin": "Centre of mass from leg kinematics (seed 001)",
         "intent": "Speed-change intent (seed 001)",
+        "sdre_knee": "SDRE knee angle from IMUs (seed 002)",
     }
 
 
@@ -59,7 +66,16 @@ def test_a_fingerprint_filter_the_session_cannot_build_is_left_out_or_refused_wi
 def test_feeds_counts_a_channel_an_earlier_estimator_derives() -> None:
     every = {"foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps", "thigh_angle_deg", HS}
     intent, kin = set(DECLARED["intent"].inputs), set(DECLARED["com_kin"].inputs)
-    assert feeds(every | intent | kin) == {n: Feed((), {}) for n in ESTIMATORS}
+    imus = [n for n in ESTIMATORS if n.startswith("imu_")]
+    raw_readers = [n for n, d in DECLARED.items() if any(c.startswith("imu_") for c in d.inputs)]  # + sdre
+    assert {n: f for n, f in feeds(every | intent | kin).items() if n not in raw_readers} == {
+        n: Feed((), {}) for n in ESTIMATORS if n not in raw_readers
+    }
+    # raw IMUs alone: the front ends derive the angles, the detector the heel strikes
+    raw = {c for n in imus for c in DECLARED[n].inputs}
+    from_imus = feeds(raw)
+    assert from_imus["phase_ekf"] == Feed((), {"foot_angle_deg": ("imu_foot",)})
+    assert from_imus["com_kin"].missing == ("foot_force_N", "foot_force_contra_N")
     assert feeds(every)["intent"].missing == DECLARED["intent"].inputs
     # no centre of mass sent: the leg kinematics give it (seed 001's way)
     com = {"com_forward_m", "com_up_m", "com_forward_vel_m_s", "com_up_vel_m_s"}

@@ -64,11 +64,19 @@ def test_the_default_stack_is_every_estimator_the_channels_allow(small_model: Tr
     def names(channels: set[str] | None, asked: list[str] | None = None) -> list[str]:
         return [e.name for e in resolve(asked, channels, ctx)]
 
+    imus = ["imu_foot", "imu_shank", "imu_thigh", "imu_foot_contra", "imu_shank_contra", "imu_thigh_contra"]
     assert list(ESTIMATORS) == [
-        "hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_ls", "fp_gf", "com_kin", "intent"
+        *imus, "hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_ls", "fp_gf", "com_kin", "intent",
+        "sdre_knee",
     ]  # fmt: skip
-    # hs_backup is opt-in (OPT_IN); fp_ls needs the subject's calibrated fingerprint
-    assert names(None) == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent"]
+    # hs_backup and sdre_knee are opt-in (OPT_IN); fp_ls needs the subject's calibrated fingerprint
+    assert names(None) == [*imus, "hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent"]
+    # a source that sends the angles and the centre of mass: the front ends deriving them are left out
+    assert names(set(schema.CHANNELS)) == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "intent"]
+    # raw IMUs and no angles: the front ends derive them for the phase EKF
+    raw = {c for c in schema.CHANNELS if c.startswith(("imu_foot", "imu_shank"))}
+    assert names(raw)[:4] == ["imu_foot", "imu_shank", "imu_foot_contra", "imu_shank_contra"]
+    assert "phase_ekf" in names(raw)
     assert names({"foot_angle_deg", "thigh_angle_deg"}) == ["hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf"]
     assert names(None, ["phase_ekf", "hs_backup"]) == ["phase_ekf", "hs_backup"]
     # a foot angle alone: its velocity is derived, heel strikes detected (the detector feeds the TBE)
@@ -88,12 +96,14 @@ def test_the_default_stack_keeps_the_gait_state_of_the_phase_ekf(small_model: Tr
     """The primary's outputs are the gait state; the other estimators change nothing of it."""
     full, est = _run(small_model, walk)
     alone, _ = _run(small_model, walk, estimators=["phase_ekf", "tbe"])
-    assert est.stack.names == ("hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent")
+    imus = ("imu_foot", "imu_shank", "imu_thigh", "imu_foot_contra", "imu_shank_contra", "imu_thigh_contra")
+    assert est.stack.names == (*imus, "hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent")
     assert est.primary == "phase_ekf"
     for a, b in zip(full, alone, strict=True):
         assert a.model_dump() == b.model_dump()
-    tbe = est.stack.outputs[2].index("phase")
-    assert est.last is not None and full[-1].tbe_phase == est.last.outputs[2][tbe]  # type: ignore[index]
+    k = est.stack.names.index("tbe")
+    tbe = est.stack.outputs[k].index("phase")
+    assert est.last is not None and full[-1].tbe_phase == est.last.outputs[k][tbe]  # type: ignore[index]
     assert sum(s.heel_strike for s in full) >= 12 and max(s.torque_Nm for s in full) > 10.0
 
 

@@ -1,0 +1,99 @@
+"""The lock supervisor: standing still, heel strikes from the shank, lock loss; and the phase EKF with it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from estimators.lock import LockConfig, LockSupervisor, ShankHeelStrike
+from estimators.phase_ekf_estimator import PhaseEKFEstimator
+from estimators.pipeline import PipelineConfig
+from sessions.formats.models import default_model_path, load_model
+from sessions.synth.cohort import CohortSpec, make_subjects
+from sessions.synth.real_walks import RealWalkSpec, real_walk
+from sessions.synth.trials import sensor_trial
+
+MODEL, _ = load_model(default_model_path())
+
+
+def test_standing_is_detected_after_stillness_and_left_on_motion() -> None:
+    sup = LockSupervisor(LockConfig(still_s=0.5, ramp_s=0.2))
+    events = []
+    for k in range(200):  # 2 s still (small rates), phase 0.4 when the stillness began
+        events.append(sup.motion(k * 0.01, 3.0, -5.0, 0.4 + 0.001 * k))
+    assert events.count("standing") == 1 and sup.standing and sup.held_phase == 0.4
+    assert sup.standing_weight == 1.0
+    assert sup.motion(2.0, 100.0, 0.0, 0.0) == "resumed" and not sup.standing
+    assert sup.motion(2.1, 100.0, 0.0, 0.0) == ""
+    assert 0.0 < sup.standing_weight < 1.0  # ramping out
+    sup.motion(2.5, 100.0, 0.0, 0.0)
+    assert sup.standing_weight == 0.0
+    # a missing sensor does not count as still; all missing: nothing changes
+    fresh = LockSupervisor()
+    assert all(fresh.motion(k * 0.01, math.nan, math.nan, 0.0) == "" for k in range(300)) and not fresh.standing
+
+
+def test_lock_loss_fires_without_heel_strikes_or_with_an_implausible_rate() -> None:
+    sup = LockSupervisor(LockConfig(max_stride_s=2.0, out_of_range_s=0.5))
+    assert sup.lost(0.0, True, 1.0) == ""
+    reasons = [sup.lost(k * 0.01, False, 1.0) for k in range(1, 260)]
+    assert sum(bool(r) for r in reasons) == 1 and "no heel strike" in next(r for r in reasons if r)
+    sup2 = LockSupervisor(LockConfig(out_of_range_s=0.5))
+    out = [sup2.lost(k * 0.01, k % 100 == 0, 0.05) for k in range(100)]
+    assert any("phase rate" in r for r in out)
+    assert LockSupervisor(LockConfig(enabled=False)).lost(100.0, False, 0.0) == ""
+
+
+def test_shank_heel_strikes_match_the_true_ones() -> None:
+    f, _, _ = sensor_trial([(1.0, 0.0, 8)], rate_hz=100.0)
+    det = ShankHeelStrike()
+    found = np.array([det.step(v) for v in f["shank_vel_dps"].to_numpy()])
+    t = f["time_s"].to_numpy()
+    true_t, found_t = t[f["heel_strike"].to_numpy() > 0], t[found]
+    assert abs(len(found_t) - len(true_t)) <= 1
+    assert np.median([np.min(np.abs(found_t - x)) for x in true_t[1:]]) < 0.06
+
+
+def _run(est: PhaseEKFEstimator, walk, keep: tuple[str, ...]) -> np.ndarray:
+    names = ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps", "heel_forward_m", "heel_up_m")
+    z = np.full((len(walk), 7), np.nan)
+    for i, c in enumerate(names):
+        if c in keep:
+            z[:, i] = walk[c].to_numpy(np.float64)
+    return np.array([est.step(float(t), zk) for t, zk in zip(walk["time_s"].to_numpy(), z, strict=True)])
+
+
+def test_the_phase_ekf_holds_standing_and_tracks_a_shank_only_walk() -> None:
+    subject = make_subjects(CohortSpec())[1]
+    walk = real_walk(subject, RealWalkSpec(bouts=2))
+    cfg = PipelineConfig(leg_length=subject.leg_length_m, body_mass_kg=subject.mass_kg)
+    shank = ("shank_angle_deg", "shank_vel_dps")
+    out = _run(PhaseEKFEstimator(MODEL, cfg), walk, shank)
+    bare = _run(PhaseEKFEstimator(MODEL, cfg, lock=LockConfig(enabled=False)), walk, shank)
+    cond, truth = walk["condition"].to_numpy(), walk["gt_phase"].to_numpy()
+    steady = cond == "steady"
+
+    def rmse(phase: np.ndarray) -> float:
+        d = np.abs(phase[steady] - truth[steady]) % 1.0
+        return float(np.sqrt(np.mean(np.minimum(d, 1 - d) ** 2)))
+
+    assert rmse(out[:, 0]) < 0.05 < rmse(bare[:, 0])  # shank heel strikes keep it on track
+    codes = out[:, 6]
+    standing = (out[:, 9] == 1.0) & (codes != 5.0)  # (the sample walking resumes still has the full weight)
+    assert standing.any() and (out[standing, 1] == 0.0).all()  # phase rate 0 while standing
+    held = out[standing, 0]
+    assert np.ptp(held[: np.argmax(np.diff(np.r_[held, -1.0]) != 0) + 1]) == 0.0  # the phase held
+    assert (codes == 5.0).sum() == 2  # walking resumed twice (two bouts after standing)
+    assert np.isfinite(out).all()
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=7, max_size=7), max_size=40))
+def test_the_supervised_estimator_stays_finite_on_any_input(rows: list[list[float]]) -> None:
+    est = PhaseEKFEstimator(MODEL)
+    for k, row in enumerate(rows):
+        y = est.step(0.01 * (k + 1), np.array(row))
+        assert np.isfinite(y[[1, 9]]).all() and 0.0 <= y[9] <= 1.0
