@@ -48,7 +48,7 @@ from sessions.estimation import FrameEstimator, torque_json
 from sessions.formats.locohub import read_table
 from sessions.formats.mcap_io import check_mcap, count_messages, read_messages
 from sessions.formats.recording import ESTIMATORS_KEY, SAMPLE_PERIOD_KEY, Recorder
-from sessions.formats.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, header_columns, parse_cells
+from sessions.formats.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, RAW_IMUS, header_columns, parse_cells
 from sessions.registry import channels_of
 
 __all__ = [
@@ -181,13 +181,16 @@ def detect_format(path: Path, filename: str) -> LogFormat:
     if suffix == ".parquet":
         return "parquet"
     names = {h.strip() for h in next(csv.reader(io.StringIO(text)), [])}
-    if schema.REPLAY_TIME in names and names & set(schema.REPLAY_ANGLES):
+    if schema.REPLAY_TIME in names and (
+        names & set(schema.REPLAY_ANGLES) or any(names.issuperset(c) for c in RAW_IMUS.values())
+    ):
         return "replay_csv"
     if names.issuperset(LOCOHUB_REPLAY_COLUMNS):
         return "locohub_csv"
     angles = " or ".join(schema.REPLAY_ANGLES)
     raise DataFormatError(
-        f"the CSV header has neither the replay columns ({schema.REPLAY_TIME} and {angles}) "
+        f"the CSV header has neither the replay columns ({schema.REPLAY_TIME} and {angles}, or a leg IMU's "
+        "six raw columns) "
         f"nor the LocoHub columns ({', '.join(LOCOHUB_REPLAY_COLUMNS)})",
         file=filename,
         row=1,
@@ -429,7 +432,7 @@ def _replay_columns(header: list[str], name: str) -> dict[str, int]:
     """Position of each used replay column (time first); the header checks of the replay CSV."""
     if not any(header):
         raise DataFormatError("the header row is empty", file=name, row=1)
-    where, used = header_columns(header, name)
+    where, used = header_columns(header, name, raw_imu=True)
     return {c: where[c] for c in used}
 
 
@@ -453,7 +456,7 @@ class _ReplayBatch:
         if problems:
             i, _, column, message = min(problems)
             raise DataFormatError(message, file=self.name, column=column, row=lines[i])
-        signals = [c for c in values if c in schema.REPLAY_SIGNALS]
+        signals = [c for c in values if c not in (schema.REPLAY_TIME, schema.REPLAY_HEEL_STRIKE)]
         heel = values.get(schema.REPLAY_HEEL_STRIKE)
         for i, t in enumerate(values[schema.REPLAY_TIME].tolist()):
             if late := _time_problem(t, self._first, self._previous):

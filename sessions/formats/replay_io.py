@@ -223,9 +223,22 @@ def _output_values(columns: Mapping[str, np.ndarray]) -> list[np.ndarray]:
     return values
 
 
-def header_columns(header: list[str], name: str) -> tuple[dict[str, int], list[str]]:
-    """Position of each known column, and the used ones (time, signals in schema order, heel strike)."""
-    known = {schema.REPLAY_TIME, *schema.REPLAY_SIGNALS, schema.REPLAY_HEEL_STRIKE}
+#: Raw IMU channels a replay CSV may carry instead of (or beside) angles, by leg IMU: the six of one IMU
+#: (``imu_{seg}_gyro_{x,y,z}_dps``, ``imu_{seg}_accel_{x,y,z}_m_s2``); the stack's IMU front end derives
+#: that segment's angle from them (``docs/api.md``, "Raw IMU input").
+_IMU_KINDS: Final = (("gyro", "dps"), ("accel", "m_s2"))
+RAW_IMUS: Final = {
+    seg: tuple(f"imu_{seg}_{kind}_{axis}_{unit}" for kind, unit in _IMU_KINDS for axis in "xyz")
+    for seg in ("foot", "shank", "thigh", "foot_contra", "shank_contra", "thigh_contra")
+}
+
+
+def header_columns(header: list[str], name: str, raw_imu: bool = False) -> tuple[dict[str, int], list[str]]:
+    """Position of each known column, and the used ones (time, signals in schema order, raw IMU channels
+    when ``raw_imu``, heel strike). With ``raw_imu`` a file needs an angle column or one leg IMU's six
+    raw channels; without, an angle column (seed 000's replay format, which ``gaitscope replay`` reads)."""
+    imu = [c for channels in RAW_IMUS.values() for c in channels]
+    known = {schema.REPLAY_TIME, *schema.REPLAY_SIGNALS, schema.REPLAY_HEEL_STRIKE, *(imu if raw_imu else ())}
     where: dict[str, int] = {}
     for j, column in enumerate(header):
         if column not in known:
@@ -235,10 +248,20 @@ def header_columns(header: list[str], name: str) -> tuple[dict[str, int], list[s
         where[column] = j
     if schema.REPLAY_TIME not in where:
         raise DataFormatError("missing required column", file=name, column=schema.REPLAY_TIME, row=1)
-    if not any(angle in where for angle in schema.REPLAY_ANGLES):
+    whole = [seg for seg, channels in RAW_IMUS.items() if all(c in header for c in channels)]
+    if not any(angle in where for angle in schema.REPLAY_ANGLES) and not (raw_imu and whole):
         expected = " or ".join(repr(a) for a in schema.REPLAY_ANGLES)
-        raise DataFormatError(f"no angle column; expected {expected}", file=name, row=1)
+        if whole:  # raw IMU columns where seed 000's format is read
+            raise DataFormatError(
+                f"no angle column; expected {expected}. The file has raw IMU columns ({', '.join(whole)}): "
+                "upload it in the dashboard, where the IMU front end derives the angles",
+                file=name,
+                row=1,
+            )
+        also = " or the six raw columns of a leg IMU (imu_foot_gyro_x_dps, ...)" if raw_imu else ""
+        raise DataFormatError(f"no angle column; expected {expected}{also}", file=name, row=1)
     used = [schema.REPLAY_TIME, *(s for s in schema.REPLAY_SIGNALS if s in where)]
+    used += [c for c in imu if c in where]
     if schema.REPLAY_HEEL_STRIKE in where:
         used.append(schema.REPLAY_HEEL_STRIKE)
     return where, used
