@@ -6,7 +6,8 @@ per sample (all thresholds are :class:`LockConfig` parameters):
 
 - **standing**: every angular velocity present (foot, shank) below ``still_dps`` for ``still_s``. The
   phase is then held at its value when the stillness began, the phase rate is 0, and the torque goes to
-  its standing value (0) over ``ramp_s``. Standing is a state, not an error: seed 003 holds its phase on
+  its standing value (0) over ``ramp_s``; once it is 0 the held phase becomes the standing posture's,
+  ``resume_phase`` (0.3, mid-stance: someone standing has both feet in stance). Standing is a state, not an error: seed 003 holds its phase on
   a sudden stop the same way. Walking resumes when any of them exceeds ``move_dps``: the filters restart
   (as after a gap) at ``resume_phase`` (0.3: someone standing has both feet in stance, and walking
   starts from stance, whichever leg swings first; the first heel strike corrects it) with the cadence,
@@ -114,6 +115,8 @@ class LockSupervisor:
                 self._still_since = None
         ramp = min(1.0, (t - self._changed_t) / c.ramp_s) if c.ramp_s > 0 else 1.0
         self.standing_weight = ramp if self.standing else 1.0 - ramp
+        if self.standing and ramp >= 1.0:  # the torque is out: stand at the posture's phase
+            self.held_phase = c.resume_phase
         return event
 
     def lost(self, t: float, heel_strike: bool, phase_rate: float) -> str:
