@@ -20,6 +20,7 @@ from sessions.live.runtime import SessionRuntime, SettingRejected
 from sessions.live.sources import LiveDevice, frames_from_table
 from sessions.registry import ESTIMATORS, MissingChannels, StackContext, resolve
 from sessions.schema import PRIMARY_BLEND_S, GaitState, SensorFrame, SessionSettings
+from sessions.synth.cohort import CohortSpec, make_subjects
 from sessions.synth.trials import replay_columns, sensor_trial
 from tests.estimator_doubles import Scripted
 from tests.uploads import upload
@@ -346,3 +347,32 @@ def test_a_session_streams_the_speed_change_intent_the_live_view_reads(client: T
     codes = [c for c in columns["intent_code"] if c is not None]
     assert set(codes) <= {-1.0, 0.0, 1.0} and 1.0 in codes  # the walker sped up
     assert all(v is not None and 0.2 < v < 2.5 for v in columns["desired_speed_m_s"][-100:])
+
+
+def test_standing_still_takes_the_torque_to_zero_and_walking_again_restarts_with_events(
+    small_model: TrainedModel,
+) -> None:
+    """A walk with bouts between standing (issue #10): the session's torque is 0 while the walker stands
+    (after the ramp), each standing and each resumption is a note for the event log, and the torque is
+    finite and within the bound throughout."""
+    from sessions.synth.real_walks import RealWalkSpec, real_walk
+
+    subject = make_subjects(CohortSpec())[0]
+    walk = real_walk(subject, RealWalkSpec(bouts=2, dropouts_per_min=0.0))
+    frames = list(frames_from_table(walk[["time_s", *schema.REPLAY_SIGNALS]]))
+    est = FrameEstimator(small_model, subject.leg_length_m, subject.mass_kg, SETTINGS, PERIOD, soft_start=False)
+    est.retune(SETTINGS.model_copy(update={"estimators": None}))
+    states, notes = [], []
+    for frame in frames:
+        states.append(est.step(frame, 0))
+        notes += est.notes
+        est.notes.clear()
+    torque = _torque(states)
+    assert np.isfinite(torque).all() and (torque >= 0).all() and (torque <= SETTINGS.max_torque_Nm).all()
+    still = walk["condition"].to_numpy() == "standing"
+    t = walk["time_s"].to_numpy()
+    settled = still & (t - np.maximum.accumulate(np.where(~still, t, t[0])) > 1.5)  # standing for 1.5 s
+    assert settled.any() and (torque[settled] == 0.0).all()
+    assert torque[~still].max() > 1.0  # walking is assisted
+    assert sum("standing still" in n for n in notes) >= 2
+    assert sum("walking resumed after standing still" in n for n in notes) == 2
