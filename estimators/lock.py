@@ -7,11 +7,12 @@ per sample (all thresholds are :class:`LockConfig` parameters):
 - **standing**: every angular velocity present (foot, shank) below ``still_dps`` for ``still_s``. The
   phase is then held at its value when the stillness began, the phase rate is 0, and the torque goes to
   its standing value (0) over ``ramp_s``; once it is 0 the held phase becomes the standing posture's,
-  ``resume_phase`` (0.3, mid-stance: someone standing has both feet in stance). Standing is a state, not an error: seed 003 holds its phase on
-  a sudden stop the same way. Walking resumes when any of them exceeds ``move_dps``: the filters restart
-  (as after a gap) at ``resume_phase`` (0.3: someone standing has both feet in stance, and walking
-  starts from stance, whichever leg swings first; the first heel strike corrects it) with the cadence,
-  stride length and incline of the last heel strike walked, and the torque ramps back in over ``ramp_s``.
+  ``resume_phase`` (0.3, mid-stance: someone standing has both feet in stance). Standing is a state, not
+  an error: seed 003 holds its phase on a sudden stop the same way. Walking resumes when any of them
+  exceeds ``move_dps``: the filters restart (as after a gap) at ``resume_phase`` (0.3: someone standing
+  has both feet in stance, and walking starts from stance, whichever leg swings first; the first heel
+  strike corrects it) with the cadence, stride length and incline of the last heel strike walked, and
+  the torque ramps back in over ``ramp_s``.
 - **heel strikes from the shank** when the foot sensor is missing: the shank's angular velocity swings
   forward (above ``shank_swing_dps``) in mid-swing and crosses zero just before the heel strikes
   (Aminian et al. 2002 and Salarian et al. 2004 take the minimum after the mid-swing peak; the zero
