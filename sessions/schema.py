@@ -541,6 +541,64 @@ class PersonalizationExport(_Strict):
     note: str = Field(default="", max_length=500)
 
 
+#: Shortest and longest standing period of an IMU mounting calibration, and its default (s).
+IMU_CALIBRATION_S: Final = (2.0, 30.0, 5.0)
+ImuCalibrationState = Literal["idle", "collecting", "done", "refused"]
+
+
+class ImuCalibrationRequest(_Strict):
+    """Start a standing calibration of a live session's IMUs (``POST /api/sessions/{id}/imu-calibration``):
+    the subject stands still, upright, for ``duration_s`` of session time."""
+
+    duration_s: float = Field(
+        default=IMU_CALIBRATION_S[2], ge=IMU_CALIBRATION_S[0], le=IMU_CALIBRATION_S[1], allow_inf_nan=False
+    )
+    actor: str = _ACTOR
+    note: str = Field(default="", max_length=500, description="the posture, or anything worth keeping with it")
+
+
+class ImuSensorCalibration(_Strict):
+    """One sensor's result (``estimators.imu_calibration.SensorCalibration``): the offsets its front end
+    ``imu_<segment>`` takes, or why it was refused."""
+
+    segment: str = Field(pattern=r"^[a-z_]{1,32}$", description="foot, shank, thigh, foot_contra, ...")
+    ok: bool
+    reason: str = Field(default="", max_length=500, description="empty when accepted")
+    pitch_offset_deg: float = Field(ge=-180.0, le=180.0, allow_inf_nan=False)
+    gyro_bias_dps: tuple[float, float, float] = Field(description="x, y, z (deg/s)")
+    gyro_motion_dps: float | None = Field(description="largest gyro deviation from its mean (null: too few samples)")
+    accel_sd: float | None = Field(description="largest per-axis accelerometer sd (m/s^2)")
+
+
+class ImuCalibration(_Strict):
+    """An IMU mounting calibration of a subject in a session (also the MCAP ``/imu_calibration`` payload).
+    ``ok``: every sensor with data was accepted (stored; the subject's latest is their current one)."""
+
+    id: int | None = Field(default=None, description="null: refused, not stored")
+    subject_id: int
+    session_id: int
+    trial_id: int | None = None
+    duration_s: float = Field(ge=0, allow_inf_nan=False)
+    ok: bool
+    reason: str = Field(default="", max_length=2000, description="refused: each sensor and why")
+    sensors: list[ImuSensorCalibration] = Field(max_length=16)
+    created_utc: str = Field(default="", max_length=40)
+    created_by: str = Field(default="clinician", max_length=64)
+    note: str = Field(default="", max_length=500)
+
+
+class ImuCalibrationStatus(BaseModel):
+    """A live session's IMU calibration (``GET /api/sessions/{id}/imu-calibration``)."""
+
+    session_id: int
+    state: ImuCalibrationState
+    progress: float = Field(ge=0.0, le=1.0, description="share of the standing period collected")
+    duration_s: float = Field(description="the period asked for (0: none yet)")
+    segments: list[str] = Field(description="the sensors this session can calibrate (its imu_* front ends)")
+    result: ImuCalibration | None = Field(description="the last calibration's outcome (done or refused)")
+    applied: ImuCalibration | None = Field(description="what the front ends run now (this session's or the subject's)")
+
+
 class RerunChoices(BaseModel):
     """Which estimators a re-run of a recorded trial can run (``GET /api/trials/{id}/estimators``): what a
     review's picker offers. Any subset of ``runnable`` may be asked for (``RerunRequest.estimators``); the
@@ -1015,6 +1073,7 @@ MCAP_CHANNELS: Final[dict[str, tuple[str, type[BaseModel]]]] = {
     "/torque": ("gaitscope.TorqueCommand", TorqueCommand),
     "/settings": ("gaitscope.SessionSettings", SessionSettings),
     "/events": ("foxglove.Event", FoxgloveEvent),
+    "/imu_calibration": ("gaitscope.ImuCalibration", ImuCalibration),
 }
 #: Each estimator of a session's stack records its outputs on ``/estimators/<name>`` with this schema:
 #: channels registered per stack (:func:`estimator_channels`), beside the fixed ones above.
@@ -1034,5 +1093,6 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     AnnotationCreate, RecordingControl, UploadCreate, Upload, RerunRequest, RerunChoices, ModelInfo, ViewerFocus,
     ViewerShow, SensorFrame, GaitState, TorqueCommand, StreamBatch, Health, EventMessage, SettingsMessage, Hello,
     FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs, CalibrationRequest, PersonalizationChange,
-    Personalization, CohortPoint, Fingerprints, PersonalizationExport, IntentSeries,
+    Personalization, CohortPoint, Fingerprints, PersonalizationExport, IntentSeries, ImuCalibrationRequest,
+    ImuCalibration, ImuCalibrationStatus,
 )  # fmt: skip

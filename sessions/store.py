@@ -155,14 +155,32 @@ class _PersonalizationRow(_Base):
     note: Mapped[str] = mapped_column(Text)
 
 
-_Row = TypeVar("_Row", _SubjectRow, _SessionRow, _TrialRow, _EventRow, _PersonalizationRow)
+class _ImuCalibrationRow(_Base):
+    """An accepted IMU mounting calibration; a subject's latest is their current one."""
+
+    __tablename__ = "imu_calibrations"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    subject_id: Mapped[int] = mapped_column(ForeignKey("subjects.id"), index=True)
+    session_id: Mapped[int] = mapped_column(ForeignKey("sessions.id"), index=True)
+    trial_id: Mapped[int | None] = mapped_column(ForeignKey("trials.id"))
+    duration_s: Mapped[float]
+    sensors: Mapped[str] = mapped_column(Text)  # JSON list of ImuSensorCalibration
+    created_utc: Mapped[str] = mapped_column(String(40))
+    created_by: Mapped[str] = mapped_column(String(64))
+    note: Mapped[str] = mapped_column(Text)
+
+
+_Row = TypeVar("_Row", _SubjectRow, _SessionRow, _TrialRow, _EventRow, _PersonalizationRow, _ImuCalibrationRow)
 _KIND: Final[dict[type[_Base], str]] = {
     _SubjectRow: "subject",
     _SessionRow: "session",
     _TrialRow: "trial",
     _EventRow: "event",
     _PersonalizationRow: "personalization",
+    _ImuCalibrationRow: "IMU calibration",
 }
+_IMU_SENSORS: Final = TypeAdapter(list[schema.ImuSensorCalibration])
 
 
 # --- rows to wire classes ------------------------------------------------------------------------
@@ -212,6 +230,13 @@ def _personalization(row: _PersonalizationRow) -> schema.Personalization:
     fields = {c: getattr(row, c) for c in schema.Personalization.model_fields if c not in ("fingerprint", "excluded")}
     return schema.Personalization.model_validate(
         {**fields, "fingerprint": json.loads(row.fingerprint), "excluded": json.loads(row.excluded)}
+    )
+
+
+def _imu_calibration(row: _ImuCalibrationRow) -> schema.ImuCalibration:
+    fields = {c: getattr(row, c) for c in schema.ImuCalibration.model_fields if c not in ("sensors", "ok", "reason")}
+    return schema.ImuCalibration.model_validate(
+        {**fields, "ok": True, "sensors": _IMU_SENSORS.validate_json(row.sensors)}
     )
 
 
@@ -684,3 +709,50 @@ class Store:
                 _PersonalizationRow.state == "active",
             )
         ).first()
+
+    # --- IMU mounting calibrations ----------------------------------------------------------------
+
+    def add_imu_calibration(self, cal: schema.ImuCalibration) -> schema.ImuCalibration:
+        """Store an accepted calibration (its ``id`` and ``created_utc`` are assigned here): the subject's
+        current one from now on. :class:`Conflict` for a refused one; :class:`NotFound` for an unknown
+        subject, session or trial."""
+        if not cal.ok:
+            raise Conflict("a refused IMU calibration is not stored")
+        with self._write() as session:
+            self._get(session, _SubjectRow, cal.subject_id)
+            self._get(session, _SessionRow, cal.session_id)
+            if cal.trial_id is not None:
+                self._get(session, _TrialRow, cal.trial_id)
+            row = _ImuCalibrationRow(
+                **cal.model_dump(include={"subject_id", "session_id", "trial_id", "duration_s", "created_by", "note"}),
+                sensors=_IMU_SENSORS.dump_json(cal.sensors).decode(),
+                created_utc=_stamp(),
+            )
+            session.add(row)
+            session.flush()
+            return _imu_calibration(row)
+
+    def list_imu_calibrations(
+        self, subject_id: int | None = None, session_id: int | None = None
+    ) -> list[schema.ImuCalibration]:
+        """Stored calibrations (of a subject, of a session, or both), newest first."""
+        with self._read() as session:
+            q = select(_ImuCalibrationRow)
+            if subject_id is not None:
+                self._get(session, _SubjectRow, subject_id)
+                q = q.where(_ImuCalibrationRow.subject_id == subject_id)
+            if session_id is not None:
+                self._get(session, _SessionRow, session_id)
+                q = q.where(_ImuCalibrationRow.session_id == session_id)
+            return [_imu_calibration(r) for r in session.scalars(q.order_by(_ImuCalibrationRow.id.desc()))]
+
+    def current_imu_calibration(self, subject_id: int) -> schema.ImuCalibration | None:
+        """The subject's latest accepted calibration (what their next session applies), None when none."""
+        with self._read() as session:
+            row = session.scalars(
+                select(_ImuCalibrationRow)
+                .where(_ImuCalibrationRow.subject_id == subject_id)
+                .order_by(_ImuCalibrationRow.id.desc())
+                .limit(1)
+            ).first()
+            return None if row is None else _imu_calibration(row)

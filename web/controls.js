@@ -2,6 +2,7 @@
 // Every request's refusal is shown in plain words next to its control.
 
 import { api } from "./api.js";
+import { imuCalibrationCard } from "./imu_calibration.js";
 import { SettingsEditor } from "./settings.js";
 import { armedButton, errorBox, h, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
@@ -143,12 +144,16 @@ export function mountControls(sessionId, hooks) {
     if (!running) rec.recording = false; // stopping a session finishes its recording
     renderRecording();
     editor.setBaseline(session.settings);
+    imu.refresh();
     hooks.onSession(session);
   }
 
+  // --- IMU calibration (sessions whose stack has IMU front ends) ---------------------------------
+  const imu = imuCalibrationCard(sessionId, _actor);
+
   refreshRecording();
   return {
-    el: h("div", { class: "controls" }, settingsCard, recordingCard, annForm, sessionCard),
+    el: h("div", { class: "controls" }, settingsCard, imu.el, recordingCard, annForm, sessionCard),
     setSession,
     /** A `SettingsMessage` (possibly another client's change). */
     setSettings(settings) {

@@ -509,6 +509,44 @@
  */
 
 /**
+ * Start a standing calibration of a live session's IMUs (``POST /api/sessions/{id}/imu-calibration``):
+ * the subject stands still, upright, for ``duration_s`` of session time.
+ * @typedef {object} ImuCalibrationRequest
+ * @property {number} [duration_s=5.0] (2..30)
+ * @property {string} [actor="clinician"]
+ * @property {string} [note=""] the posture, or anything worth keeping with it
+ */
+
+/**
+ * An IMU mounting calibration of a subject in a session (also the MCAP ``/imu_calibration`` payload).
+ * ``ok``: every sensor with data was accepted (stored; the subject's latest is their current one).
+ * @typedef {object} ImuCalibration
+ * @property {number | null} [id=null] null: refused, not stored
+ * @property {number} subject_id
+ * @property {number} session_id
+ * @property {number | null} [trial_id=null]
+ * @property {number} duration_s (>= 0)
+ * @property {boolean} ok
+ * @property {string} [reason=""] refused: each sensor and why
+ * @property {Array<ImuSensorCalibration>} sensors
+ * @property {string} [created_utc=""]
+ * @property {string} [created_by="clinician"]
+ * @property {string} [note=""]
+ */
+
+/**
+ * A live session's IMU calibration (``GET /api/sessions/{id}/imu-calibration``).
+ * @typedef {object} ImuCalibrationStatus
+ * @property {number} session_id
+ * @property {"idle" | "collecting" | "done" | "refused"} state
+ * @property {number} progress share of the standing period collected (0..1)
+ * @property {number} duration_s the period asked for (0: none yet)
+ * @property {Array<string>} segments the sensors this session can calibrate (its imu_* front ends)
+ * @property {ImuCalibration | null} result the last calibration's outcome (done or refused)
+ * @property {ImuCalibration | null} applied what the front ends run now (this session's or the subject's)
+ */
+
+/**
  * A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames.
  *
  * ``rate_hz`` is the device's declared sample rate: the server takes up to ``1.25 x rate_hz``
@@ -526,6 +564,19 @@
  * @typedef {object} EstimatorColumns
  * @property {boolean} failed it has failed (its outputs are no longer computed)
  * @property {Object<string, Array<number | null>>} columns
+ */
+
+/**
+ * One sensor's result (``estimators.imu_calibration.SensorCalibration``): the offsets its front end
+ * ``imu_<segment>`` takes, or why it was refused.
+ * @typedef {object} ImuSensorCalibration
+ * @property {string} segment foot, shank, thigh, foot_contra, ...
+ * @property {boolean} ok
+ * @property {string} [reason=""] empty when accepted
+ * @property {number} pitch_offset_deg (-180..180)
+ * @property {[number, number, number]} gyro_bias_dps x, y, z (deg/s)
+ * @property {number | null} gyro_motion_dps largest gyro deviation from its mean (null: too few samples)
+ * @property {number | null} accel_sd largest per-axis accelerometer sd (m/s^2)
  */
 
 /**
@@ -883,7 +934,23 @@ export const FIELD_LIMITS = deepFreeze({
     created_utc: { maxLength: 40 },
     note: { maxLength: 500 },
   },
+  ImuCalibrationRequest: { duration_s: { min: 2.0, max: 30.0 }, actor: { minLength: 1, maxLength: 64 }, note: { maxLength: 500 } },
+  ImuCalibration: {
+    duration_s: { min: 0 },
+    reason: { maxLength: 2000 },
+    sensors: { maxItems: 16 },
+    created_utc: { maxLength: 40 },
+    created_by: { maxLength: 64 },
+    note: { maxLength: 500 },
+  },
+  ImuCalibrationStatus: { progress: { min: 0.0, max: 1.0 } },
   DeviceSource: { rate_hz: { min: 1.0, max: 2000.0 }, channels: { maxItems: 256 } },
+  ImuSensorCalibration: {
+    segment: { pattern: "^[a-z_]{1,32}$" },
+    reason: { maxLength: 500 },
+    pitch_offset_deg: { min: -180.0, max: 180.0 },
+    gyro_bias_dps: { minItems: 3, maxItems: 3 },
+  },
   ProtocolStep: {
     speed_m_s: { min: 0.3, max: 2.0 },
     incline_deg: { min: -15.0, max: 15.0 },

@@ -7,7 +7,18 @@ HTTP statuses (``common.ERROR_STATUS``).
 
 from fastapi import APIRouter
 
-from server.routes import fingerprints, meta, models, sessions, streams, subjects, trials, uploads, viewer
+from server.routes import (
+    fingerprints,
+    imu_calibration,
+    meta,
+    models,
+    sessions,
+    streams,
+    subjects,
+    trials,
+    uploads,
+    viewer,
+)
 from server.routes.common import install_error_handlers
 from server.routes.uploads import Uploads
 
@@ -16,6 +27,7 @@ ROUTERS: tuple[APIRouter, ...] = (
     subjects.router,
     fingerprints.router,
     sessions.router,
+    imu_calibration.router,
     trials.router,
     models.router,
     viewer.router,

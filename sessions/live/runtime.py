@@ -41,6 +41,7 @@ from sessions import schema
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused, torque_json
 from sessions.formats.mcap_io import recover
 from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, SAMPLE_PERIOD_KEY, Recorder
+from sessions.imu_calibration import StandingCollector, applied_text, apply_calibration, front_end_segments
 from sessions.live.disk import DiskLevel
 from sessions.live.intent_events import IntentOnsets
 from sessions.live.sources import FrameSource, LiveDevice
@@ -140,6 +141,14 @@ class SessionRuntime:
         )
         #: onsets of speeding up / slowing down of the stack's intent estimator: each one an ``intent`` event
         self.intent_onsets = IntentOnsets(self.estimator.stack.names, self.estimator.stack.outputs)
+        #: IMU mounting calibration: the sensors it can calibrate, the one collecting, the last outcome, and
+        #: the one the front ends run (the subject's current one from the start, until this session makes one)
+        self.imu_segments = front_end_segments(self.estimator.stack)
+        self.imu_collector: StandingCollector | None = None
+        self.imu_result: schema.ImuCalibration | None = None
+        current = store.current_imu_calibration(subject.id) if self.imu_segments else None
+        self._imu_at_start = [] if current is None else apply_calibration(self.estimator.stack, current)
+        self.imu_applied = current if self._imu_at_start else None
         self.subscribers: set[Subscriber] = set()
         self.recorder: Recorder | None = None
         self.trial: schema.Trial | None = None
@@ -165,6 +174,14 @@ class SessionRuntime:
     # --- lifecycle ------------------------------------------------------------------------------
     def start(self) -> None:
         self.start_recording("trial 1")
+        if self.imu_applied is not None:
+            self._event(
+                "system",
+                f"the subject's IMU calibration {self.imu_applied.id} ({self.imu_applied.created_utc}) applied: "
+                + applied_text(self.imu_applied, self._imu_at_start),
+                field="imu_calibration",
+                after=float(self.imu_applied.id or 0),
+            )
         s = self.settings
         ramp = max(
             s.torque_gain / schema.SETTING_LIMITS["torque_gain"][2],
@@ -236,6 +253,8 @@ class SessionRuntime:
         while True:
             await asyncio.sleep(1.0)
             self.check_disk()
+            if self.imu_collector is not None and self.imu_collector.overdue():
+                self._imu_calibrated()
             self.broadcast_health()
 
     def check_disk(self) -> DiskState:
@@ -285,6 +304,8 @@ class SessionRuntime:
                 self.recorder.write_json(t, self.estimator.recorded_json(frame, state, command.encode()))
             except (OSError, ValueError) as e:
                 self._recording_failed(e)
+        if self.imu_collector is not None and self.imu_collector.add(t, frame):
+            self._imu_calibrated()  # after the frame's record: a re-run applies it from the next frame, as here
         for sub in self.subscribers:
             sub.offer(state, outputs)
         if self.on_state is not None:
@@ -349,6 +370,59 @@ class SessionRuntime:
             return
         self.fingerprint = active.fingerprint
         self._event("system", f"{text}; fp_ls takes it at the next heel strike", actor=actor)
+
+    def calibrate_imus(self, request: schema.ImuCalibrationRequest) -> schema.ImuCalibrationStatus:
+        """Start collecting a standing period of the front ends' raw IMU samples (the caller checked that
+        the stack has front ends and that none is collecting); it ends after ``duration_s`` of samples."""
+        self.imu_collector = StandingCollector(self.imu_segments, request)
+        self.imu_result = None
+        who = f" by {request.actor}" + (f" ({request.note})" if request.note else "")
+        self._event("system", f"IMU calibration started{who}: stand still for {request.duration_s:g} s",
+                    actor=request.actor)  # fmt: skip
+        return self.imu_status()
+
+    def imu_status(self) -> schema.ImuCalibrationStatus:
+        c, r = self.imu_collector, self.imu_result
+        state: schema.ImuCalibrationState = (
+            "collecting" if c is not None else "idle" if r is None else "done" if r.ok else "refused"
+        )
+        return schema.ImuCalibrationStatus(
+            session_id=self.session.id,
+            state=state,
+            progress=c.progress if c is not None else 0.0 if r is None else 1.0,
+            duration_s=c.request.duration_s if c is not None else r.duration_s if r is not None else 0.0,
+            segments=self.imu_segments,
+            result=r,
+            applied=self.imu_applied,
+        )
+
+    def _imu_calibrated(self) -> None:
+        """The standing period is over: calibrate; accepted, store it (the subject's current calibration)
+        and only then apply it to the front ends and record it; refused, say why. Either way an event."""
+        collector, self.imu_collector = self.imu_collector, None
+        assert collector is not None
+        actor = collector.request.actor
+        result = collector.result(self.subject.id, self.session.id, self.trial.id if self.trial else None)
+        if result.ok:
+            try:
+                result = self.store.add_imu_calibration(result)
+            except Exception as e:
+                log.error("session %d: IMU calibration not saved: %s", self.session.id, e)
+                why = f"the calibration could not be saved ({_describe(e)}), so it was not applied"
+                result = result.model_copy(update={"ok": False, "reason": why})
+        self.imu_result = result
+        if not result.ok:
+            self._event("system", f"IMU calibration refused: {result.reason}", field="imu_calibration", actor=actor)
+            return
+        names = apply_calibration(self.estimator.stack, result)
+        self.imu_applied = result
+        if self.recorder is not None:
+            try:
+                self.recorder.write("/imu_calibration", self.estimator.last_t, result)
+            except (OSError, ValueError) as e:
+                self._recording_failed(e)
+        self._event("system", f"IMU calibration {result.id} applied: {applied_text(result, names)}",
+                    field="imu_calibration", after=float(result.id or 0), actor=actor)  # fmt: skip
 
     def accepts(self, frame: SensorFrame) -> bool:
         """Whether a device frame's time can be placed after the last one (a device may restart its clock)."""
@@ -557,6 +631,8 @@ class SessionRuntime:
             recorder.path.unlink(missing_ok=True)  # no row points at it
             raise
         self.recorder.write("/settings", self.estimator.last_t, self.session.settings)
+        if self.imu_applied is not None:  # each trial holds the calibration its front ends run, for a re-run
+            self.recorder.write("/imu_calibration", self.estimator.last_t, self.imu_applied)
         self._event("recording", f"recording started: {self.trial.name}")
         return self.trial
 

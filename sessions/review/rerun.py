@@ -20,7 +20,9 @@ The estimator is built as the live one was (:class:`~sessions.live.runtime.Sessi
 in the settings, the subject's leg length and mass, the sample period in the recording's metadata record
 (:data:`~sessions.formats.recording.SAMPLE_PERIOD_KEY`) and the recording's session clock, so the states come
 out on the times of the recorded ones and overlay them; its torque passes the live loop's last guard
-(:func:`~sessions.live.runtime.safe_torque`).
+(:func:`~sessions.live.runtime.safe_torque`). In both modes the IMU mounting calibration the recording
+holds (its ``/imu_calibration`` messages: the one in force at the trial's start, and one made during it)
+is applied to the IMU front ends from where it was recorded, as it was live.
 
 Frames are read lazily and the result is decimated on the fly (:class:`~sessions.formats.mcap_io.SeriesBuilder`),
 so a re-run of an hour-long trial needs memory for ``max_points`` rows, not for the hour. The estimator
@@ -47,9 +49,10 @@ from sessions.errors import DataFormatError
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
 from sessions.formats.mcap_io import SeriesBuilder, count_messages, iter_sensor_frames, read_messages, series_window
 from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, METADATA_NAME, SAMPLE_PERIOD_KEY
+from sessions.imu_calibration import apply_calibration
 from sessions.live.runtime import safe_torque
 from sessions.registry import DECLARED, DERIVERS, OPT_IN, channels_of, feeds
-from sessions.schema import CHANNELS, RerunChoices, SensorFrame, SessionSettings
+from sessions.schema import CHANNELS, ImuCalibration, RerunChoices, SensorFrame, SessionSettings
 
 __all__ = ["recorded_settings", "recorded_stack", "rerun_choices", "rerun_series", "trial_channels"]
 
@@ -120,7 +123,8 @@ def rerun_series(
     channels = None if ran else trial_channels(path)
     current = settings
     estimator: FrameEstimator | None = None
-    topics = ["/sensor", "/settings"] if settings is None else ["/sensor"]
+    topics = ["/sensor", "/imu_calibration", "/settings"] if settings is None else ["/sensor", "/imu_calibration"]
+    imu: ImuCalibration | None = None  # the IMU calibration the recording holds, applied as it was live
     # Log-time order, equal times in file order: the order they were written in, so a /settings
     # message applies to the frames written after it, exactly as the change applied live.
     for topic, log_time, msg in read_messages(path, topics):
@@ -139,6 +143,11 @@ def rerun_series(
                 except ValueError:
                     pass  # a switch to a primary this re-run does not have: the others apply
             current = recorded
+            continue
+        if topic == "/imu_calibration":
+            imu = _imu_calibration(path, log_time, msg)
+            if estimator is not None:
+                apply_calibration(estimator.stack, imu)
             continue
         frame = _frame(path, log_time, msg)
         if current is None:
@@ -164,6 +173,8 @@ def rerun_series(
             except ValueError as exc:  # unknown estimators, missing channels, no fingerprint
                 raise DataFormatError(str(exc), file=str(path)) from exc
             stack = estimator.stack
+            if imu is not None:
+                apply_calibration(stack, imu)
             columns = [f"{name}.{o}" for name, outs in zip(stack.names, stack.outputs, strict=True) for o in outs]
             builder = SeriesBuilder(n, max_points, columns)
         if not estimator.accepts(frame):
@@ -259,6 +270,13 @@ def _settings(path: Path, log_time: int, msg: object) -> SessionSettings:
         return SessionSettings.model_validate(msg)
     except ValueError as exc:
         raise DataFormatError(f"bad /settings message at {log_time} ns: {exc}", file=str(path)) from exc
+
+
+def _imu_calibration(path: Path, log_time: int, msg: object) -> ImuCalibration:
+    try:
+        return ImuCalibration.model_validate(msg)
+    except ValueError as exc:
+        raise DataFormatError(f"bad /imu_calibration message at {log_time} ns: {exc}", file=str(path)) from exc
 
 
 def _frame(path: Path, log_time: int, msg: object) -> SensorFrame:

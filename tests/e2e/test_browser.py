@@ -231,6 +231,8 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(intent_plot.locator("canvas")).to_be_visible()
     expect(intent_plot.locator(".u-title")).to_have_text("Speed-change intent: desired vs actual speed")
     expect(intent_plot.locator(".u-legend")).to_contain_text("desired")
+    # the simulated device sends segment angles, so its stack runs no IMU front end: nothing to calibrate
+    expect(page.get_by_test_id("imu-card")).to_be_hidden()
 
     # --- the subject's baseline: kept per subject in this browser, survives a reload ---------------------
     expect(page.get_by_test_id("baseline-note")).to_have_text("no baseline")

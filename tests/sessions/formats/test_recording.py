@@ -217,6 +217,7 @@ def test_summary_names_encodings_and_metadata(recorded: Path) -> None:
             "/torque": ("gaitscope.TorqueCommand", "jsonschema", "json"),
             "/settings": ("gaitscope.SessionSettings", "jsonschema", "json"),
             "/events": ("foxglove.Event", "jsonschema", "json"),
+            "/imu_calibration": ("gaitscope.ImuCalibration", "jsonschema", "json"),
         }
         models: dict[str, type[BaseModel]] = {
             "/sensor": schema.SensorFrame,
@@ -224,6 +225,7 @@ def test_summary_names_encodings_and_metadata(recorded: Path) -> None:
             "/torque": schema.TorqueCommand,
             "/settings": schema.SessionSettings,
             "/events": schema.FoxgloveEvent,
+            "/imu_calibration": schema.ImuCalibration,
         }
         for c in summary.channels.values():
             assert summary.schemas[c.schema_id].data == json.dumps(models[c.topic].model_json_schema()).encode()
