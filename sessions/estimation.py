@@ -139,6 +139,8 @@ class FrameEstimator:
         self._ramp_t0 = 0.0
         self._ramping = soft_start
         self._standing = False
+        #: when and why the primary last lost track (:mod:`estimators.lock`); None: never
+        self.last_lost: tuple[float, str] | None = None
         self._min_next_t = -math.inf
         self._last_recv_ns = 0
         self.retune(settings)
@@ -280,6 +282,8 @@ class FrameEstimator:
         if e.standing and not self._standing:
             self.notes.append(f"standing still from {t:.3f} s: phase held, torque to its standing value (0)")
         self._standing = e.standing
+        if e.fault == "lost":
+            self.last_lost = (t, self._lost_reason(e.primary))
         if restarted:
             what = {
                 "gap": f"a gap of over {MAX_GAP_S:g} s",

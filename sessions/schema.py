@@ -1008,6 +1008,12 @@ class Health(BaseModel):
         default=None, description="the estimator driving the torque now (null: none, the torque is 0)"
     )
     failed_estimators: dict[str, str] = Field(default_factory=dict, description="failed estimators and why")
+    tracking: Literal["walking", "standing", "lost"] | None = Field(
+        default=None,
+        description="the primary's gait tracking (estimators.lock): walking; standing still (phase held, torque "
+        "0); lost (it lost track and was reset in the last 5 s); null: no primary yet",
+    )
+    tracking_note: str = Field(default="", description="why it lost track (when tracking is lost)")
 
 
 class DeviceNotice(BaseModel):

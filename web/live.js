@@ -150,7 +150,7 @@ export function mountLive(root, sessionId) {
 
   const hv = (key) => h("dd", { "data-testid": `health-${key}`, text: "–" });
   const health = { t: hv("session-time"), rate: hv("rate"), latency: hv("latency"), serverLatency: hv("server-latency"), input: hv("dropped-input"), client: hv("dropped-client"), clients: hv("clients"), samples: hv("samples"), implausible: hv("implausible"), faults: hv("faults"), disk: hv("disk"),
-    primary: hv("primary"), failedEstimators: hv("failed-estimators") };
+    primary: hv("primary"), failedEstimators: hv("failed-estimators"), tracking: hv("tracking") };
   const healthCard = h("section", { class: "card health", "data-testid": "health" }, h("h2", { text: "Data health" }), indicator,
     h("dl", {}, h("dt", { text: "Session time" }), health.t, h("dt", { text: "Rate" }), health.rate, h("dt", { text: "Device → screen latency p50 / p95" }), health.latency,
       h("dt", { text: "Device → server p50 / p95" }), health.serverLatency,
@@ -159,7 +159,8 @@ export function mountLive(root, sessionId) {
       h("dt", { text: "Implausible sensor values (ignored)" }), health.implausible,
       h("dt", { text: "Estimator resets / torque faults" }), health.faults, h("dt", { text: "Recording disk" }), health.disk,
       h("dt", { text: "Torque follows (primary estimator)" }), health.primary,
-      h("dt", { text: "Failed estimators" }), health.failedEstimators), conn);
+      h("dt", { text: "Failed estimators" }), health.failedEstimators,
+      h("dt", { text: "Gait tracking" }), health.tracking), conn);
   // switching the primary: a setting (validated, rate-limited and logged by the server)
   const primarySelect = h("select", { id: "primary-select", "data-testid": "primary-select", "aria-label": "Primary estimator" });
   const primaryBtn = h("button", { type: "button", "data-testid": "primary-apply", text: "Switch" });
@@ -359,6 +360,9 @@ export function mountLive(root, sessionId) {
     const disk = { ok: "ok", low: "space low: recording stops when it runs out", critical: "full: recording stopped" }[m.disk ?? "ok"];
     health.disk.textContent = disk;
     health.disk.classList.toggle("warn", (m.disk ?? "ok") !== "ok");
+    const tracking = { walking: "walking", standing: "standing still: phase held, torque 0", lost: `lost track, reset: ${m.tracking_note || ""}` }[m.tracking] || "–";
+    health.tracking.textContent = tracking;
+    health.tracking.classList.toggle("warn", m.tracking === "lost");
     if (m.estimators) {
       stack.primary = m.primary ?? null;
       stack.failed = new Map(Object.entries(m.failed_estimators || {}));

@@ -338,6 +338,8 @@
  * @property {Array<string>} [estimators] the session's estimator stack
  * @property {string | null} [primary=null] the estimator driving the torque now (null: none, the torque is 0)
  * @property {Object<string, string>} [failed_estimators] failed estimators and why
+ * @property {"walking" | "standing" | "lost" | null} [tracking=null] the primary's gait tracking (estimators.lock): walking; standing still (phase held, torque 0); lost (it lost track and was reset in the last 5 s); null: no primary yet
+ * @property {string} [tracking_note=""] why it lost track (when tracking is lost)
  */
 
 /**

@@ -63,6 +63,8 @@ log = logging.getLogger("gaitscope")
 
 #: Least time between two system events about estimator faults or clock resynchronisations (s).
 NOTE_INTERVAL_S = 1.0
+#: Data health says the primary lost track for this long after it did (s).
+LOST_SHOWN_S = 5.0
 
 DiskState = DiskLevel
 
@@ -465,7 +467,17 @@ class SessionRuntime:
             estimators=list(self.estimator.stack.names),
             primary=self.estimator.primary,
             failed_estimators=dict(self.estimator.stack.failed),
+            **self._tracking(),
         )
+
+    def _tracking(self) -> dict[str, Any]:
+        """The primary's tracking for data health: standing, lost in the last ``LOST_SHOWN_S``, walking."""
+        e, lost = self.estimator.last, self.estimator.last_lost
+        if e is None or e.primary is None:
+            return {}
+        if lost is not None and self.estimator.last_t - lost[0] <= LOST_SHOWN_S:
+            return {"tracking": "lost", "tracking_note": lost[1]}
+        return {"tracking": "standing" if e.standing else "walking"}
 
     def broadcast_health(self) -> None:
         for sub in self.subscribers:
