@@ -318,9 +318,10 @@ class FrameEstimator:
             heel_strike=e.heel_strike,
             backup_reset=e.backup_reset,
             fault=bool(e.fault),
-            foot_angle_deg=frame.foot_angle_deg,
-            shank_angle_deg=frame.shank_angle_deg,
-            thigh_angle_deg=frame.thigh_angle_deg,
+            # the frame's angles, else those the stack derived (the IMU front ends) for the leg view and plots
+            foot_angle_deg=_sent_or_derived(frame.foot_angle_deg, channels["foot_angle_deg"]),
+            shank_angle_deg=_sent_or_derived(frame.shank_angle_deg, channels["shank_angle_deg"]),
+            thigh_angle_deg=_sent_or_derived(frame.thigh_angle_deg, channels["thigh_angle_deg"]),
             foot_pred_deg=e.foot_pred_deg,
             shank_pred_deg=e.shank_pred_deg,
             sent_ns=frame.sent_ns,
@@ -394,6 +395,13 @@ def _outputs_templates(name: str, outputs: Sequence[str]) -> tuple[str, str]:
 
     keys = [json.dumps(o).replace("%", "%%") for o in outputs]
     return text(",".join(f"{k}:%r" for k in keys), "false"), text(",".join(f"{k}:null" for k in keys), "true")
+
+
+def _sent_or_derived(sent: float | None, derived: float) -> float | None:
+    """A frame's value, else the stack's derived one when finite (None: neither)."""
+    if sent is not None:
+        return sent
+    return derived if math.isfinite(derived) else None
 
 
 def _or_nan(v: float | None) -> float:
