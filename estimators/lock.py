@@ -12,7 +12,8 @@ per sample (all thresholds are :class:`LockConfig` parameters):
   exceeds ``move_dps``: the filters restart (as after a gap) at ``resume_phase`` (0.3: someone standing
   has both feet in stance, and walking starts from stance, whichever leg swings first; the first heel
   strike corrects it) with the cadence, stride length and incline of the last heel strike walked, and
-  the torque ramps back in over ``ramp_s``.
+  the torque ramps back in over ``ramp_s``; for ``heel_settle_s`` (2 s) the filter leaves out the heel
+  positions, whose high-pass filter restarts and needs that long to settle.
 - **heel strikes from the shank** when the foot sensor is missing: the shank's angular velocity swings
   forward (above ``shank_swing_dps``) in mid-swing and crosses zero just before the heel strikes
   (Aminian et al. 2002 and Salarian et al. 2004 take the minimum after the mid-swing peak; the zero
@@ -42,6 +43,7 @@ class LockConfig:
     move_dps: float = 60.0
     ramp_s: float = 0.3
     resume_phase: float = 0.3
+    heel_settle_s: float = 2.0
     shank_swing_dps: float = 150.0
     max_stride_s: float = 2.5
     phase_rate_range: tuple[float, float] = (0.3, 2.5)

@@ -120,7 +120,7 @@ class PhaseEKFEstimator:
         if event == "resumed":  # start again at the cadence, stride and slope of the walking before
             x0 = p.config.ekf.initial_state() if self._walking is None else self._walking.copy()
             x0[0] = sup.config.resume_phase
-            p.restart(x0)
+            p.restart(x0, sup.config.heel_settle_s)
         e = p.step(t, z[:6], given)
         fault = _RESUMED if event == "resumed" else _FAULT_CODE[e.fault]
         why = sup.lost(t, e.heel_strike, e.phase_rate)

@@ -180,6 +180,8 @@ class GaitStatePipeline:
         #: Times the filters were restarted after a gap or reset after diverging.
         self.restarts = 0
         self.resets = 0
+        self._heel_settle = 0.0
+        self._heel_masked_until = -math.inf
         self._start_filters()
 
     def _start_filters(self) -> None:
@@ -242,6 +244,8 @@ class GaitStatePipeline:
             self._start_filters()
             self.restarts += 1
             fault, dt = "gap", 0.0
+        if self._t is None and self._heel_settle > 0.0:
+            self._heel_masked_until, self._heel_settle = t + self._heel_settle, 0.0
         self._t = t
         z = self._z
         z[:] = raw
@@ -250,6 +254,8 @@ class GaitStatePipeline:
         if not heel_filtered:  # both heel positions, when both are present (restarts rather than stick on NaN)
             self.highpass.step_inplace(self._heel)
         z[self._unmodelled] = np.nan
+        if t < self._heel_masked_until:  # after a restart, until the heel high-pass has settled
+            z[Z_HEEL_FORWARD : Z_HEEL_UP + 1] = np.nan
         if heel_strike is None:
             heel_strike = bool(
                 np.isfinite(z[Z_FOOT_ANGLE])
@@ -317,13 +323,16 @@ class GaitStatePipeline:
         """
         return _batch.run(self, t, z, heel_strike, heel_filtered)
 
-    def restart(self, initial: Array | None = None) -> None:
+    def restart(self, initial: Array | None = None, heel_settle_s: float = 0.0) -> None:
         """Restart every filter (the walker starts again), keeping the tuning: the EKF from ``initial``
         (``[p, pdot, lp, r]``; None: its initial state). The next :meth:`step` is the first of a new
-        stream (no prediction over the time since the last one, and no gap)."""
+        stream (no prediction over the time since the last one, and no gap). For ``heel_settle_s`` from it
+        the EKF does not use the heel positions: their high-pass filter starts again too, and its output
+        means nothing until it has settled (its time constant is about 1 / (2 pi 0.5 Hz) x 2)."""
         self._start_filters()
         self.restarts += 1
         self._t = None
+        self._heel_settle = heel_settle_s
         if initial is not None:
             self.ekf.reset(np.asarray(initial, dtype=np.float64), self.config.ekf.initial_covariance())
 
