@@ -103,3 +103,25 @@ def test_retune_changes_assistance_and_noise_from_the_next_step(small_model: Tra
     with pytest.raises(ValueError, match="must be >= 0"):
         pipe.retune(max_torque=300.0)
     assert pipe.config.max_torque == 12.0  # a refused change leaves the settings as they were
+
+
+def test_a_restart_leaves_the_heel_positions_out_until_their_high_pass_settles(
+    small_model: TrainedModel, trial
+) -> None:
+    _, data, _, _ = trial
+    z = measurements(data)
+    t = data.time_s
+    no_heel = z.copy()
+    no_heel[:, 4:] = np.nan
+    a, b = GaitStatePipeline(small_model), GaitStatePipeline(small_model)
+    for p in (a, b):
+        p.restart(np.array([0.3, 1.0, 1.0, 0.0]), heel_settle_s=1.0)
+    first = t < t[0] + 1.0
+    for k in np.flatnonzero(first):  # the first second: as if the heel positions were missing
+        ea, eb = a.step(float(t[k]), z[k]), b.step(float(t[k]), no_heel[k])
+        assert ea.phase == eb.phase and ea.phase_rate == eb.phase_rate
+    k = int(np.argmin(first)) + 50
+    for j in range(int(np.argmin(first)), k):  # then they count again
+        ea, eb = a.step(float(t[j]), z[j]), b.step(float(t[j]), no_heel[j])
+    assert ea.phase != eb.phase
+    assert a.restarts == 1
