@@ -1,0 +1,94 @@
+"""The IMU calibration card in a real browser against the real server: a device sending raw IMU signals
+only (foot and shank) streams over the real websocket while the clinician asks for a standing calibration
+from the live view. Standing still: the progress bar runs and each sensor's offset is shown as applied;
+then the device walks and a second calibration is refused with each sensor's reason. The fixtures are
+``test_browser.py``'s (this module gets its own server)."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from websockets.sync.client import connect
+
+from tests.e2e import test_browser as tb
+from tests.e2e.test_fingerprints import _call
+from tests.server.test_imu_calibration import IMU_CHANNELS, RATE, _standing, _walking
+
+playwright_api = pytest.importorskip("playwright.sync_api")
+expect = playwright_api.expect
+
+pytestmark = tb.pytestmark
+server = tb.server
+browser = tb.browser
+watched = tb.watched
+
+
+class Device(threading.Thread):
+    """Streams frames in real time (100 Hz) to a device session: standing, or walking once asked to."""
+
+    def __init__(self, base: str, session_id: int):
+        super().__init__(daemon=True)
+        self.url = base.replace("http://", "ws://") + f"/ws/devices/{session_id}"
+        self.walking = threading.Event()
+        self.stop = threading.Event()
+        self.error: BaseException | None = None
+
+    def run(self) -> None:
+        try:
+            with connect(self.url) as ws:
+                t, seq = 0.0, 0
+                while not self.stop.is_set():
+                    frames: list[dict[str, Any]] = _walking(t) if self.walking.is_set() else _standing(t, 1.0, seq)
+                    for frame in frames:
+                        if self.stop.is_set():
+                            break
+                        ws.send(json.dumps({**frame, "seq": seq}))
+                        ws.recv(timeout=5)
+                        seq += 1
+                        t = frame["t"] + 1.0 / RATE
+                        time.sleep(1.0 / RATE)
+        except BaseException as e:
+            self.error = e
+
+
+@pytest.fixture
+def device_session(server: str) -> Iterator[tuple[int, Device]]:
+    subject = _call(server, "POST", "/api/subjects", {"code": "IMU1", "leg_length_m": 0.9, "mass_kg": 70.0})
+    source = {"kind": "device", "rate_hz": RATE, "channels": IMU_CHANNELS}
+    session = _call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
+    device = Device(server, session["id"])
+    device.start()
+    try:
+        yield session["id"], device
+    finally:
+        device.stop.set()
+        device.join(timeout=10)
+        _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+
+
+def test_calibrate_from_the_live_view_then_refused_while_walking(
+    server: str, watched: tb.Watched, device_session: tuple[int, Device]
+) -> None:
+    sid, device = device_session
+    page = watched.page
+    page.goto(f"{server}/#/sessions/{sid}")
+    card = page.get_by_test_id("imu-card")
+    expect(card).to_be_visible(timeout=20_000)  # the stack has IMU front ends: the card shows
+    page.get_by_test_id("imu-duration").select_option("2")
+    page.get_by_test_id("imu-calibrate").click()
+    expect(page.get_by_test_id("imu-bar")).to_be_visible()  # collecting: the progress bar runs
+    expect(page.get_by_test_id("imu-applied")).to_be_visible(timeout=20_000)
+    for seg in ("foot", "shank"):
+        expect(page.get_by_test_id(f"imu-sensor-{seg}")).to_contain_text("pitch offset")
+    device.walking.set()
+    time.sleep(1.0)
+    page.get_by_test_id("imu-calibrate").click()
+    expect(page.get_by_test_id("imu-refused")).to_be_visible(timeout=20_000)
+    expect(page.get_by_test_id("imu-sensor-shank")).to_contain_text("stand still")
+    assert device.error is None, device.error
+    watched.check_clean()
