@@ -33,6 +33,7 @@ from scipy import stats
 
 from estimators.fingerprint import FingerprintConfig, FingerprintEKF, FingerprintMap, Mode, basis, fit_map
 from sessions import schema
+from sessions.offline.crossval import wrapped
 from sessions.synth.cohort import CohortSpec, SubjectParams, generate_cohort, generate_walk, make_subjects
 
 __all__ = [
@@ -146,11 +147,6 @@ class SubjectResult:
         return all(r[0] <= CONVERGED_PHASE_RMSE for r in self.rmse.values())
 
 
-def _wrapped(d: np.ndarray) -> np.ndarray:
-    a = np.abs(d) % 1.0
-    return np.minimum(a, 1.0 - a)
-
-
 def run_filter(fmap: FingerprintMap, mode: Mode, walk: HeldOutWalk, g: np.ndarray | None = None) -> np.ndarray:
     """``(n, 3)`` phase, phase rate and stride length of one filter over ``walk``."""
     ekf = FingerprintEKF(fmap, mode=mode, g=g, config=FingerprintConfig())
@@ -178,7 +174,7 @@ def _fold(
     rmse = {}
     for mode in MODES:
         est = run_filter(fmap, mode, walk, g_ls if mode == "ls" else None)
-        e_p = _wrapped(est[scored, 0] - walk.phase[scored])
+        e_p = wrapped(est[scored, 0] - walk.phase[scored])
         e_r = est[scored, 1] - walk.phase_rate[scored]
         e_l = est[scored, 2] - walk.stride_length_m[scored]
         rmse[mode] = tuple(float(np.sqrt(np.mean(e**2))) for e in (e_p, e_r, e_l))

@@ -34,6 +34,7 @@ from estimators.phase_ekf_estimator import PhaseEKFEstimator
 from estimators.pipeline import PipelineConfig, TrainedModel
 from sessions import schema as s
 from sessions.formats.models import default_model_path, load_model
+from sessions.offline.crossval import wrapped
 from sessions.synth.cohort import CohortSpec, SubjectParams
 from sessions.synth.real_walks import RealWalkSpec, real_walks
 
@@ -84,11 +85,6 @@ def _estimate(model: TrainedModel, subject: SubjectParams, walk: pd.DataFrame, k
     return Run(out, rate, walk)
 
 
-def _wrapped(d: np.ndarray) -> np.ndarray:
-    a = np.abs(d) % 1.0
-    return np.minimum(a, 1.0 - a)
-
-
 def _stalls(run: Run, phase: np.ndarray) -> int:
     """Walking stretches of ``STALL_S`` in which the phase advanced less than ``STALL_CYCLES``."""
     t = run.walk[s.REPLAY_TIME].to_numpy(np.float64)
@@ -129,7 +125,7 @@ def run_study(spec: RealWalkSpec | None = None, cohort: CohortSpec | None = None
         cond = np.concatenate([r.walk["condition"].to_numpy() for r in runs])
         truth = np.concatenate([r.walk["gt_phase"].to_numpy() for r in runs])
         for name in ESTIMATORS:
-            err = _wrapped(np.concatenate([r.phase[name] for r in runs]) - truth)
+            err = wrapped(np.concatenate([r.phase[name] for r in runs]) - truth)
             for c in WALKING:
                 e = err[cond == c]
                 rmse[(subset, name, c)] = 100.0 * math.sqrt(float(np.mean(e**2))) if len(e) else math.nan

@@ -29,6 +29,7 @@ __all__ = [
     "Kinematics",
     "body_columns",
     "second_derivative",
+    "smooth_step",
 ]
 
 G: Final = 9.81
@@ -145,7 +146,7 @@ def second_derivative(t: np.ndarray, x: np.ndarray) -> np.ndarray:
 # --- private helpers -----------------------------------------------------------------------------
 
 
-def _smooth_step(u: np.ndarray) -> np.ndarray:
+def smooth_step(u: np.ndarray) -> np.ndarray:
     """0 -> 1 over u in [0, 1] with zero slope at both ends."""
     return 0.5 * (1.0 - np.cos(np.pi * np.clip(u, 0.0, 1.0)))
 
@@ -165,8 +166,8 @@ def _ipsi_load_share(k: Kinematics) -> tuple[np.ndarray, np.ndarray]:
     first_half = k.p[None, :] < 0.5
     i_tc = np.argmax(first_half & (k.qc >= k.foot_off[:, None]), axis=1)  # contralateral toe-off
     p_to, p_hc, p_tc = k.p[i_to][:, None], k.p[i_hc][:, None], k.p[np.maximum(i_tc, 1)][:, None]
-    share = np.where(p < p_tc, _smooth_step(p / p_tc), 1.0)
-    share = np.where(p >= p_hc, 1.0 - _smooth_step((p - p_hc) / np.maximum(p_to - p_hc, 1e-6)), share)
+    share = np.where(p < p_tc, smooth_step(p / p_tc), 1.0)
+    share = np.where(p >= p_hc, 1.0 - smooth_step((p - p_hc) / np.maximum(p_to - p_hc, 1e-6)), share)
     return np.where(p >= p_to, 0.0, share), i_hc
 
 

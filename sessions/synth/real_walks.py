@@ -38,6 +38,7 @@ import numpy as np
 import pandas as pd
 
 from sessions import schema as s
+from sessions.synth.body import smooth_step
 from sessions.synth.cohort import (
     CohortSpec,
     SensorNoise,
@@ -99,10 +100,6 @@ def _bout_schedule(spec: RealWalkSpec, rng: np.random.Generator) -> tuple[list[f
     return [x[0] for x in strides], np.array([x[1] for x in strides]), [x[2] for x in strides]
 
 
-def _smooth(u: np.ndarray) -> np.ndarray:
-    return 0.5 * (1.0 - np.cos(np.pi * np.clip(u, 0.0, 1.0)))
-
-
 def _bout(subject: SubjectParams, spec: RealWalkSpec, rng: np.random.Generator) -> pd.DataFrame:
     speeds, scales, labels = _bout_schedule(spec, rng)
     walk = generate_walk(subject, [(sp, 0.0, 1) for sp in speeds], rng, stride_scale=scales)
@@ -128,7 +125,7 @@ def _blend(f: pd.DataFrame, posture: dict[str, float]) -> None:
     """From and to the standing posture over the first and last half stride, in place."""
     t = f[s.REPLAY_TIME].to_numpy(np.float64)
     half = float(f.attrs["half_stride_s"])
-    w = _smooth((t - t[0]) / half) * _smooth((t[-1] - t) / half)
+    w = smooth_step((t - t[0]) / half) * smooth_step((t[-1] - t) / half)
     for c in s.REPLAY_SIGNALS:
         f[c] = posture[c] + w * (f[c].to_numpy() - posture[c])
 
