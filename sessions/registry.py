@@ -51,6 +51,7 @@ __all__ = [
     "channels_of",
     "choose_primary",
     "feeds",
+    "redundant",
     "resolve",
 ]
 
@@ -127,6 +128,13 @@ OPT_IN: Final = frozenset({"hs_backup", "sdre_knee"})
 #: out when the source already sends (or an earlier estimator derives) every channel it would derive,
 #: since a sent channel wins over a derived one and its work would be thrown away.
 DERIVERS: Final = frozenset({*(f"imu_{seg}" for seg in IMU_SEGMENTS), "com_kin"})
+
+
+def redundant(name: str, available: Collection[str]) -> bool:
+    """A front end (:data:`DERIVERS`) every channel of which ``available`` already has: a default stack
+    leaves it out."""
+    derives = [o for o, _ in DECLARED[name].outputs if o in _CHANNELS] if name in DERIVERS else []
+    return bool(derives) and all(o in available for o in derives)
 
 
 @dataclass(frozen=True)
@@ -237,10 +245,8 @@ def resolve(names: Sequence[str] | None, channels: Collection[str] | None, ctx: 
             if names is not None:
                 missing.append(f"{name} needs {', '.join(lacking)}")
             continue
-        if names is None and name in DERIVERS and available is not None:
-            derives = [n for n in output_names(est) if n in _CHANNELS]
-            if derives and all(n in available for n in derives):
-                continue  # the source sends all of it already
+        if names is None and available is not None and redundant(name, available):
+            continue  # the source sends all it would derive already
         stack.append(est)
         if available is not None:
             available.update(n for n in output_names(est) if n in _CHANNELS)

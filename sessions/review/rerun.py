@@ -51,8 +51,8 @@ from sessions.formats.mcap_io import SeriesBuilder, count_messages, iter_sensor_
 from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, METADATA_NAME, SAMPLE_PERIOD_KEY
 from sessions.imu_calibration import apply_calibration
 from sessions.live.runtime import safe_torque
-from sessions.registry import DECLARED, DERIVERS, OPT_IN, channels_of, feeds
-from sessions.schema import CHANNELS, ImuCalibration, RerunChoices, SensorFrame, SessionSettings
+from sessions.registry import OPT_IN, channels_of, feeds, redundant
+from sessions.schema import ImuCalibration, RerunChoices, SensorFrame, SessionSettings
 
 __all__ = ["recorded_settings", "recorded_stack", "rerun_choices", "rerun_series", "trial_channels"]
 
@@ -195,12 +195,6 @@ def rerun_series(
     return (builder or SeriesBuilder(0, max_points)).result()
 
 
-def _redundant(name: str, sent: set[str]) -> bool:
-    """A front end (:data:`~sessions.registry.DERIVERS`) whose every derived channel the log already has."""
-    derives = [o for o, _ in DECLARED[name].outputs if o in CHANNELS]
-    return name in DERIVERS and bool(derives) and all(o in sent for o in derives)
-
-
 def rerun_choices(path: Path, fingerprint: Sequence[float] | None = None) -> RerunChoices:
     """Which estimators :func:`rerun_series` can run on the trial: its recorded stack (they ran, whatever
     the channels), and every registered estimator its first frames' channels can feed, as
@@ -211,14 +205,14 @@ def rerun_choices(path: Path, fingerprint: Sequence[float] | None = None) -> Rer
         DataFormatError: a bad file.
     """
     recorded = recorded_stack(path)
-    fed = feeds(trial_channels(path))
+    sent = trial_channels(path)
+    fed = feeds(sent)
     ran = set(recorded or ())
     runnable = [n for n, f in fed.items() if (n in ran or not f.missing) and (n != "fp_ls" or fingerprint is not None)]
     if recorded is not None:
         default = list(recorded)
     else:  # as resolve(None, channels) runs them: the opt-in ones left out, and those fed by them
-        sent = set(trial_channels(path))
-        default = [n for n in runnable if n not in OPT_IN and not _redundant(n, sent)]
+        default = [n for n in runnable if n not in OPT_IN and not redundant(n, sent)]
         default = [n for n in default if all(set(by) & set(default) for by in fed[n].derived.values())]
     return RerunChoices(
         recorded=None if recorded is None else list(recorded),
