@@ -107,9 +107,8 @@ class PhaseEKFEstimator:
         p, sup = self.pipeline, self.supervisor
         foot, foot_dps, shank_dps, hs = float(z[0]), float(z[1]), float(z[3]), float(z[6])
         event = sup.motion(t, foot_dps, shank_dps, p.ekf.phase)
-        pred = p.predicted
         if sup.standing:  # phase held, rate 0, the filters wait (they restart when walking resumes)
-            ekf = p.ekf
+            ekf, pred = p.ekf, p.predicted
             l_m = ekf.stride_length_norm * p.config.leg_length
             return np.array([sup.held_phase, 0.0, _finite(l_m), _finite(ekf.incline), 0.0, 0.0, 0.0,
                              _finite(pred[0]), _finite(pred[2]), sup.standing_weight])  # fmt: skip
