@@ -11,7 +11,10 @@ per sample (all thresholds are :class:`LockConfig` parameters):
   an error: seed 003 holds its phase on a sudden stop the same way. Walking resumes when any of them
   exceeds ``move_dps``: the filters restart (as after a gap) at ``resume_phase`` (0.3: someone standing
   has both feet in stance, and walking starts from stance, whichever leg swings first; the first heel
-  strike corrects it) with the cadence, stride length and incline of the last heel strike walked, and
+  strike corrects it), advanced by the cadence times the time since the motion's onset (the last time
+  the rates rose above ``still_dps``, at most ``still_s`` back; ``backdate_resume``: walking began when the
+  motion did, not when it became fast enough to be sure), with the cadence, stride length and incline of
+  the last heel strike walked, and
   the torque ramps back in over ``ramp_s``; for ``heel_settle_s`` (2 s) the filter leaves out the heel
   positions, whose high-pass filter restarts and needs that long to settle.
 - **heel strikes from the shank** when the foot sensor is missing: the shank's angular velocity swings
@@ -48,6 +51,7 @@ class LockConfig:
     max_stride_s: float = 2.5
     phase_rate_range: tuple[float, float] = (0.3, 2.5)
     out_of_range_s: float = 1.0
+    backdate_resume: bool = True
 
 
 class ShankHeelStrike:
@@ -91,6 +95,8 @@ class LockSupervisor:
         self._changed_t = -math.inf
         self._last_hs: float | None = None
         self._out_since: float | None = None
+        #: While standing: when the angular velocities last rose above ``still_dps`` (the motion's onset).
+        self.onset: float | None = None
 
     def motion(self, t: float, foot_dps: float, shank_dps: float, phase: float) -> str:
         """Update the standing state from this sample's angular velocities (NaN: that sensor is missing)
@@ -104,6 +110,8 @@ class LockSupervisor:
         if rates:
             fastest = max(rates)
             if self.standing:
+                if fastest < c.still_dps or self.onset is None:
+                    self.onset = None if fastest < c.still_dps else t
                 if fastest > c.move_dps:
                     self.standing, self._changed_t, event = False, t, "resumed"
                     self._still_since = None

@@ -119,6 +119,8 @@ class PhaseEKFEstimator:
         if event == "resumed":  # start again at the cadence, stride and slope of the walking before
             x0 = p.config.ekf.initial_state() if self._walking is None else self._walking.copy()
             x0[0] = sup.config.resume_phase
+            if sup.config.backdate_resume and sup.onset is not None:  # walking began when the motion did
+                x0[0] += min(t - sup.onset, sup.config.still_s) * x0[1]
             p.restart(x0, sup.config.heel_settle_s)
         e = p.step(t, z[:6], given)
         fault = _RESUMED if event == "resumed" else _FAULT_CODE[e.fault]

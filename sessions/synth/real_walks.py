@@ -4,9 +4,16 @@ The virtual cohort walks straight at constant speed with white sensor noise. Rea
 shank IMUs, walks with turns and stops) also have, and this module adds on top of the cohort
 (``docs/cohort.md``, "Real walking"; every number is a parameter of :class:`RealWalkSpec`):
 
-- **bouts** separated by **standing** (3-6 s): each bout starts from standing and ends in it; the
-  signals blend from the standing posture into the first half stride and back over the last half
-  (the posture: the first bout's mean at mid-stance, phase 0.25-0.35, velocities 0);
+- **bouts** separated by **standing** (3-6 s): each bout starts from standing and ends in it. Someone
+  standing has both feet in stance, so the instrumented leg starts at ``rest_phase`` (0.3, mid-stance)
+  of its first stride and ends at it after its last heel strike (gait termination: the last step lands
+  and the body comes to rest over it; initiation and termination as in Miff et al. 2008, Gait & Posture
+  27:316-322); the signals blend from
+  the standing posture over the first ``blend_strides`` (0.25 stride) and back over the last (the
+  posture: the first bout's mean at mid-stance, phase 0.25-0.35, velocities 0). ``rest_phase=0`` with
+  ``blend_strides=0.5`` gives bouts that start and end at a heel strike, the truth advancing through
+  the blend while the leg is still (this module's labelling before 2026-11-24; the robust study
+  reports both);
 - **starts and stops**: steady speed is reached with the third step (Hollander et al., sloped gait
   initiation: at least 90-95 % of steady speed by the 3rd step on the level), so the first stride
   (steps 1-2) is at 60 % of the bout's speed and the second at 90 %; stopping takes the last two
@@ -70,6 +77,8 @@ class RealWalkSpec:
     speed_range_m_s: tuple[float, float] = (0.9, 1.3)
     start_fractions: tuple[float, ...] = (0.6, 0.9)
     stop_fractions: tuple[float, ...] = (0.8, 0.5)
+    rest_phase: float = 0.3
+    blend_strides: float = 0.25
     turn_strides: int = 2
     turn_speed_fraction: float = 0.7
     turn_stride_fraction: float = 0.85
@@ -97,6 +106,8 @@ def _bout_schedule(spec: RealWalkSpec, rng: np.random.Generator) -> tuple[list[f
         else:  # the stride after the turn still counts to it (the walker straightens out)
             strides.append((v, 1.0, "turn" if k == turn_at + spec.turn_strides else "steady"))
     strides += [(v * f, 1.0, "stop") for f in spec.stop_fractions]
+    if spec.rest_phase > 0:  # the last heel strike's stance, up to the rest phase
+        strides.append((v * spec.stop_fractions[-1], 1.0, "stop"))
     return [x[0] for x in strides], np.array([x[1] for x in strides]), [x[2] for x in strides]
 
 
@@ -109,7 +120,12 @@ def _bout(subject: SubjectParams, spec: RealWalkSpec, rng: np.random.Generator) 
     stride = np.clip(np.searchsorted(starts, f[s.REPLAY_TIME].to_numpy(), side="right") - 1, 0, len(labels) - 1)
     f["condition"] = np.array(labels, dtype=object)[stride]
     f["turn_weight"] = np.where(f["condition"].to_numpy() == "turn", 1.0, 0.0)
-    f.attrs["half_stride_s"] = 0.5 * (starts[1] - starts[0]) if len(starts) > 1 else 0.5
+    if spec.rest_phase > 0:  # from rest at the rest phase of the first stride to it in the last
+        phase = f["gt_phase"].to_numpy()
+        first, last = stride == 0, stride == len(labels) - 1
+        f = f[~((first & (phase < spec.rest_phase)) | (last & (phase > spec.rest_phase)))].reset_index(drop=True)
+    durations = np.diff(starts)
+    f.attrs["blend_s"] = spec.blend_strides * (float(durations[0]) if len(durations) else 1.0)
     return f
 
 
@@ -122,10 +138,10 @@ def _posture(f: pd.DataFrame) -> dict[str, float]:
 
 
 def _blend(f: pd.DataFrame, posture: dict[str, float]) -> None:
-    """From and to the standing posture over the first and last half stride, in place."""
+    """From and to the standing posture over ``blend_strides`` at each end, in place."""
     t = f[s.REPLAY_TIME].to_numpy(np.float64)
-    half = float(f.attrs["half_stride_s"])
-    w = smooth_step((t - t[0]) / half) * smooth_step((t[-1] - t) / half)
+    blend = float(f.attrs["blend_s"])
+    w = smooth_step((t - t[0]) / blend) * smooth_step((t[-1] - t) / blend)
     for c in s.REPLAY_SIGNALS:
         f[c] = posture[c] + w * (f[c].to_numpy() - posture[c])
 

@@ -34,6 +34,16 @@ def test_standing_is_detected_after_stillness_and_left_on_motion() -> None:
     assert 0.0 < sup.standing_weight < 1.0  # ramping out
     sup.motion(2.5, 100.0, 0.0, 0.0)
     assert sup.standing_weight == 0.0
+    # the motion's onset: when the rates last rose above still_dps while standing
+    sup2 = LockSupervisor(LockConfig(still_s=0.5, ramp_s=0.2))
+    for k in range(100):
+        sup2.motion(k * 0.01, 3.0, 0.0, 0.4)
+    sup2.motion(1.0, 40.0, 0.0, 0.3)  # moving, not yet enough to resume
+    assert sup2.standing and sup2.onset == 1.0
+    sup2.motion(1.05, 5.0, 0.0, 0.3)  # back to still: no onset
+    assert sup2.onset is None
+    sup2.motion(1.1, 40.0, 0.0, 0.3)
+    assert sup2.motion(1.2, 80.0, 0.0, 0.3) == "resumed" and sup2.onset == 1.1
     # a missing sensor does not count as still; all missing: nothing changes
     fresh = LockSupervisor()
     assert all(fresh.motion(k * 0.01, math.nan, math.nan, 0.0) == "" for k in range(300)) and not fresh.standing

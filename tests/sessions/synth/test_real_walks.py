@@ -23,6 +23,12 @@ def test_a_walk_has_every_condition_in_bouts_between_standing() -> None:
     assert walking.between(0, 1).all()
     # three bouts: three stretches of walking
     assert np.count_nonzero(np.diff(still.astype(int)) == -1) == 3
+    # each bout starts and ends at rest in mid-stance (the rest phase), not at a heel strike
+    ends = np.flatnonzero(np.diff(still.astype(int)) != 0)
+    phase = f["gt_phase"].to_numpy()
+    assert np.allclose(phase[ends[0::2] + 1], RealWalkSpec().rest_phase, atol=0.02)
+    assert np.allclose(phase[ends[1::2]], RealWalkSpec().rest_phase, atol=0.02)
+    assert np.isclose(real_walk(SUBJECT, RealWalkSpec(rest_phase=0.0))["gt_phase"].dropna().min(), 0.0)
     # standing is still: small angular velocities (a fifth of walking's gyro noise), no heel strikes
     assert f.loc[still, "foot_vel_dps"].abs().median() < 10 and f.loc[still, s.REPLAY_HEEL_STRIKE].sum() == 0
 
