@@ -55,6 +55,15 @@ def _range(option: str) -> str:
     return f"{lo:g}..{hi:g}{unit}"
 
 
+def _as_published_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--as-published",
+        action="store_true",
+        help="seed 000's filter alone, in one compiled pass (default: as a live session runs it, with the "
+        "lock supervisor: standing still, heel strikes from the shank, lock loss)",
+    )
+
+
 def _pipeline_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", type=Path, help="model file (default: the model that ships with gaitscope)")
     p.add_argument(
@@ -91,7 +100,7 @@ def cmd_replay(a: argparse.Namespace) -> int:
     from sessions.offline.replay import replay_file
 
     model, prov = _load(a.model)
-    summary = replay_file(a.input, a.out, model, _config(a))
+    summary = replay_file(a.input, a.out, model, _config(a), supervised=not a.as_published)
     print(f"replayed {a.input} -> {a.out} (model trained on {prov.source}, {len(prov.subjects)} subjects)")
     print("\n".join(summary.lines()))
     return 0
@@ -112,7 +121,9 @@ def cmd_demo(a: argparse.Namespace) -> int:
     steps = " / ".join(f"{v} m/s {r:+g} deg" for v, r, _ in TREADMILL_PROTOCOL[:4])
     print(f"default trial: virtual subject VC01 (leg {leg:.3f} m, {mass:.1f} kg), seed 000 III-E protocol:")
     print(f"  {steps}, then inclines up to +10 deg and down to -10 deg")
-    summary = replay_file(trial, out, model, PipelineConfig(leg_length=leg, body_mass_kg=mass))
+    summary = replay_file(
+        trial, out, model, PipelineConfig(leg_length=leg, body_mass_kg=mass), supervised=not a.as_published
+    )
     print("\n".join(summary.lines()))
     import numpy as np
     import pandas as pd
@@ -351,12 +362,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="replay the bundled default trial and print a summary")
     p.add_argument("--out-dir", type=Path, default=Path("out"))
     p.add_argument("--model", type=Path)
+    _as_published_arg(p)
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("replay", help="run a recorded trial (CSV) through the estimators")
     p.add_argument("input", type=Path)
     p.add_argument("--out", type=Path, required=True)
     _pipeline_args(p)
+    _as_published_arg(p)
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("train", help="fit gait, noise and torque models")

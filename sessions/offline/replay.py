@@ -6,6 +6,13 @@ from the angles (``numpy.gradient`` in time), high-passes the raw heel positions
 whole trial in one compiled call (:meth:`~GaitStatePipeline.run`, the same outputs as stepping it sample
 by sample as a live device does; ``batch=False`` steps it, for comparison) and writes the output
 atomically.
+
+``supervised=True`` (what ``gaitscope replay`` and ``gaitscope demo`` do unless ``--as-published``)
+runs the filter as a live session's ``phase_ekf`` does instead: sample by sample through
+:class:`~estimators.phase_ekf_estimator.PhaseEKFEstimator`, with its lock supervisor
+(:mod:`estimators.lock`: standing still, heel strikes from the shank, lock loss), the torque times
+``1 - standing`` and 0 at a lock-loss reset, as the session's stack commands it. The compiled path
+stays seed 000's filter as published, which the cross-validation reproduces.
 """
 
 from __future__ import annotations
@@ -18,7 +25,10 @@ import numpy as np
 
 from estimators.basis import Array
 from estimators.highpass import HighPassFilter
+from estimators.lock import LockConfig
+from estimators.phase_ekf_estimator import PhaseEKFEstimator
 from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from estimators.protocol import FAULTS
 from sessions import schema
 from sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv
 
@@ -40,6 +50,10 @@ class ReplaySummary:
     peak_torque_Nm: float
     channels: tuple[str, ...]
     wall_s: float
+    #: with the lock supervisor (a live session's ``phase_ekf``); else seed 000's filter as published
+    supervised: bool = False
+    standing_s: float = 0.0
+    lost: int = 0
 
     def lines(self) -> list[str]:
         src = "detected from the foot signals" if self.heel_strikes_detected else "from the input"
@@ -47,6 +61,11 @@ class ReplaySummary:
             f"samples          {self.samples} over {self.duration_s:.1f} s",
             f"channels         {', '.join(self.channels)}",
             f"heel strikes     {self.heel_strikes} ({src}); backup resets {self.backup_resets}",
+            (
+                f"supervisor       standing still {self.standing_s:.1f} s; lost track {self.lost} times"
+                if self.supervised
+                else "supervisor       off (seed 000's filter as published)"
+            ),
             f"phase rate       mean {self.mean_phase_rate:.3f} /s ({60 * self.mean_phase_rate:.1f} /min)",
             f"stride length    mean {self.mean_stride_length_m:.3f} m",
             f"incline          {self.incline_range_deg[0]:.1f} .. {self.incline_range_deg[1]:.1f} deg",
@@ -55,12 +74,13 @@ class ReplaySummary:
         ]
 
 
-def measurements(data: ReplayInput) -> Array:
+def measurements(data: ReplayInput, highpass: bool = True) -> Array:
     """``(n, 6)`` measurement matrix in the EKF's channel order; NaN for absent channels.
 
     Values outside :data:`~sessions.schema.SENSOR_LIMITS` are missing (as live). Velocities absent
     from the input are derived from their angles; heel positions are high-passed, with a missing
-    sample holding the filter's input at the last good value (its output there stays missing).
+    sample holding the filter's input at the last good value (its output there stays missing);
+    ``highpass=False`` leaves them raw (for :class:`PhaseEKFEstimator`, which filters them as it goes).
     """
     n = data.time_s.size
     z = np.full((n, len(schema.REPLAY_SIGNALS)), np.nan)
@@ -75,6 +95,8 @@ def measurements(data: ReplayInput) -> Array:
             with np.errstate(invalid="ignore", over="ignore"):
                 v = np.gradient(np.where((a >= a_lo) & (a <= a_hi), a, np.nan), data.time_s)
             z[:, i] = np.where((v >= lo) & (v <= hi), v, np.nan)
+    if not highpass:
+        return z
     heel = z[:, 4:6]
     dt = float(np.median(np.diff(data.time_s)))
     for j in range(2):
@@ -112,20 +134,23 @@ def replay_file(
     model: TrainedModel,
     config: PipelineConfig,
     batch: bool = True,
+    supervised: bool = False,
+    lock: LockConfig | None = None,
 ) -> ReplaySummary:
     """Replay ``input_path`` into ``output_path``; nothing is written if the input is invalid.
 
-    ``batch``: see :func:`run`. The output is written in parts of :data:`PART` samples, each formatted
-    while the next is estimated."""
+    ``batch``: see :func:`run`; ``supervised``: the module docstring (``lock``: its thresholds). The
+    output is written in parts of :data:`PART` samples, each formatted while the next is estimated."""
     start = time.perf_counter()
     data = read_replay_csv(input_path)
     pipe, z, out = _start(data, model, config)
     n = data.time_s.size
     resets = 0
+    sup = _Supervised(data, model, config, lock) if supervised else None
     with ReplayOutput(output_path) as output:
         for a in range(0, n, PART):
             b = min(a + PART, n)
-            resets += _estimate(pipe, data, z, out, a, b, batch)
+            resets += _estimate(pipe, data, z, out, a, b, batch) if sup is None else sup.estimate(out, a, b)
             output.add({k: v[a:b] for k, v in out.items()})
     wall = time.perf_counter() - start
     return ReplaySummary(
@@ -140,6 +165,9 @@ def replay_file(
         peak_torque_Nm=float(out["torque_Nm"].max()),
         channels=tuple(sorted(data.signals)),
         wall_s=wall,
+        supervised=sup is not None,
+        standing_s=0.0 if sup is None else sup.standing_s,
+        lost=0 if sup is None else sup.lost,
     )
 
 
@@ -178,3 +206,48 @@ def _estimate(
         out["tbe_phase"][k] = e.tbe_phase
         resets += e.backup_reset
     return resets
+
+
+class _Supervised:
+    """A live session's ``phase_ekf`` over a trial, part by part: outputs as :func:`_estimate` writes them."""
+
+    def __init__(self, data: ReplayInput, model: TrainedModel, config: PipelineConfig, lock: LockConfig | None):
+        self.data, self.model, self.config = data, model, config
+        self.z = measurements(data, highpass=False)
+        period = float(np.median(np.diff(data.time_s))) if data.time_s.size > 1 else 0.01
+        self.est = PhaseEKFEstimator(model, config, period, lock)
+        self.standing_s, self.lost = 0.0, 0
+        self._names = [name for name, _ in PhaseEKFEstimator.outputs]
+
+    def estimate(self, out: dict[str, Array], a: int, b: int) -> int:
+        """Samples ``a`` to ``b`` into ``out``; returns the backup's resets among them."""
+        col = {name: i for i, name in enumerate(self._names)}
+        cfg, hs_in, t = self.config, self.data.heel_strike, self.data.time_s
+        z = np.empty(7)
+        resets = 0
+        for k in range(a, b):
+            z[:6] = self.z[k]
+            z[6] = np.nan if hs_in is None else float(hs_in[k])
+            y = self.est.step(float(t[k]), z)
+            still = float(y[col["standing"]])
+            fault = float(y[col["fault"]])
+            command = self.model.torque.torque_at(
+                float(y[col["phase"]]),
+                float(y[col["stride_length_m"]]) / cfg.leg_length,
+                float(y[col["incline_deg"]]),
+                cfg.body_mass_kg * cfg.torque_gain,
+                cfg.max_torque,
+            )
+            lost = fault == FAULTS.index("lost")
+            out["phase"][k] = y[col["phase"]]
+            out["phase_rate"][k] = y[col["phase_rate"]]
+            out["stride_length_m"][k] = y[col["stride_length_m"]]
+            out["incline_deg"][k] = y[col["incline_deg"]]
+            out["torque_Nm"][k] = 0.0 if lost or fault == FAULTS.index("diverged") else command * (1.0 - still)
+            out["heel_strike"][k] = y[col["heel_strike"]]
+            out["tbe_phase"][k] = self.est.pipeline.tbe.phase
+            resets += int(y[col["backup_reset"]] > 0.5)
+            self.lost += int(lost)
+            if still >= 1.0 and k > 0:
+                self.standing_s += float(t[k] - t[k - 1])
+        return resets

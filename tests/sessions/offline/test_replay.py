@@ -86,3 +86,34 @@ def test_a_failure_during_the_replay_leaves_no_output(tmp_path: Path, monkeypatc
         replay.replay_file(TRIAL, out, model, PipelineConfig())
     assert out.read_text() == "an older output\n"
     assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
+
+
+def test_a_replay_runs_the_filter_as_a_live_session_does_unless_as_published(tmp_path: Path) -> None:
+    from sessions.synth.cohort import CohortSpec, make_subjects
+    from sessions.synth.real_walks import RealWalkSpec, real_walk
+
+    subject = make_subjects(CohortSpec())[0]
+    walk = real_walk(subject, RealWalkSpec(bouts=2, dropouts_per_min=0.0))
+    trial = tmp_path / "walk.csv"
+    shank_only = [schema.REPLAY_TIME, "shank_angle_deg", "shank_vel_dps"]
+    walk[shank_only].to_csv(trial, index=False)
+    model, _ = load_model(default_model_path())
+    config = PipelineConfig(leg_length=subject.leg_length_m, body_mass_kg=subject.mass_kg)
+    live, paper = tmp_path / "live.csv", tmp_path / "paper.csv"
+    summary = replay.replay_file(trial, live, model, config, supervised=True)
+    published = replay.replay_file(trial, paper, model, config)
+    out, out_paper = pd.read_csv(live), pd.read_csv(paper)
+    still = (walk["condition"] == "standing").to_numpy()
+    settled = still & np.r_[still[100:], np.zeros(100, bool)] & np.r_[np.zeros(150, bool), still[:-150]]
+    # standing: phase held, rate 0, no torque; the filter as published runs on and pushes
+    assert summary.supervised and summary.standing_s > 5.0 and not published.supervised
+    assert (out.loc[settled, "phase_rate"] == 0).all() and (out.loc[settled, "torque_Nm"] == 0).all()
+    assert out_paper.loc[settled, "torque_Nm"].max() > 1.0
+    # shank only: heel strikes from the shank, so the walking phase follows the truth
+    walking = ~still
+    err = np.abs((out["phase"] - walk["gt_phase"] + 0.5) % 1.0 - 0.5)[walking]
+    err_paper = np.abs((out_paper["phase"] - walk["gt_phase"] + 0.5) % 1.0 - 0.5)[walking]
+    assert summary.heel_strikes > 20 and published.heel_strikes == 0
+    assert np.sqrt(np.mean(err**2)) < 0.08 < np.sqrt(np.mean(err_paper**2))
+    assert np.isfinite(out["torque_Nm"]).all() and out["torque_Nm"].between(0, config.max_torque).all()
+    assert "standing still" in "\n".join(summary.lines())
