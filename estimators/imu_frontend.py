@@ -52,7 +52,8 @@ G0: Final = 9.80665
 SEGMENTS: Final = ("foot", "shank", "thigh", "foot_contra", "shank_contra", "thigh_contra")
 #: ``imu_code`` values by index: 0 fine; 1 a reading missing or not finite (angle and rate held);
 #: 2 gyro at full scale (rate held, angle from the accelerometer); 3 accelerometer implausible (below
-#: 0.1 g, above full scale, or upside down along y for more than ``flip_s``: a flipped or swapped axis);
+#: 0.1 g, above full scale, or upside down along y for more than ``flip_s`` since it last read clearly
+#: upright: a flipped or swapped axis);
 #: 4 sample interval far from the configured one (a wrong sample rate); 5 gyro and accelerometer disagree
 #: for more than ``flip_s`` (a flipped gyro axis, or a mounting far from the calibration).
 CODES: Final = ("", "missing", "gyro_saturated", "accel_implausible", "sample_rate", "disagree")
@@ -265,7 +266,13 @@ class ImuFrontEnd:
         self._rate = rate
         # flags held over time: upside down (a flipped axis), gyro and accelerometer disagreeing
         if dt > 0:
-            self._upside = self._upside + dt if ay < -0.5 * G0 else 0.0
+            # upside down: the time reading it since the last clear upright reading (in between, e.g. a segment
+            # near horizontal or swinging hard, neither: a flipped shank's y reads above -0.5 g a few samples
+            # per stride, which must not start the count again)
+            if ay < -0.5 * G0:
+                self._upside += dt
+            elif ay > 0.5 * G0:
+                self._upside = 0.0
             miss = gravity and abs(_wrap(incl - self._angle)) > 30.0
             self._disagree = self._disagree + dt if miss else max(self._disagree - dt / 4, 0.0)
         if self._upside > c.flip_s:

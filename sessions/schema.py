@@ -1014,6 +1014,17 @@ class Health(BaseModel):
         "0); lost (it lost track and was reset in the last 5 s); null: no primary yet",
     )
     tracking_note: str = Field(default="", description="why it lost track (when tracking is lost)")
+    imu: Literal["ok", "fault"] | None = Field(
+        default=None,
+        description="the IMU front ends (estimators.imu_frontend, sessions.live.imu_events): ok; fault (a sensor "
+        "has reported a problem for 0.3 s of the last second, and not yet been clear for a second); null: the stack "
+        "derives no angle from raw IMUs",
+    )
+    imu_note: str = Field(
+        default="",
+        description="the worst IMU problem open, naming the sensor, in the clinician's words, and how many more are "
+        "open (when imu is fault)",
+    )
 
 
 class DeviceNotice(BaseModel):

@@ -340,6 +340,8 @@
  * @property {Object<string, string>} [failed_estimators] failed estimators and why
  * @property {"walking" | "standing" | "lost" | null} [tracking=null] the primary's gait tracking (estimators.lock): walking; standing still (phase held, torque 0); lost (it lost track and was reset in the last 5 s); null: no primary yet
  * @property {string} [tracking_note=""] why it lost track (when tracking is lost)
+ * @property {"ok" | "fault" | null} [imu=null] the IMU front ends (estimators.imu_frontend, sessions.live.imu_events): ok; fault (a sensor has reported a problem for 0.3 s of the last second, and not yet been clear for a second); null: the stack derives no angle from raw IMUs
+ * @property {string} [imu_note=""] the worst IMU problem open, naming the sensor, in the clinician's words, and how many more are open (when imu is fault)
  */
 
 /**

@@ -13,6 +13,10 @@ Safety:
   (:func:`safe_torque`), whatever the estimators did and whatever the optional intent boost of the gain
   (:mod:`sessions.intent_boost`, off by default, applied by the frame estimator) does; an estimator that fails is
   isolated by the stack (:mod:`sessions.stack`), its failure is a system event and data health lists it;
+- a problem an IMU front end reports for long enough (a sensor that stops sending, a saturated gyro, a
+  flipped axis, a wrong sample rate: :mod:`sessions.live.imu_events`) is a system event naming the sensor,
+  another when it clears, and data health shows the worst one; the front end degrades its own estimate,
+  and the torque stays bounded as above;
 - a change of settings is stored with its events in one transaction first and applied only then, so
   that what runs is always what the database (and the rate limits) say;
 - every task of the session is supervised: an error ends the session as ``failed`` with an event,
@@ -43,6 +47,7 @@ from sessions.formats.mcap_io import recover
 from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, SAMPLE_PERIOD_KEY, Recorder
 from sessions.imu_calibration import StandingCollector, applied_text, apply_calibration, front_end_segments
 from sessions.live.disk import DiskLevel
+from sessions.live.imu_events import ImuWatch
 from sessions.live.intent_events import IntentOnsets
 from sessions.live.sources import FrameSource, LiveDevice
 from sessions.live.subscribers import SUBSCRIBER_CAPACITY, Subscriber
@@ -143,6 +148,8 @@ class SessionRuntime:
         )
         #: onsets of speeding up / slowing down of the stack's intent estimator: each one an ``intent`` event
         self.intent_onsets = IntentOnsets(self.estimator.stack.names, self.estimator.stack.outputs)
+        #: problems the IMU front ends report, debounced into episodes: an event at each start and end
+        self.imu_watch = ImuWatch(self.estimator.stack.estimators, self.estimator.stack.outputs, subject.side)
         #: IMU mounting calibration: the sensors it can calibrate, the one collecting, the last outcome, and
         #: the one the front ends run (the subject's current one from the start, until this session makes one)
         self.imu_segments = front_end_segments(self.estimator.stack)
@@ -294,6 +301,9 @@ class SessionRuntime:
         outputs = sample.outputs if sample is not None else []
         if self.intent_onsets.active:
             self._intent_event(outputs)
+        if self.imu_watch.active:
+            for imu in self.imu_watch.update(state.t, outputs):
+                self._event("system", imu.text, field=imu.field, before=imu.before, after=imu.after)
         t = state.t
         self.samples += 1
         self._recent_recv.append(recv_ns)
@@ -452,6 +462,7 @@ class SessionRuntime:
         recent = [r for r in self._recent_recv if now - r < 1_000_000_000]
         lat = np.array(list(self._recent_latency)[-len(recent) :]) if recent else np.array([])
         dropped_input = self.dropped_input + (self.source.dropped if isinstance(self.source, LiveDevice) else 0)
+        imu, imu_note = self.imu_watch.health()
         return schema.Health(
             session_id=self.session.id,
             rate_hz=float(len(recent)),
@@ -468,6 +479,8 @@ class SessionRuntime:
             primary=self.estimator.primary,
             failed_estimators=dict(self.estimator.stack.failed),
             **self._tracking(),
+            imu=imu,
+            imu_note=imu_note,
         )
 
     def _tracking(self) -> dict[str, Any]:

@@ -116,6 +116,24 @@ def test_bad_input_holds_and_is_reported() -> None:
     assert CODES[int(_run(flipped, z_flip)[-1, 2])] == "accel_implausible"
 
 
+def test_an_upside_down_sensor_is_flagged_while_walking_and_clears_once_upright(cohort: tuple) -> None:
+    """Walking, a flipped shank's y axis reads above -0.5 g for a few samples per stride (swing): they must not
+    start the count again, or the flip is never flagged."""
+    sensors, _ = cohort
+    t = sensors["time_s"].to_numpy() - sensors["time_s"].iloc[0]
+    z = sensors[list(imu_inputs("shank"))].to_numpy().copy()
+    flipped = (t >= 10.0) & (t < 14.0)
+    z[flipped, 4] *= -1
+    est = ImuFrontEnd("shank")
+    codes = np.array([CODES[int(est.step(ti, zi)[2])] for ti, zi in zip(t, z, strict=True)])
+    assert not (codes[t < 10.0] == "accel_implausible").any()
+    assert (codes == "accel_implausible").any()
+    first = t[codes == "accel_implausible"].min()
+    assert 11.0 < first < 11.5  # flip_s (1 s) of upside-down readings, and the few in between
+    assert (codes[(t > 11.5) & (t < 14.0)] == "accel_implausible").mean() > 0.99
+    assert not (codes[t >= 14.05] == "accel_implausible").any()  # upright again: clear at once
+
+
 finite = st.floats(-1e5, 1e5, allow_nan=False)
 
 
