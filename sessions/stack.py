@@ -48,6 +48,9 @@ MAX_VARIANCE: Final = 1e3
 _CHANNELS: Final = frozenset(CHANNELS)
 _DIVERGED: Final = 2.0  # estimators.protocol.FAULTS.index("diverged")
 _LOST: Final = 4.0  # FAULTS.index("lost"): reset from a backup, torque 0 on that sample as for "diverged"
+#: An IMU front end's ``imu_code`` when its sensor sent nothing usable (estimators.imu_frontend.CODES):
+#: it holds its last angle and rate for its own continuity, but derives no channel for the others.
+_IMU_MISSING: Final = 1.0
 _RESUMED: Final = 5.0  # FAULTS.index("resumed"): restarted as walking resumed after standing still
 
 
@@ -240,9 +243,11 @@ class EstimatorStack:
                 outputs.append(None)
                 continue
             outputs.append(y)
-            for i, channel in self._derived[k]:
-                if math.isnan(channels.get(channel, math.nan)):
-                    channels[channel] = float(y[i])
+            code = self._index[k].get("imu_code")
+            if code is None or y[code] != _IMU_MISSING:  # a held reading is not a measurement
+                for i, channel in self._derived[k]:
+                    if math.isnan(channels.get(channel, math.nan)):
+                        channels[channel] = float(y[i])
             fault = self._index[k].get("fault")
             if fault is not None and y[fault] >= _DIVERGED:
                 code = y[fault]

@@ -376,3 +376,22 @@ def test_standing_still_takes_the_torque_to_zero_and_walking_again_restarts_with
     assert torque[~still].max() > 1.0  # walking is assisted
     assert sum("standing still" in n for n in notes) >= 2
     assert sum("walking resumed after standing still" in n for n in notes) == 2
+
+
+def test_an_imu_front_end_whose_sensor_sends_nothing_derives_no_channel(small_model: TrainedModel) -> None:
+    from estimators.imu_frontend import G0, ImuFrontEnd, imu_inputs
+    from sessions.stack import EstimatorStack
+
+    front = [ImuFrontEnd("foot"), Scripted("timing")]
+    stack = EstimatorStack(front, small_model.torque, 0.9, 70.0, primary="timing")
+    raw = dict(zip(imu_inputs("foot"), (0.0, 0.0, 5.0, 0.0, G0, 0.0), strict=True))
+    for k in range(50):
+        channels = dict(raw) | {"heel_strike": 0.0}
+        stack.step(k * 0.01, channels)
+        assert math.isfinite(channels["foot_angle_deg"]) and channels["foot_vel_dps"] == pytest.approx(5.0, abs=1.0)
+    gone = {c: math.nan for c in raw}
+    channels = dict(gone)
+    sample = stack.step(0.5, channels)
+    held = sample.outputs[0]
+    assert held is not None and math.isfinite(held[0])  # the front end holds its angle for itself
+    assert math.isnan(channels.get("foot_angle_deg", math.nan)) and math.isnan(channels.get("foot_vel_dps", math.nan))
