@@ -35,6 +35,7 @@ const OVERLAID = [
   { output: "phase_rate", plot: "phase_rate", what: "phase rate" },
   { output: "stride_length_m", plot: "stride_length", what: "stride length" },
   { output: "incline_deg", plot: "incline", what: "incline" },
+  { output: "knee_sdre_deg", plot: "joints", what: "knee" },
 ];
 
 const hasPhase = (name) => ESTIMATORS[name] !== undefined && "phase" in ESTIMATORS[name].outputs;

@@ -1,7 +1,9 @@
 // Live view (`#/sessions/{id}`): the session's stream in plots redrawn once per animation frame, the
 // per-stride overlay, data health, controls, events and the 3D leg view. The phase plot overlays the phase
 // of every estimator of the session's stack (the primary, which drives the torque, drawn widest). A stack with
-// the speed-change intent estimator (seed 001) adds its desired vs actual speed, its detections marked.
+// the speed-change intent estimator (seed 001) adds its desired vs actual speed, its detections marked. The
+// hip and knee flexion come from the gait state's thigh and shank angles (sensed, or derived from raw IMUs by
+// the stack's front ends); a stack with the SDRE estimator (`sdre_knee`, seed 002) adds its knee, dashed.
 
 import { api, errorText, openSessionStream } from "./api.js";
 import { actorSelect, mountControls } from "./controls.js";
@@ -13,7 +15,8 @@ export const WINDOW_S = 10; // seconds of full-rate history the live plots show
 const RING_CAPACITY = 2048; // > 10 s at the 60 Hz the stream is asked for (34 s), bounded memory
 const STALE_MS = 1000;
 const COLUMNS = ["t", "phase_pct", "tbe_pct", "phase_rate", "incline_deg", "stride_length_m", "torque_Nm",
-  "foot_angle_deg", "foot_pred_deg", "shank_angle_deg", "shank_pred_deg", "desired_speed_m_s", "speed_m_s"];
+  "foot_angle_deg", "foot_pred_deg", "shank_angle_deg", "shank_pred_deg", "desired_speed_m_s", "speed_m_s",
+  "hip_flex_deg", "knee_flex_deg", "knee_sdre_deg"];
 
 /** The plots of a gait-state series; `review.js` uses the same list. */
 export const PLOT_SPECS = [
@@ -27,7 +30,22 @@ export const PLOT_SPECS = [
     series: [{ label: "measured", color: COLORS.blue }, { label: "predicted", color: COLORS.orange, dash: [6, 4] }] },
   { key: "shank", title: "Shank angle: measured and predicted", yLabel: "deg", cols: ["shank_angle_deg", "shank_pred_deg"],
     series: [{ label: "measured", color: COLORS.blue }, { label: "predicted", color: COLORS.orange, dash: [6, 4] }] },
+  // the conventions of sessions/schema.py: thigh and shank from vertical, positive with the distal end forward;
+  // fixed range: the knee bends to about 65 deg in swing, the thigh reaches about -25 deg at toe-off
+  { key: "joints", title: "Hip and knee flexion (the hip assumes an upright pelvis)", yLabel: "deg", yRange: [-30, 80],
+    cols: ["hip_flex_deg", "knee_flex_deg"],
+    series: [{ label: "hip (thigh from vertical)", color: COLORS.purple }, { label: "knee (thigh − shank)", color: COLORS.green }] },
 ];
+
+/** The SDRE estimator's (`sdre_knee`, seed 002) knee on the joints plot, when the stack runs it. */
+export const SDRE_KNEE = { col: "knee_sdre_deg", series: { label: "knee, SDRE (sdre_knee)", color: COLORS.orange, dash: [6, 4] } };
+
+/**
+ * Knee flexion (deg, flexion positive) from the thigh and shank angles: null when either is missing.
+ * @param {number | null | undefined} thigh @param {number | null | undefined} shank
+ * @returns {number | null}
+ */
+export const kneeFlexion = (thigh, shank) => (thigh == null || shank == null ? null : thigh - shank);
 
 /**
  * The speed-change intent estimator's (`intent`, seed 001) desired and actual speed; `review.js` uses it too.
@@ -41,9 +59,10 @@ export const INTENT_SPEC = {
 /** An intent output as plotted: null before the filter has started (0). */
 export const intentValue = (v) => (v == null || !(v > 0) ? null : v);
 
-/** A `GaitState` as one row of plot columns (phase in % of the cycle). */
+/** A `GaitState` as one row of plot columns (phase in % of the cycle; hip flexion as the thigh angle). */
 export function stateRow(s) {
-  return { ...s, phase_pct: s.phase * 100, tbe_pct: s.tbe_phase * 100 };
+  return { ...s, phase_pct: s.phase * 100, tbe_pct: s.tbe_phase * 100, hip_flex_deg: s.thigh_angle_deg,
+    knee_flex_deg: kneeFlexion(s.thigh_angle_deg, s.shank_angle_deg) };
 }
 
 const ESTIMATOR_COLORS = [COLORS.blue, COLORS.orange, COLORS.green, COLORS.purple, COLORS.teal, COLORS.grey];
@@ -150,7 +169,7 @@ export function mountLive(root, sessionId) {
 
   const hv = (key) => h("dd", { "data-testid": `health-${key}`, text: "–" });
   const health = { t: hv("session-time"), rate: hv("rate"), latency: hv("latency"), serverLatency: hv("server-latency"), input: hv("dropped-input"), client: hv("dropped-client"), clients: hv("clients"), samples: hv("samples"), implausible: hv("implausible"), faults: hv("faults"), disk: hv("disk"),
-    primary: hv("primary"), failedEstimators: hv("failed-estimators"), tracking: hv("tracking") };
+    primary: hv("primary"), failedEstimators: hv("failed-estimators"), tracking: hv("tracking"), imu: hv("imu") };
   const healthCard = h("section", { class: "card health", "data-testid": "health" }, h("h2", { text: "Data health" }), indicator,
     h("dl", {}, h("dt", { text: "Session time" }), health.t, h("dt", { text: "Rate" }), health.rate, h("dt", { text: "Device → screen latency p50 / p95" }), health.latency,
       h("dt", { text: "Device → server p50 / p95" }), health.serverLatency,
@@ -160,7 +179,8 @@ export function mountLive(root, sessionId) {
       h("dt", { text: "Estimator resets / torque faults" }), health.faults, h("dt", { text: "Recording disk" }), health.disk,
       h("dt", { text: "Torque follows (primary estimator)" }), health.primary,
       h("dt", { text: "Failed estimators" }), health.failedEstimators,
-      h("dt", { text: "Gait tracking" }), health.tracking), conn);
+      h("dt", { text: "Gait tracking" }), health.tracking,
+      h("dt", { text: "IMUs" }), health.imu), conn);
   // switching the primary: a setting (validated, rate-limited and logged by the server)
   const primarySelect = h("select", { id: "primary-select", "data-testid": "primary-select", "aria-label": "Primary estimator" });
   const primaryBtn = h("button", { type: "button", "data-testid": "primary-apply", text: "Switch" });
@@ -185,6 +205,13 @@ export function mountLive(root, sessionId) {
   const intentDiv = h("div", { class: "plot", "data-testid": "plot-intent-speed", hidden: true });
   plotsBox.insertBefore(intentDiv, plots[1].div);
   const intentPlot = new Plot(intentDiv, { ...INTENT_SPEC, xRange: follow, plugins: [markersPlugin(() => intentMarks)] });
+  const joints = plots.find((p) => p.spec.key === "joints");
+  /** The SDRE knee joins the joints plot once a batch says the stack runs `sdre_knee`. */
+  function showSdre() {
+    if (joints.spec.cols.includes(SDRE_KNEE.col)) return;
+    joints.spec = { ...joints.spec, cols: [...joints.spec.cols, SDRE_KNEE.col], series: [...joints.spec.series, SDRE_KNEE.series] };
+    joints.plot.setSeries(joints.spec.series);
+  }
   // The stack is known (or changed): a ring with a column per estimator phase and the phase plot redrawn.
   function showStack() {
     const failed = new Set(stack.failed.keys());
@@ -300,6 +327,8 @@ export function mountLive(root, sessionId) {
     showIntent(est.intent);
     const intentCols = est.intent && est.intent.columns && est.intent.columns.desired_speed_m_s ? est.intent.columns : null;
     if (intentCols && intentDiv.hidden) intentDiv.hidden = false;
+    const sdreKnee = est.sdre_knee && est.sdre_knee.columns ? est.sdre_knee.columns[SDRE_KNEE.col] : null;
+    if (sdreKnee) showSdre();
     for (let i = 0; i < states.length; i++) {
       const s = states[i];
       if (s.t < lastT) {
@@ -309,6 +338,7 @@ export function mountLive(root, sessionId) {
       lastT = s.t;
       const row = stateRow(s);
       if (intentCols) for (const c of INTENT_SPEC.cols) row[c] = intentValue(intentCols[c] ? intentCols[c][i] : null);
+      if (sdreKnee) row[SDRE_KNEE.col] = sdreKnee[i];
       for (const n of stack.names) {
         const v = est[n] && est[n].columns.phase ? est[n].columns.phase[i] : null;
         row[estColumn(n)] = v == null ? null : v * 100;
@@ -363,6 +393,8 @@ export function mountLive(root, sessionId) {
     const tracking = { walking: "walking", standing: "standing still: phase held, torque 0", lost: `lost track, reset: ${m.tracking_note || ""}` }[m.tracking] || "–";
     health.tracking.textContent = tracking;
     health.tracking.classList.toggle("warn", m.tracking === "lost");
+    health.imu.textContent = { ok: "ok", fault: m.imu_note }[m.imu] || "–";
+    health.imu.classList.toggle("warn", m.imu === "fault");
     if (m.estimators) {
       stack.primary = m.primary ?? null;
       stack.failed = new Map(Object.entries(m.failed_estimators || {}));

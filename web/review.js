@@ -4,12 +4,13 @@
 // outputs in its own colour), with the recorded settings (the default: what ran, setting changes
 // replayed where they happened) or "what if" (the editor's settings held over the whole trial). The
 // speed-change intent (seed 001) as the trial recorded it, desired vs actual speed (or the channels the trial
-// lacks for it), with a re-run's overlaid when the re-run ran the intent estimator.
+// lacks for it), with a re-run's overlaid when the re-run ran the intent estimator. The knee of the hip and
+// knee plot is drawn only from every sample (a view the server did not decimate): see `derive`.
 
 import { api, errorText, query } from "./api.js";
 import { EstimatorPicker, estimatorLabel, estimatorOverlay, listText, overlayLegend, rerunEstimators } from "./estimators.js";
 import { EVENT_COLORS, EventList } from "./events.js";
-import { bandPlot, INTENT_SPEC, intentValue, legView, PLOT_SPECS } from "./live.js";
+import { bandPlot, INTENT_SPEC, intentValue, kneeFlexion, legView, PLOT_SPECS } from "./live.js";
 import { COLORS, decimateMinMax, markersPlugin, Plot, StrideOverlay, uPlot } from "./plots.js";
 import { SettingsEditor } from "./settings.js";
 import { errorBox, fmt, fmtUtc, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
@@ -22,10 +23,23 @@ const RERUN_STYLE = { label: "re-run", color: COLORS.purple, width: 2 }; // the 
 const INTENT_RERUN_COLS = INTENT_SPEC.cols.map((c) => `intent.${c}`); // a re-run's intent outputs
 const INTENT_RERUN_SERIES = INTENT_SPEC.series.map((s) => ({ ...s, label: `${s.label}, re-run`, width: 1.5, dash: [2, 3] }));
 
-/** Series columns plus phase in % (the plots' unit); nulls kept. */
-function derive(series) {
+/**
+ * Series columns plus phase in % (the plots' unit) and the hip and knee flexion; nulls kept. Above
+ * `maxPoints` samples the server decimates, each bucket's rows holding every angle's own extremes, which are
+ * not at the same instants: thigh − shank is then no knee angle, so the knee is left out (null, and
+ * `kneeLeftOut` says so when there was one to show). Fewer rows than `maxPoints` are every sample.
+ * @param {Record<string, (number | null)[]>} series a `/series` or re-run answer
+ * @param {number} maxPoints the `max_points` it was asked with
+ */
+function derive(series, maxPoints) {
   const pct = (a) => (a || []).map((v) => (v == null ? null : v * 100));
-  return { ...series, phase_pct: pct(series.phase), tbe_pct: pct(series.tbe_phase) };
+  const decimated = (series.t || []).length >= maxPoints;
+  const thigh = series.thigh_angle_deg || [];
+  const shank = series.shank_angle_deg || [];
+  const knee = thigh.map((v, i) => (decimated ? null : kneeFlexion(v, shank[i])));
+  const some = (a) => a.some((v) => v != null);
+  return { ...series, phase_pct: pct(series.phase), tbe_pct: pct(series.tbe_phase), hip_flex_deg: thigh,
+    knee_flex_deg: knee, kneeLeftOut: decimated && some(thigh) && some(shank) };
 }
 
 export function mountReview(root, trialId) {
@@ -60,9 +74,13 @@ export function mountReview(root, trialId) {
 
   // --- plots ------------------------------------------------------------------------------------------
   const plotsBox = h("div", { class: "plots" });
+  // under the hip and knee plot, when its knee is left out (`derive`)
+  const kneeNote = h("p", { class: "hint", "data-testid": "review-knee-note", hidden: true,
+    text: `Knee: zoom to fewer than ${MAX_POINTS} samples to see it; a longer view keeps each angle's extremes, `
+      + "which are not at the same instants." });
   const plots = PLOT_SPECS.map((spec) => {
     const div = h("div", { class: "plot", "data-testid": `review-plot-${spec.key}` });
-    plotsBox.append(div);
+    plotsBox.append(div, ...(spec.key === "joints" ? [kneeNote] : []));
     return { spec, plot: new Plot(div, { ...spec, series: [...spec.series, ...overlaySeries(spec.key)], plugins: [markersPlugin(marks)] }) };
   });
   // desired vs actual speed: the recorded intent, or why there is none
@@ -181,6 +199,7 @@ export function mountReview(root, trialId) {
       else if (!rr || !rr.t.length) plot.setData([...base, ...extra.map(() => s.t.map(() => null))]);
       else plot.setData(uPlot.join([base, [rr.t, ...extra.map((x) => rr[x.col])]]));
     }
+    kneeNote.hidden = !s.kneeLeftOut;
     const ov = new StrideOverlay(["torque_Nm", "foot_angle_deg"], { n: 500, maxSamples: 4096 });
     for (let i = 0; i < s.t.length; i++) ov.push(s.t[i], { torque_Nm: s.torque_Nm[i], foot_angle_deg: s.foot_angle_deg[i] }, !!s.heel_strike[i]);
     for (const b of bands) b.plot.setData(ov.bandData(b.c));
@@ -247,7 +266,7 @@ export function mountReview(root, trialId) {
     }
     try {
       const [s, intent] = await Promise.all([
-        api("GET", `/api/trials/${trialId}/series${query({ t0, t1, max_points: MAX_POINTS })}`).then(derive),
+        api("GET", `/api/trials/${trialId}/series${query({ t0, t1, max_points: MAX_POINTS })}`).then((x) => derive(x, MAX_POINTS)),
         st.intent && st.intent.recorded ? loadIntent(t0, t1) : Promise.resolve(st.intent),
       ]);
       if (!st.alive) return;
@@ -332,7 +351,7 @@ export function mountReview(root, trialId) {
       const body = { ...(asWhatIf ? { settings: { ...st.baseSettings, ...settings } } : {}), ...(estimators ? { estimators } : {}) };
       const res = await api("POST", `/api/trials/${trialId}/rerun${query({ max_points: RERUN_POINTS })}`, body);
       if (!st.alive) return;
-      const r = derive(res);
+      const r = derive(res, RERUN_POINTS);
       if (!r.t || !r.t.length) throw new ValidationError("The re-run produced no samples (the trial has no raw sensor frames).");
       // The server puts the re-run on the recording's session times: no alignment here.
       const names = rerunEstimators(res);
@@ -390,7 +409,7 @@ export function mountReview(root, trialId) {
       info.textContent = `${trial.status}, ${fmt(trial.duration_s, 1)} s, ${trial.samples} samples, session ${trial.session_id}, started ${fmtUtc(trial.started_utc)}`;
       st.events = evs;
       events.add(...evs);
-      st.full = derive(series);
+      st.full = derive(series, MAX_POINTS);
       if (!st.full.t.length) throw new ValidationError("This trial holds no gait states to show.");
       const [T0, T1] = [st.full.t[0], st.full.t[st.full.t.length - 1]];
       Object.assign(scrubber, { min: T0, max: T1, value: T0 });

@@ -16,9 +16,10 @@ from sessions.schema import GaitState
 #: Samples a subscriber may have waiting before its oldest are dropped (about 5 s at 200 Hz).
 SUBSCRIBER_CAPACITY = 1000
 #: The estimator outputs a browser gets (those an estimator has): its estimates, to overlay, the online
-#: fingerprint (seed 004 GF), which the subject page draws moving, and the speed-change intent (seed 001),
-#: which the live view's indicator and its desired-vs-actual speed plot read. Every output is recorded
-#: (``/estimators/<name>``); the primary's are in the gait states already.
+#: fingerprint (seed 004 GF), which the subject page draws moving, the speed-change intent (seed 001),
+#: which the live view's indicator and its desired-vs-actual speed plot read, and the SDRE knee (seed 002),
+#: which the live view's hip and knee plot draws. Every output is recorded (``/estimators/<name>``); the
+#: primary's are in the gait states already.
 STREAMED_OUTPUTS = (
     "phase",
     "phase_rate",
@@ -31,6 +32,7 @@ STREAMED_OUTPUTS = (
     "intent_code",
     "intent_confidence",
     "speed_m_s",
+    "knee_sdre_deg",
 )
 #: Decimals kept of a streamed estimator output (1e-5 of a cycle, m, deg: far below what a plot shows).
 STREAMED_DECIMALS = 5

@@ -1,0 +1,182 @@
+"""The hip and knee flexion plot in a real browser against the real server, from IMUs alone: a device sending
+raw gyro and accelerometer channels only (foot, shank and thigh IMUs, no angle) walks over the real websocket,
+its stack running the IMU front ends and the SDRE knee estimator (``sdre_knee``). The live view's hip and knee
+plot draws finite angles that follow the walk (each correlated with the simulated thigh's or knee's angle, so
+a missing, empty, swapped or sign-flipped series fails), the SDRE's knee dashed beside them; a recording of the
+walk reviewed shows them too, and a re-run of its stack overlays the SDRE knee. The front ends' accuracy is
+``tests/estimators``' to check, not this test's. Values are read from the plots' legends under the mouse, as a
+clinician reads them. The fixtures are ``test_browser.py``'s (this module gets its own server)."""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import re
+import threading
+import time
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pytest
+from websockets.sync.client import connect
+
+from estimators.imu_frontend import imu_inputs
+from tests.e2e import test_browser as tb
+from tests.e2e.test_fingerprints import _call, _record
+
+if TYPE_CHECKING:
+    from playwright.sync_api import Locator, Page
+
+playwright_api = pytest.importorskip("playwright.sync_api")
+expect = playwright_api.expect
+
+pytestmark = tb.pytestmark
+server = tb.server
+browser = tb.browser
+watched = tb.watched
+
+RATE = 100.0
+CHANNELS = [c for seg in ("foot", "shank", "thigh") for c in imu_inputs(seg)]
+STACK = ["imu_foot", "imu_shank", "imu_thigh", "hs_detector", "phase_ekf", "tbe", "sdre_knee"]
+SAMPLES = 24  # mouse positions a plot is read at
+#: the hip and knee plot's legend labels
+HIP, KNEE, SDRE = "hip (thigh from vertical)", "knee (thigh − shank)", "knee, SDRE (sdre_knee)"
+
+
+@functools.cache
+def _walk() -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
+    """A simulated walk's frames, raw IMU channels only, and its true ``thigh`` angle and ``knee`` flexion
+    (deg) sample by sample."""
+    from sessions.live.sources import frames_from_table
+    from sessions.synth.trials import sensor_trial
+
+    sensors, _, _ = sensor_trial([(1.0, 0.0, 12)], rate_hz=RATE)
+    frames = [{"type": "frame", "t": f.t, **f.model_dump(include=set(CHANNELS))} for f in frames_from_table(sensors)]
+    truth = {"thigh": sensors["thigh_angle_deg"], "knee": sensors["knee_angle_deg"]}
+    return frames, {k: v.to_numpy(np.float64) for k, v in truth.items()}
+
+
+class Device(threading.Thread):
+    """Sends the walk in real time, over and over (session time running on), each frame answered by a torque."""
+
+    def __init__(self, base: str, session_id: int):
+        super().__init__(daemon=True)
+        self.url = base.replace("http://", "ws://") + f"/ws/devices/{session_id}"
+        self.stop = threading.Event()
+        self.error: BaseException | None = None
+        self.period = len(_walk()[0]) / RATE  # s: the walk's length; the n-th pass starts at n periods
+
+    def run(self) -> None:
+        frames, _ = _walk()
+        try:
+            with connect(self.url) as ws:
+                seq = 0
+                while not self.stop.is_set():
+                    for k, frame in enumerate(frames):
+                        if self.stop.is_set():
+                            break
+                        lap = seq // len(frames)
+                        ws.send(json.dumps({**frame, "t": lap * self.period + k / RATE, "seq": seq}))
+                        ws.recv(timeout=5)
+                        seq += 1
+                        time.sleep(1.0 / RATE)
+        except BaseException as e:
+            self.error = e
+
+    def truth(self, angle: str, t: float) -> float:
+        """The simulated ``thigh`` or ``knee`` angle (deg) at session time ``t``."""
+        x = _walk()[1][angle]
+        return float(x[round((t % self.period) * RATE) % len(x)])
+
+
+@pytest.fixture
+def imu_session(server: str) -> Iterator[tuple[int, Device]]:
+    subject = _call(server, "POST", "/api/subjects", {"code": "JNT1", "leg_length_m": 0.9, "mass_kg": 70.0})
+    source = {"kind": "device", "rate_hz": RATE, "channels": CHANNELS}
+    body = {"subject_id": subject["id"], "source": source, "settings": {"estimators": STACK}}
+    session = _call(server, "POST", "/api/sessions", body)
+    device = Device(server, session["id"])
+    device.start()
+    try:
+        yield session["id"], device
+    finally:
+        device.stop.set()
+        device.join(timeout=10)
+        _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+
+
+def _number(text: str) -> float | None:
+    """A legend value as a float; None for uPlot's missing value (and anything that is not a number)."""
+    try:
+        v = float(text)
+    except ValueError:
+        return None
+    return v if math.isfinite(v) else None
+
+
+def _sweep(page: Page, plot: Locator, xs: np.ndarray) -> list[dict[str, float | None]]:
+    """The plot's legend (label -> value, the x axis first) with the mouse at each fraction ``xs`` of its width."""
+    plot.scroll_into_view_if_needed()
+    out = []
+    for x in xs:
+        box = plot.locator(".u-over").bounding_box()
+        assert box is not None, "the plot has no drawing area"
+        page.mouse.move(box["x"] + x * box["width"], box["y"] + box["height"] / 2)
+        page.wait_for_timeout(30)
+        rows = plot.evaluate(
+            "el => [...el.querySelectorAll('.u-legend .u-series')]"
+            ".map((r) => [r.querySelector('.u-label').textContent, r.querySelector('.u-value').textContent])"
+        )
+        out.append({label: _number(value) for label, value in rows})
+    return out
+
+
+def _follows(device: Device, readings: list[dict[str, float | None]], label: str, angle: str, min_r: float) -> None:
+    """Every reading of the series ``label`` is a number, correlated with the simulated ``angle`` by more
+    than ``min_r``."""
+    pairs = [(r["t (s)"], r[label]) for r in readings]
+    got = [(t, v) for t, v in pairs if t is not None and v is not None]
+    assert len(got) == len(pairs), (label, readings)  # the cursor on the data, and the series drawn there
+    r = float(np.corrcoef([v for _, v in got], [device.truth(angle, t) for t, _ in got])[0, 1])
+    assert r > min_r, (label, r, got)
+
+
+def test_hip_and_knee_from_raw_imus_live_and_in_review(
+    server: str, watched: tb.Watched, imu_session: tuple[int, Device]
+) -> None:
+    sid, device = imu_session
+    page = watched.page
+    page.goto(f"{server}/#/sessions/{sid}")
+    expect(page.get_by_test_id("live-indicator")).to_have_text("LIVE", timeout=20_000)
+    # data health has an IMU line for a device with IMU front ends: "ok", or the open problem in words
+    expect(page.get_by_test_id("health-imu")).to_have_text(re.compile(r"^(ok|.+IMU.+)$"), timeout=10_000)
+    plot = page.get_by_test_id("plot-joints")
+    expect(plot.locator(".u-title")).to_have_text("Hip and knee flexion (the hip assumes an upright pelvis)")
+    expect(plot.locator(".u-legend")).to_contain_text(SDRE)  # the stack runs sdre_knee: its knee joins, dashed
+    page.wait_for_timeout(6000)  # a few strides in the 10 s window
+
+    # --- live: under the mouse, across the newest half of the window, each series follows the walk ---------
+    readings = _sweep(page, plot, np.linspace(0.5, 0.98, SAMPLES))
+    _follows(device, readings, HIP, "thigh", 0.8)
+    _follows(device, readings, KNEE, "knee", 0.8)
+    _follows(device, readings, SDRE, "knee", 0.6)
+
+    # --- review: a recording of the walk; a re-run of its stack overlays the SDRE knee ---------------------
+    trial = _record(server, sid, 4.0, "walk from IMUs")
+    page.goto(f"{server}/#/trials/{trial['id']}")
+    review_plot = page.get_by_test_id("review-plot-joints")
+    expect(review_plot.locator(".u-title")).to_contain_text("Hip and knee flexion")
+    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
+    expect(page.get_by_test_id("review-knee-note")).to_be_hidden()  # 400 samples: every one is shown
+    readings = _sweep(page, review_plot, np.linspace(0.02, 0.98, SAMPLES))
+    _follows(device, readings, HIP, "thigh", 0.8)
+    _follows(device, readings, KNEE, "knee", 0.8)
+    page.get_by_test_id("rerun-submit").click()
+    expect(page.get_by_test_id("rerun-ok")).to_contain_text("Overlaid", timeout=60_000)
+    rerun = "SDRE knee angle from IMUs (seed 002), re-run"
+    expect(review_plot.locator(".u-legend")).to_contain_text(rerun)
+    _follows(device, _sweep(page, review_plot, np.linspace(0.02, 0.98, SAMPLES)), rerun, "knee", 0.6)
+    assert device.error is None, device.error
+    watched.check_clean()
