@@ -211,6 +211,8 @@ def cmd_crossval(a: argparse.Namespace) -> int:
         return _crossval_imu(a)
     if a.study == "sdre":
         return _crossval_sdre(a)
+    if a.study == "gpekf":
+        return _crossval_gpekf(a)
     from sessions.offline.crossval import crossvalidate, summary, to_csv, to_markdown
 
     start = time.perf_counter()
@@ -264,6 +266,17 @@ def _crossval_sdre(a: argparse.Namespace) -> int:
     from sessions.offline.sdre_study import run_study, to_markdown
 
     return _study(a, "sdre.md", lambda: to_markdown(run_study()))
+
+
+def _crossval_gpekf(a: argparse.Namespace) -> int:
+    from sessions.offline.gp_study import run_study, to_markdown, write_figure
+
+    def run() -> str:
+        study = run_study()
+        write_figure(study, a.out_dir)
+        return to_markdown(study)
+
+    return _study(a, "gp_ekf.md", run)
 
 
 def _study(a: argparse.Namespace, filename: str, run: Callable[[], str]) -> int:
@@ -388,14 +401,15 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("crossval", help="leave-one-subject-out comparison with a paper's numbers")
     p.add_argument(
         "--study",
-        choices=("phase", "fingerprints", "ekf", "intent", "robust", "imu", "sdre"),
+        choices=("phase", "fingerprints", "ekf", "intent", "robust", "imu", "sdre", "gpekf"),
         default="phase",
         help="phase: seed 000's phase EKF against TBE (default); fingerprints: seed 004's AVG, LS-GF and GF; "
         "ekf: seed 000's model personalized by fingerprints from 10-120 s calibration walks; "
         "intent: seed 001's buttressed Kalman filter on speed-change walks; "
         "robust: the phase EKF on walks with starts, stops, standing, turns and sensor faults; "
         "imu: the IMU front end's orientation filters on the cohort's simulated IMUs; "
-        "sdre: seed 002's SDRE joint-angle estimator on simulated FES legs and cohort IMUs",
+        "sdre: seed 002's SDRE joint-angle estimator on simulated FES legs and cohort IMUs; "
+        "gpekf: seed 003's GP-EKF on a sinusoidal treadmill speed and a sudden stop",
     )
     p.add_argument(
         "--step-lead",

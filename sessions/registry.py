@@ -17,7 +17,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Collection, Iterable, Sequence
 from dataclasses import dataclass
-from functools import partial
+from functools import cache, partial
+from importlib import resources
 from typing import Any, Final
 
 import numpy as np
@@ -25,6 +26,8 @@ import numpy as np
 from estimators.com_kinematics import KinematicCoM
 from estimators.detector import HeelStrikeDetector
 from estimators.fingerprint import FingerprintEKF, Mode
+from estimators.gp_ekf import GPModelSet
+from estimators.gp_ekf_estimator import COHORT_COLUMNS, ControlSurface, GPEKFEstimator, build_default, load_default
 from estimators.heel_strike import HeelStrikeBackup
 from estimators.imu_frontend import SEGMENTS as IMU_SEGMENTS
 from estimators.imu_frontend import FrontEndConfig, ImuFrontEnd
@@ -36,11 +39,14 @@ from estimators.sdre_estimator import SDREKnee
 from estimators.tbe import TimingBasedEstimator
 from sessions.schema import CHANNELS, PRIMARY_BLEND_S, SensorFrame, missing_channels
 from sessions.stack import EstimatorStack
+from sessions.synth.cohort import CohortSpec, generate_cohort
 
 __all__ = [
     "DECLARED",
     "DERIVERS",
     "ESTIMATORS",
+    "GP_EKF_COHORT",
+    "GP_EKF_MODEL_NAME",
     "OPT_IN",
     "Declared",
     "Feed",
@@ -51,6 +57,7 @@ __all__ = [
     "channels_of",
     "choose_primary",
     "feeds",
+    "gp_ekf_default",
     "redundant",
     "resolve",
 ]
@@ -94,6 +101,28 @@ def _fingerprint_ekf(c: StackContext, mode: Mode) -> FingerprintEKF:
     return FingerprintEKF(fmap, mode=mode, g=g)
 
 
+#: The GP-EKF's default models (seed 003) when shipped: ``default_arrays(*build_default(...))`` of
+#: ``estimators.gp_ekf_estimator`` saved with ``np.savez``. Without it they are fitted on first use to
+#: :data:`GP_EKF_COHORT` (about 3 s with GPy's import, once per process).
+GP_EKF_MODEL_NAME: Final = "gp_ekf_default.npz"
+#: What the GP-EKF's population model and control surface are fitted to: level walking over seed 003's
+#: speeds (its treadmill ran 0.4-1.2 m/s).
+GP_EKF_COHORT: Final = CohortSpec(
+    n_subjects=6, speeds_m_s=(0.4, 0.6, 0.8, 1.0, 1.2), inclines_deg=(0.0,), strides_per_condition=4
+)
+
+
+@cache
+def gp_ekf_default() -> tuple[GPModelSet, ControlSurface]:
+    """The GP-EKF's first observation models and its torque control surface (see :data:`GP_EKF_MODEL_NAME`)."""
+    path = resources.files("sessions") / "data" / GP_EKF_MODEL_NAME
+    if path.is_file():
+        with resources.as_file(path) as file, np.load(file) as arrays:
+            return load_default(dict(arrays))
+    frame = generate_cohort(GP_EKF_COHORT)
+    return build_default({c: frame[c].to_numpy() for c in COHORT_COLUMNS})
+
+
 def _imu_front_end(segment: str, c: StackContext) -> ImuFrontEnd:
     return ImuFrontEnd(segment, FrontEndConfig.for_segment(segment, sample_period=c.sample_period))
 
@@ -117,13 +146,15 @@ ESTIMATORS: Final[dict[str, Callable[[StackContext], Estimator]]] = {
     "com_kin": lambda c: KinematicCoM(c.leg_length),
     "intent": lambda c: IntentEstimator(c.leg_length),
     "sdre_knee": lambda c: SDREKnee(c.leg_length, c.mass_kg),
+    "gp_ekf": lambda c: GPEKFEstimator(*gp_ekf_default(), mass_kg=c.mass_kg),
 }
 
 
 #: Registered but run only when a session names them: the standalone heel-strike backup duplicates the
 #: one inside ``phase_ekf`` (which uses it to reset the filter) and costs about half of the stack's
-#: time per sample; it is there to be inspected and compared, in review or by choice.
-OPT_IN: Final = frozenset({"hs_backup", "sdre_knee"})
+#: time per sample; it is there to be inspected and compared, in review or by choice. The GP-EKF (seed
+#: 003) estimates the stance phase, not the gait phase the torque profile follows, and retrains online.
+OPT_IN: Final = frozenset({"hs_backup", "sdre_knee", "gp_ekf"})
 #: Registered to derive channels a source may not send (sensor front ends): a default stack leaves one
 #: out when the source already sends (or an earlier estimator derives) every channel it would derive,
 #: since a sent channel wins over a derived one and its work would be thrown away.
@@ -179,6 +210,7 @@ DECLARED: Final[dict[str, Declared]] = {
     "com_kin": _declared("Centre of mass from leg kinematics (seed 001)", KinematicCoM),
     "intent": _declared("Speed-change intent (seed 001)", IntentEstimator),
     "sdre_knee": _declared("SDRE knee angle from IMUs (seed 002)", SDREKnee),
+    "gp_ekf": _declared("GP-EKF (seed 003)", GPEKFEstimator),
 }
 
 

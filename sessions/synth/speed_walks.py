@@ -8,11 +8,12 @@ sinusoid between 0.4 and 1.2 m/s with a 20 s period, and the walk ends in a sudd
   cadence are the subject's at that speed and morph from the previous stride's (nothing jumps). The
   stride start times depend on the speeds and the speeds on the times: a fixed point, found in a few
   passes;
-- **sudden stop** after ``walk_s``: in the stride under way, the gait phase decelerates uniformly to rest
-  over ``stop_s`` (0.3 s, **choice**: the walker brakes within one step; a treadmill's emergency stop
-  takes a similar time), every clean signal sampled at the decelerating phase, then stands still for
-  ``standing_s`` in that posture (the stop falls wherever the sinusoid's last stride puts it, in stance
-  or in swing);
+- **sudden stop** after ``walk_s``, when the instrumented leg next reaches gait phase ``stop_phase``
+  (0.25, early mid-stance: seed 003's filter estimates stance, so its stop is one in stance; ``None``
+  stops at ``walk_s`` wherever the leg is, swing included): the gait phase decelerates uniformly to
+  rest over ``stop_s`` (0.3 s, **choice**: the walker brakes within one step; a treadmill's emergency
+  stop takes a similar time), every clean signal sampled at the decelerating phase, then stands still
+  for ``standing_s`` in that posture;
 - sensors as a device sends them (:func:`sessions.synth.sensors.simulate_sensors`, joint encoders
   included) at ``rate_hz`` (200 Hz, the paper's).
 
@@ -55,6 +56,7 @@ class SpeedProtocol:
     period_s: float = 20.0
     walk_s: float = 60.0
     stop_s: float = 0.3
+    stop_phase: float | None = 0.25
     standing_s: float = 5.0
     rate_hz: float = 200.0
     seed: int = 20261124
@@ -90,6 +92,10 @@ def _stop(walk: pd.DataFrame, protocol: SpeedProtocol) -> pd.DataFrame:
     """The walk up to ``walk_s``, then the phase decelerating to rest over ``stop_s``, then standing."""
     t = walk[s.TIME_S].to_numpy(np.float64)
     k0 = int(np.searchsorted(t, protocol.walk_s))
+    if protocol.stop_phase is not None:  # on to the sample where the leg reaches the stop phase
+        p = walk[s.PHASE_IPSI].to_numpy(np.float64) / 100.0
+        at = np.flatnonzero((p[k0 + 1 :] >= protocol.stop_phase) & (p[k0:-1] < protocol.stop_phase))
+        k0 = k0 + 1 + int(at[0]) if len(at) else k0
     stride = int(walk[s.STEP].iloc[k0])
     one = walk[walk[s.STEP] == stride]
     phase = one[s.PHASE_IPSI].to_numpy(np.float64)

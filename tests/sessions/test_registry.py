@@ -39,6 +39,7 @@ def test_each_registered_estimator_declares_what_it_is_built_as() -> None:
         "com_kin": "Centre of mass from leg kinematics (seed 001)",
         "intent": "Speed-change intent (seed 001)",
         "sdre_knee": "SDRE knee angle from IMUs (seed 002)",
+        "gp_ekf": "GP-EKF (seed 003)",
     }
 
 
@@ -68,7 +69,8 @@ def test_feeds_counts_a_channel_an_earlier_estimator_derives() -> None:
     intent, kin = set(DECLARED["intent"].inputs), set(DECLARED["com_kin"].inputs)
     imus = [n for n in ESTIMATORS if n.startswith("imu_")]
     raw_readers = [n for n, d in DECLARED.items() if any(c.startswith("imu_") for c in d.inputs)]  # + sdre
-    assert {n: f for n, f in feeds(every | intent | kin).items() if n not in raw_readers} == {
+    encoders = {"hip_angle_deg", "knee_angle_deg", "ankle_angle_deg"}  # gp_ekf's
+    assert {n: f for n, f in feeds(every | intent | kin | encoders).items() if n not in raw_readers} == {
         n: Feed((), {}) for n in ESTIMATORS if n not in raw_readers
     }
     # raw IMUs alone: the front ends derive the angles, the detector the heel strikes

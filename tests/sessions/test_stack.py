@@ -69,6 +69,7 @@ def test_the_default_stack_is_every_estimator_the_channels_allow(small_model: Tr
     assert list(ESTIMATORS) == [
         *imus, "hs_detector", "phase_ekf", "tbe", "hs_backup", "fp_avg", "fp_ls", "fp_gf", "com_kin", "intent",
         "sdre_knee",
+        "gp_ekf",
     ]  # fmt: skip
     # hs_backup and sdre_knee are opt-in (OPT_IN); fp_ls needs the subject's calibrated fingerprint
     assert names(None) == [*imus, "hs_detector", "phase_ekf", "tbe", "fp_avg", "fp_gf", "com_kin", "intent"]

@@ -38,6 +38,10 @@ def test_a_sudden_stop_freezes_the_walker(walk: pd.DataFrame) -> None:
     standing = walk[cond == "standing"]
     assert (standing["gt_stance_rate"].fillna(0) == 0).all() and standing["heel_strike"].sum() == 0
     assert standing["knee_angle_deg"].std() < 0.2  # the encoders read a still leg
+    # stopped in stance (the stop begins at gait phase 0.25), where the stance phase freezes
+    assert standing["gt_stance_phase"].notna().all() and standing["gt_stance_phase"].nunique() == 1
+    swing = speed_walk(SUBJECT, SpeedProtocol(walk_s=25.0, standing_s=2.0, stop_phase=0.75))
+    assert swing.loc[swing["condition"] == "standing", "gt_stance_phase"].isna().all()
     t = walk["time_s"].to_numpy()
     assert np.all(np.diff(t) > 0) and np.allclose(np.diff(t), 1 / PROTOCOL.rate_hz, atol=1e-6)
 
