@@ -9,8 +9,9 @@ offered back, so the new model is installed at the next heel strike if it passes
 A live session fits in a worker and installs at the first heel strike after the fit ends; a fit takes
 well under the 5 steps it has (``gaitscope bench``), so the live model is at most a few steps later.
 
-The first model is the population model fitted to the **other** subjects (leave-one-subject-out), so no
-subject's own data is in the model it starts from. The baseline is seed 003's time-based estimate,
+The first model is the population model fitted to the **other** subjects (leave-one-subject-out: the
+shipped model's conditions, level walking at 0.4-1.2 m/s, for the other nine), so no subject's own data
+is in the model it starts from. The baseline is seed 003's time-based estimate,
 ``phi = t_n / T_(n-1)`` (the estimator's ``time_phase`` output, capped at 1).
 
 Reported:
@@ -18,9 +19,9 @@ Reported:
 - **per subject**: stance-phase RMSE (%) of the GP-EKF and of the time-based estimate over the walking
   stance samples; the paper's claim: the EKF is better for every subject (one-sided Wilcoxon signed-rank
   over subjects, p < 0.01);
-- **the sudden stop**: over the standing that follows, how far the GP-EKF's phase moved and its mean
-  phase rate in the last second, against how far the time-based phase ran on (the paper: phi freezes
-  and phidot falls to 0 while the time-based phase runs on);
+- **the sudden stop**: at the end of the standing that follows, the GP-EKF's phase error and its mean
+  phase rate in the last second of standing, against the time-based phase's error there (the paper: phi
+  freezes and phidot falls to 0 while the time-based phase runs on);
 - **learning curve**: stance-phase RMSE per step from a cold start, learning against the same filter
   frozen on the population model (the difference is what the retraining buys), with the retrained
   versions installed and refused.
@@ -29,7 +30,7 @@ Reported:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Final
 
@@ -63,9 +64,9 @@ class SubjectRun:
     time_rmse_pct: float
     frozen_rmse_pct: float
     stopped_in_stance: bool
-    ekf_stop_drift: float  # how far the GP-EKF's phase moved while standing (cycles of stance)
+    ekf_stop_error: float  # the GP-EKF's phase minus the frozen truth, mean over the last STOP_TAIL_S standing
     ekf_stop_rate: float  # its mean phase rate over the last STOP_TAIL_S standing (1/s)
-    time_stop_drift: float  # how far the time-based phase ran on while standing
+    time_stop_error: float  # the same for the time-based phase
     step_rmse: np.ndarray  # (CURVE_STEPS,) learning, per step from the first heel strike (%)
     step_rmse_frozen: np.ndarray  # the same filter frozen on the population model
     installed: tuple[int, ...]
@@ -81,10 +82,9 @@ class GPStudy:
     fit_s: float  # mean wall time of one fit (s)
 
 
-def _population(exclude: int, cohort: CohortSpec) -> tuple[GPModelSet, ControlSurface]:
-    """The population models fitted to the GP-EKF's default cohort without subject ``exclude``."""
-    frame = generate_cohort(cohort)
-    frame = frame[frame["subject"] != make_subjects(cohort)[exclude].code]
+def _population(frame: pd.DataFrame, exclude: str) -> tuple[GPModelSet, ControlSurface]:
+    """The population models fitted to the population cohort ``frame`` without subject ``exclude``."""
+    frame = frame[frame["subject"] != exclude]
     return build_default({c: frame[c].to_numpy() for c in COHORT_COLUMNS})
 
 
@@ -133,10 +133,10 @@ def _per_step(walk: pd.DataFrame, phase: np.ndarray) -> np.ndarray:
 
 
 def _subject(
-    index: int, subject: SubjectParams, protocol: SpeedProtocol, cohort: CohortSpec, options: FitOptions
+    subject: SubjectParams, protocol: SpeedProtocol, population: pd.DataFrame, options: FitOptions
 ) -> tuple[SubjectRun, list[float]]:
     walk = speed_walk(subject, protocol)
-    start = _population(index, cohort)
+    start = _population(population, subject.code)
     learned, installed, refused, walls = _run(walk, start, subject.mass_kg, True, options)
     frozen, _, _, _ = _run(walk, start, subject.mass_kg, False, options)
     truth = walk["gt_stance_phase"].to_numpy(np.float64)
@@ -152,9 +152,9 @@ def _subject(
         time_rmse_pct=_rmse(learned["time_phase"][stance] - truth[stance]),
         frozen_rmse_pct=_rmse(frozen["phase"][stance] - truth[stance]),
         stopped_in_stance=bool(np.isfinite(truth[first])),
-        ekf_stop_drift=float(np.ptp(learned["phase"][standing])),
+        ekf_stop_error=float(np.mean(learned["phase"][tail] - truth[tail])),
         ekf_stop_rate=float(np.mean(learned["phase_rate"][tail])),
-        time_stop_drift=float(np.ptp(learned["time_phase"][standing])),
+        time_stop_error=float(np.mean(learned["time_phase"][tail] - truth[tail])),
         step_rmse=_per_step(walk, learned["phase"]),
         step_rmse_frozen=_per_step(walk, frozen["phase"]),
         installed=tuple(installed),
@@ -171,17 +171,18 @@ def run_study(
 ) -> GPStudy:
     """Every subject of ``cohort`` through the protocol (see the module docstring).
 
-    ``population``: what the first model is fitted to (less the subject); default the GP-EKF's own
-    (:data:`sessions.registry.GP_EKF_COHORT`), whose subjects are the first of the default cohort's.
+    ``population``: what the first model is fitted to, less the subject; default the GP-EKF's own
+    conditions (:data:`sessions.registry.GP_EKF_COHORT`) for every subject of ``cohort``.
     """
     protocol = protocol or SpeedProtocol()
     cohort = cohort or CohortSpec()
-    population = population or GP_EKF_COHORT
+    population = population or replace(GP_EKF_COHORT, n_subjects=cohort.n_subjects, seed=cohort.seed)
     options = options or FitOptions()
+    frame = generate_cohort(population)
     runs: list[SubjectRun] = []
     walls: list[float] = []
-    for i, subject in enumerate(make_subjects(cohort)):
-        run, w = _subject(i, subject, protocol, population, options)
+    for subject in make_subjects(cohort):
+        run, w = _subject(subject, protocol, frame, options)
         runs.append(run)
         walls += w
     ekf = np.array([r.ekf_rmse_pct for r in runs])
@@ -215,16 +216,16 @@ def to_markdown(study: GPStudy) -> str:
         f"subjects; one-sided Wilcoxon signed-rank p = {study.wilcoxon_p:.4f} (paper: every subject, p < 0.01). "
         f"{study.fits} retrainings, {study.fit_s:.2f} s each on average (one core).",
         "",
-        "The sudden stop: over the standing after it, how far each phase moved (stance cycles), and the "
-        f"GP-EKF's mean phase rate over the last {STOP_TAIL_S:g} s (1/s).",
+        f"The sudden stop: over the last {STOP_TAIL_S:g} s of standing, each phase minus the stance phase the "
+        "walker stopped at (stance cycles), and the GP-EKF's mean phase rate (1/s).",
         "",
-        "| subject | stopped in | GP-EKF phase moved | GP-EKF phase rate | time-based phase moved |",
+        "| subject | stopped in | GP-EKF phase error | GP-EKF phase rate | time-based phase error |",
         "|---|---|---|---|---|",
     ]
     for r in study.runs:
         where = "stance" if r.stopped_in_stance else "swing"
         lines.append(
-            f"| {r.code} | {where} | {r.ekf_stop_drift:.3f} | {r.ekf_stop_rate:.3f} | {r.time_stop_drift:.3f} |"
+            f"| {r.code} | {where} | {r.ekf_stop_error:+.3f} | {r.ekf_stop_rate:.3f} | {r.time_stop_error:+.3f} |"
         )
     curve = learning_table(study)
     learned, frozen = curve["learning_rmse_pct"].to_numpy(), curve["frozen_rmse_pct"].to_numpy()
