@@ -22,7 +22,9 @@ measured in one run; every comparison is against a baseline measured in the same
 5. Per-sample cost of the speed-change intent estimator (:mod:`sessions.offline.intent_bench`) on a simulated
    walk, between events and at events, against seed 001 on filterpy's ``KalmanFilter`` (row 3 feeds it the
    default trial, which lacks its channels, so it sees no events there).
-6. Wall time of the full leave-one-subject-out cross-validation.
+6. A GP-EKF retraining (seed 003) against the walking time it has and against GPy's documented sparse GP
+   regression (:mod:`sessions.offline.gp_bench`).
+7. Wall time of the full leave-one-subject-out cross-validation.
 
 Targets: issue #2, gaitscope >= 20x faster than the reference and < 10 us per sample, states agree to
 1e-9, cross-validation under 5 minutes on 2 cores; issue #7, replay >= 200,000 samples/s; issue #9, the intent
@@ -50,6 +52,7 @@ from sessions import schema
 from sessions.formats.models import default_model_path, load_model
 from sessions.formats.replay_io import read_replay_csv, write_replay_output
 from sessions.offline.baselines import BASELINES, Stepper
+from sessions.offline.gp_bench import retrain_cost
 from sessions.offline.intent_bench import intent_cost
 from sessions.offline.replay import measurements, replay_file, run
 from sessions.offline.timing import step_times
@@ -359,7 +362,11 @@ def _print_estimators(rows: dict[str, dict[str, float]]) -> None:
 
 
 def run_bench(
-    crossval: bool = True, reference_samples: int = 3000, samples: int = 6000, replay_minutes: float = 10.0
+    crossval: bool = True,
+    reference_samples: int = 3000,
+    samples: int = 6000,
+    replay_minutes: float = 10.0,
+    gp_retrain: bool = True,
 ) -> dict[str, float]:
     """Measure and print everything; returns the numbers.
 
@@ -369,6 +376,7 @@ def run_bench(
             of the per-estimator rows).
         samples: samples of the default trial for the per-estimator and the whole-stack rows.
         replay_minutes: length of the replayed trial.
+        gp_retrain: time a GP-EKF retraining too (about 15 s).
     """
     cpu = platform.processor() or platform.machine()
     load = " / ".join(f"{v:.2f}" for v in os.getloadavg())
@@ -436,7 +444,19 @@ def run_bench(
         f"{1e3 * cal['fit_s']:.1f} ms to fit its samples (target < 2 s); "
         f"the refit of the whole map from the cohort's level walking: {1e3 * cal['map_s']:.0f} ms"
     )
+    g = retrain_cost() if gp_retrain else {}
+    if g:
+        print(
+            f"GP-EKF retraining (seed 003), the first window of the protocol's walk ({g['steps']:.0f} steps,"
+            f" {g['samples']:.0f} samples, {g['budget_s']:.1f} s of walking), six sparse GPs, best / median of 3:"
+        )
+        print(
+            f"  fit_models (FITC, 25 at inputs)  {g['fit_best_s']:.2f} / {g['fit_median_s']:.2f} s   GPy's documented"
+            f" SparseGPRegression {g['ref_best_s']:.2f} / {g['ref_median_s']:.2f} s   ratio {g['ratio']:.1f}x;"
+            f" {100 * g['fit_median_s'] / g['budget_s']:.0f} % of the 5 steps it has"
+        )
     out = {**e, **{f"replay_{k}": v for k, v in r.items()}}
+    out.update({f"gp_retrain_{k}": v for k, v in g.items()})
     out.update({f"calibration_{k}": v for k, v in cal.items()})
     out.update({f"estimator_{name}_{k}": v for name, row in per.items() for k, v in row.items()})
     out.update({f"stack_{k}": v for k, v in s.items()})

@@ -78,10 +78,13 @@ def test_run_bench_prints_a_line_per_estimator_and_returns_every_row(capsys) -> 
     assert _positive(out["stack_stack_median_us"]) and out["stack_samples"] == SAMPLES
     assert "EstimatorStack.step" in text and "max |output diff|" in text
     assert "crossval_wall_s" not in out
+    # a GP-EKF retraining, against the walking time it has and against GPy's documented sparse GP
+    assert 0 < out["gp_retrain_fit_median_s"] < out["gp_retrain_budget_s"] and out["gp_retrain_steps"] == 5
+    assert _positive(out["gp_retrain_ref_median_s"]) and "GP-EKF retraining" in text
 
 
 def test_without_reference_samples_the_phase_ekf_row_says_its_reference_was_not_run(capsys) -> None:
-    bench.run_bench(crossval=False, reference_samples=0, samples=SAMPLES, replay_minutes=0.05)
+    bench.run_bench(crossval=False, reference_samples=0, samples=SAMPLES, replay_minutes=0.05, gp_retrain=False)
     text = capsys.readouterr().out
     assert "filterpy reference   not run (--reference-samples 0)" in text
     assert "speed-up (median)" not in text and " 0.0x" not in text
