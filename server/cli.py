@@ -337,7 +337,7 @@ def cmd_loadbench(a: argparse.Namespace) -> int:
         return 0 if result["clean"] and not any(r.out_of_bounds for r in result["devices"]) else 1
     from server.bench.load import run_loadbench
 
-    run_loadbench(a.sessions, a.clients, a.rate, a.seconds, a.batch_ms)
+    run_loadbench(a.sessions, a.clients, a.rate, a.seconds, a.batch_ms, gp_ekf=a.gp_ekf)
     return 0
 
 
@@ -438,6 +438,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rate", type=float, default=200.0)
     p.add_argument("--seconds", type=float, default=20.0)
     p.add_argument("--batch-ms", type=float, default=33.0)
+    p.add_argument(
+        "--gp-ekf",
+        action="store_true",
+        help="every session also runs the GP-EKF (seed 003), retraining as it walks; the devices send joint "
+        "encoders and heel strikes",
+    )
     p.add_argument(
         "--soak",
         action="store_true",

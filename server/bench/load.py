@@ -26,7 +26,11 @@ from pathlib import Path
 import numpy as np
 
 from server.bench.launch import start_server
+from sessions.registry import OPT_IN, feeds, redundant
 from sessions.synth.trials import replay_input, sensor_trial
+
+#: What a device adds for the GP-EKF (``--gp-ekf``): joint encoders and its heel-strike sensor.
+GP_EKF_CHANNELS = ("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "heel_strike")
 
 TARGET_P95_MS = 50.0
 
@@ -159,20 +163,28 @@ def _worker(job: _Job) -> tuple[list[int] | list[Stream], float]:
     return done, time.process_time() - cpu0
 
 
-def _run(base: str, sessions: int, clients: int, rate: float, seconds: float, batch_ms: float) -> dict:
+def _run(
+    base: str, sessions: int, clients: int, rate: float, seconds: float, batch_ms: float, gp_ekf: bool = False
+) -> dict:
     """Devices in one process, browser clients spread over two more, so the load generator is not the
-    bottleneck it would be in a single Python process."""
+    bottleneck it would be in a single Python process. ``gp_ekf``: the devices also send joint encoders and
+    heel strikes, and every session runs the GP-EKF (seed 003, opt-in) beside its default stack, learning."""
     ws_base = base.replace("http://", "ws://")
     sensors, _, _ = sensor_trial([(1.2, 0.0, 40)], rate_hz=rate)
     data = replay_input(sensors)
-    frames = [{"type": "frame", **{k: float(v[i]) for k, v in data.signals.items()}} for i in range(len(data.time_s))]
+    signals = dict(data.signals)
+    if gp_ekf:
+        signals |= {c: sensors[c].to_numpy(np.float64) for c in GP_EKF_CHANNELS}
+    frames = [{"type": "frame", **{k: float(v[i]) for k, v in signals.items()}} for i in range(len(data.time_s))]
     subject = _post(base, "/api/subjects", {"code": f"LB{time.time_ns() % 10**8}", "leg_length_m": 0.9, "mass_kg": 70})
     # the device declares what it sends, as a real one should: its sessions run the estimators those feed
-    device = {"kind": "device", "rate_hz": rate, "channels": list(data.signals)}
-    ids = [
-        int(_post(base, "/api/sessions", {"subject_id": subject["id"], "source": device})["id"])  # type: ignore[call-overload]
-        for _ in range(sessions)
-    ]
+    device = {"kind": "device", "rate_hz": rate, "channels": list(signals)}
+    body: dict[str, object] = {"subject_id": subject["id"], "source": device}
+    if gp_ekf:
+        runs = feeds(signals)
+        stack = [n for n, f in runs.items() if not f.missing and n not in OPT_IN and not redundant(n, signals)]
+        body["settings"] = {"estimators": [*stack, "gp_ekf"]}
+    ids = [int(_post(base, "/api/sessions", body)["id"]) for _ in range(sessions)]  # type: ignore[call-overload]
     now = time.time()
     browser_ids = [i for i in ids for _ in range(clients)]
     shares = [browser_ids[k::2] for k in range(2)] if len(browser_ids) > 1 else [browser_ids]
@@ -220,21 +232,30 @@ def _summary(label: str, result: dict, cpu_s: float, wall_s: float, mem: tuple[f
 
 
 def run_loadbench(
-    sessions: int = 10, clients: int = 2, rate: float = 200.0, seconds: float = 20.0, batch_ms: float = 33.0
+    sessions: int = 10,
+    clients: int = 2,
+    rate: float = 200.0,
+    seconds: float = 20.0,
+    batch_ms: float = 33.0,
+    gp_ekf: bool = False,
 ) -> dict[str, dict[str, float]]:
-    """Start a server, measure the single-stream baseline, then the full load; print and return both."""
+    """Start a server, measure the single-stream baseline, then the full load; print and return both.
+    ``gp_ekf``: every session also runs the GP-EKF, retraining as it walks (:func:`_run`)."""
     with tempfile.TemporaryDirectory() as d:
         server = start_server(d, "--no-demo", "--no-leg-view", timeout=60)
         proc, base = server.proc, server.base
         try:
-            print(f"server pid {proc.pid} on {base}; {os.cpu_count()} cores; batch_ms={batch_ms}; {seconds:.0f} s each")
+            print(
+                f"server pid {proc.pid} on {base}; {os.cpu_count()} cores; batch_ms={batch_ms}; {seconds:.0f} s each"
+                + ("; every session runs the GP-EKF too" if gp_ekf else "")
+            )
             results = {}
             for label, n, m in (
                 ("baseline: 1 device x 1 client", 1, 1),
                 (f"load: {sessions} devices x {clients} clients", sessions, clients),
             ):
                 cpu0, t0 = _proc_cpu_s(proc.pid), time.monotonic()
-                result = _run(base, n, m, rate, seconds, batch_ms)
+                result = _run(base, n, m, rate, seconds, batch_ms, gp_ekf)
                 cpu, wall = _proc_cpu_s(proc.pid) - cpu0, time.monotonic() - t0
                 results[label.split(":")[0]] = _summary(label, result, cpu, wall, _proc_mem_mb(proc.pid))
             load, baseline = results["load"], results["baseline"]
