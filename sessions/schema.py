@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Annotated, Any, Final, Literal, NamedTuple
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 # --- LocoHub table: metadata columns -------------------------------------------------------------
 SUBJECT: Final = "subject"
@@ -599,6 +599,114 @@ class ImuCalibrationStatus(BaseModel):
     applied: ImuCalibration | None = Field(description="what the front ends run now (this session's or the subject's)")
 
 
+# --- seed 003's GP-EKF learning the wearer (issue #11; sessions.live.gp_learning) -------------------------
+
+#: The joints of the GP-EKF's observation models (``estimators.gp_ekf``), in its order.
+GP_JOINTS: Final = ("hip", "knee", "ankle")
+#: Stance-phase points (0..1) of the learned means and bands in a :class:`GPLearningState`.
+GP_BAND_POINTS: Final = 51
+#: What a ``/gp_models`` record says happened: ``trained`` (a fit came back and the filter accepted it: it
+#: is installed at the next heel strike), ``refused`` (a fit the filter refused: the current version is
+#: kept), ``failed`` (the fit raised), ``installed`` (a version took over at a heel strike), ``kept`` (at a
+#: recording's start: a version the filter keeps from before it), ``frozen``, ``unfrozen``, ``rollback``
+#: (the clinician's controls).
+GPModelWhat = Literal["trained", "refused", "failed", "installed", "kept", "frozen", "unfrozen", "rollback"]
+
+
+class GPArray(_Strict):
+    """One array of a GP model set (``estimators.gp_ekf.GPModelSet.to_arrays``): its shape and its values in
+    C order (JSON numbers read back to the same float64)."""
+
+    shape: list[int] = Field(max_length=4)
+    values: list[float]
+
+
+class GPModelRecord(_Strict):
+    """One happening of the GP-EKF's learning (the MCAP ``/gp_models`` payload), logged at the session time
+    of the sample it followed (an install: of its heel strike). A review re-run installs the recorded
+    versions (``trained`` and ``kept`` carry their arrays) at the recorded ``installed`` times."""
+
+    t: float = Field(description="session time (s)")
+    what: GPModelWhat
+    version: int | None = Field(default=None, ge=0, le=INT64_MAX, description="the model version concerned")
+    steps: tuple[int, int] | None = Field(default=None, description="training window: first and last stance")
+    span_s: tuple[float, float] | None = Field(default=None, description="training window: first and last time")
+    rmse: dict[str, float | None] = Field(
+        default_factory=dict,
+        description="held-out RMSE per channel ('hip angle': deg, 'hip velocity': deg/s; null: no sample)",
+    )
+    fit_s: float | None = Field(default=None, description="wall time the fit took (s)")
+    step: int | None = Field(default=None, description="installed: completed stances before its heel strike")
+    current: bool = Field(default=False, description="kept: the version in force at the recording's start")
+    reason: str = Field(default="", max_length=2000, description="refused, failed: why; rollback: the note")
+    actor: str = Field(default="system", max_length=64)
+    arrays: dict[str, GPArray] | None = Field(default=None, description="trained, refused, kept: the model set")
+
+
+class GPModelInfo(BaseModel):
+    """A model version the GP-EKF keeps (one a rollback can reinstall)."""
+
+    version: int
+    population: bool = Field(description="the first model, fitted to the virtual cohort, not to this wearer")
+    steps: tuple[int, int] | None = Field(description="its training window's first and last stance (null: population)")
+    span_s: tuple[float, float] | None = Field(description="its training window's time span (s; null: population)")
+    rmse_deg: dict[str, float | None] = Field(description="held-out angle RMSE by joint (deg)")
+    rmse_dps: dict[str, float | None] = Field(description="held-out velocity RMSE by joint (deg/s)")
+    installed_t: list[float] = Field(description="session times (s) of its installs (heel strikes) still kept")
+
+
+class GPBand(BaseModel):
+    """A version's learned joint angles over stance phase (:attr:`GPLearningState.phase`): the GP mean and its
+    band of +-2 predictive sd (the GP's variance with its noise: the spread of a measured angle), by joint."""
+
+    version: int
+    mean_deg: dict[str, list[float]]
+    lower_deg: dict[str, list[float]] = Field(description="mean - 2 sd")
+    upper_deg: dict[str, list[float]] = Field(description="mean + 2 sd")
+
+
+class GPPendingFit(BaseModel):
+    """A fit under way in the background."""
+
+    version: int
+    steps: tuple[int, int]
+    span_s: tuple[float, float]
+    running_s: float = Field(description="wall time since it was submitted (s)")
+
+
+class GPLearningState(BaseModel):
+    """A running session's GP-EKF learning (``GET /api/sessions/{id}/gp-learning``)."""
+
+    session_id: int
+    version: int = Field(description="the version installed now")
+    waiting: int | None = Field(description="the version installed at the next heel strike (null: none)")
+    rollback: bool = Field(description="the waiting version is a rollback")
+    frozen: bool = Field(description="learning is frozen: no fit, no install but a rollback")
+    pending: GPPendingFit | None
+    versions: list[GPModelInfo] = Field(description="the versions kept, by version (rollback targets)")
+    last: str = Field(description="the last learning event's text ('' none yet)")
+    phase: list[float] = Field(description="stance phase of the band's points, 0..1")
+    current: GPBand = Field(description="the installed version's band")
+    requested: GPBand | None = Field(description="the band of the version asked for (?version=), if any")
+
+
+class GPLearningControl(_Strict):
+    """A clinician's control of a running session's GP-EKF learning (``POST /api/sessions/{id}/gp-learning``):
+    ``freeze`` (no more fits or installs), ``unfreeze``, or ``rollback`` to a kept ``version`` (installed at the
+    next heel strike, also while frozen)."""
+
+    action: Literal["freeze", "unfreeze", "rollback"]
+    version: int | None = Field(default=None, ge=0, le=INT64_MAX, description="rollback: the kept version")
+    actor: str = _ACTOR
+    reason: str = Field(default="", max_length=500)
+
+    @model_validator(mode="after")
+    def _version_with_rollback(self) -> GPLearningControl:
+        if (self.version is None) == (self.action == "rollback"):
+            raise ValueError("a rollback names the version to reinstall; freeze and unfreeze take none")
+        return self
+
+
 class RerunChoices(BaseModel):
     """Which estimators a re-run of a recorded trial can run (``GET /api/trials/{id}/estimators``): what a
     review's picker offers. Any subset of ``runnable`` may be asked for (``RerunRequest.estimators``); the
@@ -1091,6 +1199,7 @@ MCAP_CHANNELS: Final[dict[str, tuple[str, type[BaseModel]]]] = {
     "/settings": ("gaitscope.SessionSettings", SessionSettings),
     "/events": ("foxglove.Event", FoxgloveEvent),
     "/imu_calibration": ("gaitscope.ImuCalibration", ImuCalibration),
+    "/gp_models": ("gaitscope.GPModelRecord", GPModelRecord),
 }
 #: Each estimator of a session's stack records its outputs on ``/estimators/<name>`` with this schema:
 #: channels registered per stack (:func:`estimator_channels`), beside the fixed ones above.
@@ -1111,5 +1220,6 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     ViewerShow, SensorFrame, GaitState, TorqueCommand, StreamBatch, Health, EventMessage, SettingsMessage, Hello,
     FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs, CalibrationRequest, PersonalizationChange,
     Personalization, CohortPoint, Fingerprints, PersonalizationExport, IntentSeries, ImuCalibrationRequest,
-    ImuCalibration, ImuCalibrationStatus,
+    ImuCalibration, ImuCalibrationStatus, GPArray, GPModelRecord, GPModelInfo, GPBand, GPPendingFit,
+    GPLearningState, GPLearningControl,
 )  # fmt: skip

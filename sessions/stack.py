@@ -6,7 +6,11 @@ returns its declared outputs; an output that is itself a channel (``heel_strike`
 phase EKF) fills that channel for the estimators after it when the source does not send it.
 
 The **primary** estimator's phase (and its stride length and incline when it has them, else
-:data:`NOMINAL_STRIDE` leg lengths on level ground) drives the torque profile. Switching the primary
+:data:`NOMINAL_STRIDE` leg lengths on level ground) drives the torque profile, unless the primary
+declares a ``torque_Nm`` output of its own (seed 003's ``gp_ekf``: its control surface over stance phase
+and phase rate, whose ``phase`` is the stance phase, not the gait phase the profile is indexed by). Then its
+own command wins: ``torque_Nm`` times the session's torque gain, clamped to ``[0, max_torque]`` and taken to 0
+as the estimator says the walker stands (``standing``), like the profile's. Switching the primary
 (:meth:`EstimatorStack.set_primary`) blends the command from the old primary's to the new one's over
 ``blend_s`` seconds, so the torque never steps.
 
@@ -35,7 +39,7 @@ from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, input_names, 
 from estimators.torque import TorqueProfile
 from sessions.schema import CHANNELS, PRIMARY_BLEND_S
 
-__all__ = ["FALLBACK", "MAX_VARIANCE", "NOMINAL_STRIDE", "EstimatorStack", "StackSample"]
+__all__ = ["FALLBACK", "MAX_VARIANCE", "NOMINAL_STRIDE", "OWN_TORQUE", "EstimatorStack", "StackSample"]
 
 #: Takes the torque when the primary fails (if it is in the stack and healthy; else the torque is 0).
 FALLBACK: Final = "tbe"
@@ -44,6 +48,8 @@ FALLBACK: Final = "tbe"
 NOMINAL_STRIDE: Final = EKFConfig().initial_stride_length
 #: Largest variance a healthy estimator's covariance may hold (as the phase EKF's health limit).
 MAX_VARIANCE: Final = 1e3
+#: An estimator's output holding its own torque command (N m), which drives the torque when it is primary.
+OWN_TORQUE: Final = "torque_Nm"
 #: Outputs named as a sensor channel fill that channel for the estimators after them (``heel_strike``).
 _CHANNELS: Final = frozenset(CHANNELS)
 _DIVERGED: Final = 2.0  # estimators.protocol.FAULTS.index("diverged")
@@ -141,6 +147,8 @@ class EstimatorStack:
         self._inputs = [input_names(e) for e in self.estimators]
         self._index = [{n: i for i, n in enumerate(outs)} for outs in self.outputs]
         self._derived = [[(i, n) for i, n in enumerate(outs) if n in _CHANNELS] for outs in self.outputs]
+        #: each estimator's own torque command output (``torque_Nm``), None for those without one
+        self._own_torque = [idx.get(OWN_TORQUE) for idx in self._index]
         self._position = {n: k for k, n in enumerate(self.names)}
         self.torque = torque
         self.leg_length = leg_length
@@ -310,7 +318,8 @@ class EstimatorStack:
             self._pending.append(f"primary estimator {name} failed{at}: {then}")
 
     def _command(self, name: str, outputs: list[NDArray[np.float64] | None]) -> float:
-        """The torque profile at estimator ``name``'s outputs (0 where it reset a diverged state)."""
+        """The command estimator ``name``'s outputs make (0 where it reset a diverged state): its own
+        ``torque_Nm`` times the gain when it has one, else the torque profile at its phase; to 0 standing."""
         k = self._position[name]
         y, idx = outputs[k], self._index[k]
         if y is None:
@@ -322,6 +331,10 @@ class EstimatorStack:
         still = 0.0 if i is None else float(y[i])
         if not 0.0 <= still <= 1.0:  # NaN too: walking
             still = 0.0
+        own = self._own_torque[k]
+        if own is not None:  # its own control surface; NaN or infinite is caught by step() (torque 0)
+            command = min(max(float(y[own]) * self.torque_gain, 0.0), self.max_torque)
+            return command * (1.0 - still)
         stride = idx.get("stride_length_m")
         incline = idx.get("incline_deg")
         l_norm = NOMINAL_STRIDE if stride is None else float(y[stride]) / self.leg_length

@@ -551,6 +551,91 @@
  */
 
 /**
+ * One array of a GP model set (``estimators.gp_ekf.GPModelSet.to_arrays``): its shape and its values in
+ * C order (JSON numbers read back to the same float64).
+ * @typedef {object} GPArray
+ * @property {Array<number>} shape
+ * @property {Array<number>} values
+ */
+
+/**
+ * One happening of the GP-EKF's learning (the MCAP ``/gp_models`` payload), logged at the session time
+ * of the sample it followed (an install: of its heel strike). A review re-run installs the recorded
+ * versions (``trained`` and ``kept`` carry their arrays) at the recorded ``installed`` times.
+ * @typedef {object} GPModelRecord
+ * @property {number} t session time (s)
+ * @property {"trained" | "refused" | "failed" | "installed" | "kept" | "frozen" | "unfrozen" | "rollback"} what
+ * @property {number | null} [version=null] the model version concerned (0..9223372036854775807)
+ * @property {[number, number] | null} [steps=null] training window: first and last stance
+ * @property {[number, number] | null} [span_s=null] training window: first and last time
+ * @property {Object<string, number | null>} [rmse] held-out RMSE per channel ('hip angle': deg, 'hip velocity': deg/s; null: no sample)
+ * @property {number | null} [fit_s=null] wall time the fit took (s)
+ * @property {number | null} [step=null] installed: completed stances before its heel strike
+ * @property {boolean} [current=false] kept: the version in force at the recording's start
+ * @property {string} [reason=""] refused, failed: why; rollback: the note
+ * @property {string} [actor="system"]
+ * @property {Object<string, GPArray> | null} [arrays=null] trained, refused, kept: the model set
+ */
+
+/**
+ * A model version the GP-EKF keeps (one a rollback can reinstall).
+ * @typedef {object} GPModelInfo
+ * @property {number} version
+ * @property {boolean} population the first model, fitted to the virtual cohort, not to this wearer
+ * @property {[number, number] | null} steps its training window's first and last stance (null: population)
+ * @property {[number, number] | null} span_s its training window's time span (s; null: population)
+ * @property {Object<string, number | null>} rmse_deg held-out angle RMSE by joint (deg)
+ * @property {Object<string, number | null>} rmse_dps held-out velocity RMSE by joint (deg/s)
+ * @property {Array<number>} installed_t session times (s) of its installs (heel strikes) still kept
+ */
+
+/**
+ * A version's learned joint angles over stance phase (:attr:`GPLearningState.phase`): the GP mean and its
+ * band of +-2 predictive sd (the GP's variance with its noise: the spread of a measured angle), by joint.
+ * @typedef {object} GPBand
+ * @property {number} version
+ * @property {Object<string, Array<number>>} mean_deg
+ * @property {Object<string, Array<number>>} lower_deg mean - 2 sd
+ * @property {Object<string, Array<number>>} upper_deg mean + 2 sd
+ */
+
+/**
+ * A fit under way in the background.
+ * @typedef {object} GPPendingFit
+ * @property {number} version
+ * @property {[number, number]} steps
+ * @property {[number, number]} span_s
+ * @property {number} running_s wall time since it was submitted (s)
+ */
+
+/**
+ * A running session's GP-EKF learning (``GET /api/sessions/{id}/gp-learning``).
+ * @typedef {object} GPLearningState
+ * @property {number} session_id
+ * @property {number} version the version installed now
+ * @property {number | null} waiting the version installed at the next heel strike (null: none)
+ * @property {boolean} rollback the waiting version is a rollback
+ * @property {boolean} frozen learning is frozen: no fit, no install but a rollback
+ * @property {GPPendingFit | null} pending
+ * @property {Array<GPModelInfo>} versions the versions kept, by version (rollback targets)
+ * @property {string} last the last learning event's text ('' none yet)
+ * @property {Array<number>} phase stance phase of the band's points, 0..1
+ * @property {GPBand} current the installed version's band
+ * @property {GPBand | null} requested the band of the version asked for (?version=), if any
+ */
+
+/**
+ * A clinician's control of a running session's GP-EKF learning (``POST /api/sessions/{id}/gp-learning``):
+ * ``freeze`` (no more fits or installs), ``unfreeze``, or ``rollback`` to a kept ``version`` (installed at the
+ * next heel strike, also while frozen).
+ * @typedef {object} GPLearningControl
+ * @property {"freeze" | "unfreeze" | "rollback"} action
+ * @property {number | null} [version=null] rollback: the kept version (0..9223372036854775807)
+ * @property {string} [actor="clinician"]
+ * @property {string} [reason=""]
+ */
+
+/**
  * A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames.
  *
  * ``rate_hz`` is the device's declared sample rate: the server takes up to ``1.25 x rate_hz``
@@ -855,6 +940,22 @@ export const ESTIMATORS = deepFreeze({
     outputs: { knee_sdre_deg: "deg", thigh_sdre_deg: "deg" },
     opt_in: true,
   },
+  gp_ekf: {
+    label: "GP-EKF (seed 003)",
+    outputs: {
+      phase: "1",
+      phase_rate: "1/s",
+      in_stance: "bool",
+      heel_strike: "bool",
+      toe_off: "bool",
+      torque_Nm: "N m",
+      standing: "1",
+      model_version: "code",
+      fault: "code",
+      time_phase: "1",
+    },
+    opt_in: true,
+  },
 });
 
 /**
@@ -948,6 +1049,21 @@ export const FIELD_LIMITS = deepFreeze({
     note: { maxLength: 500 },
   },
   ImuCalibrationStatus: { progress: { min: 0.0, max: 1.0 } },
+  GPArray: { shape: { maxItems: 4 } },
+  GPModelRecord: {
+    version: { min: 0, max: 9223372036854775807 },
+    steps: { minItems: 2, maxItems: 2 },
+    span_s: { minItems: 2, maxItems: 2 },
+    reason: { maxLength: 2000 },
+    actor: { maxLength: 64 },
+  },
+  GPModelInfo: { steps: { minItems: 2, maxItems: 2 }, span_s: { minItems: 2, maxItems: 2 } },
+  GPPendingFit: { steps: { minItems: 2, maxItems: 2 }, span_s: { minItems: 2, maxItems: 2 } },
+  GPLearningControl: {
+    version: { min: 0, max: 9223372036854775807 },
+    actor: { minLength: 1, maxLength: 64 },
+    reason: { maxLength: 500 },
+  },
   DeviceSource: { rate_hz: { min: 1.0, max: 2000.0 }, channels: { maxItems: 256 } },
   ImuSensorCalibration: {
     segment: { pattern: "^[a-z_]{1,32}$" },

@@ -9,6 +9,7 @@ from fastapi import APIRouter
 
 from server.routes import (
     fingerprints,
+    gp_learning,
     imu_calibration,
     meta,
     models,
@@ -28,6 +29,7 @@ ROUTERS: tuple[APIRouter, ...] = (
     fingerprints.router,
     sessions.router,
     imu_calibration.router,
+    gp_learning.router,
     trials.router,
     models.router,
     viewer.router,

@@ -14,6 +14,7 @@ from fastapi.responses import JSONResponse
 from estimators.pipeline import TrainedModel
 from sessions import schema
 from sessions.errors import DataFormatError
+from sessions.live.gp_learning import LearningRefused
 from sessions.live.manager import SessionStateError
 from sessions.live.runtime import ChangeNotSaved, DiskFull, SettingRejected
 from sessions.store import Conflict, NotFound
@@ -40,6 +41,7 @@ ERROR_STATUS: dict[type[Exception], int] = {
     SessionStateError: status.HTTP_409_CONFLICT,
     SettingRejected: status.HTTP_409_CONFLICT,
     DataFormatError: status.HTTP_422_UNPROCESSABLE_CONTENT,
+    LearningRefused: status.HTTP_422_UNPROCESSABLE_CONTENT,
     ChangeNotSaved: status.HTTP_503_SERVICE_UNAVAILABLE,
     DiskFull: status.HTTP_507_INSUFFICIENT_STORAGE,
 }

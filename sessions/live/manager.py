@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import logging
 from collections.abc import Callable
@@ -12,6 +13,7 @@ from sessions import schema
 from sessions.errors import DataFormatError
 from sessions.formats.mcap_io import read_messages, recover
 from sessions.formats.models import default_model_path, load_model
+from sessions.live.gp_learning import GPTrainer
 from sessions.live.runtime import DiskState, SessionRuntime
 from sessions.live.sources import FrameSource, LiveDevice, ReplayDevice, SimulatedDevice
 from sessions.store import Store
@@ -44,7 +46,9 @@ class ModelStore:
 
 
 class SessionManager:
-    """Owns the :class:`SessionRuntime` of every running session."""
+    """Owns the :class:`SessionRuntime` of every running session, and the worker their GP-EKFs' fits share
+    (:class:`~sessions.live.gp_learning.GPTrainer`: started by the first session that runs ``gp_ekf``, stopped
+    by :meth:`stop_all`)."""
 
     def __init__(
         self,
@@ -60,6 +64,7 @@ class SessionManager:
         self.on_state = on_state
         self.disk_check = disk_check
         self.runtimes: dict[int, SessionRuntime] = {}
+        self.gp_trainer = GPTrainer()
 
     def recover_after_crash(self) -> list[schema.Trial]:
         """At start-up: end every trial and session that a crash left open; returns the recovered trials.
@@ -136,6 +141,7 @@ class SessionManager:
                 self.on_state,
                 disk_check=self.disk_check,
                 on_end=self._ended,
+                gp_trainer=self.gp_trainer,
             )
         except ValueError as e:  # the estimator stack: unknown names, missing channels (MissingChannels)
             with contextlib.suppress(Exception):
@@ -192,6 +198,10 @@ class SessionManager:
                 await self.stop(session_id)
             except Exception:
                 log.exception("session %d: stop at shutdown failed", session_id)
+        try:
+            await asyncio.to_thread(self.gp_trainer.shutdown)
+        except Exception:
+            log.exception("the GP fit worker did not stop cleanly")
 
 
 def _count(path: Path) -> tuple[int, float, float]:

@@ -17,6 +17,8 @@ Safety:
   flipped axis, a wrong sample rate: :mod:`sessions.live.imu_events`) is a system event naming the sensor,
   another when it clears, and data health shows the worst one; the front end degrades its own estimate,
   and the torque stays bounded as above;
+- the GP-EKF's retraining (:mod:`sessions.live.gp_learning`, when the stack runs ``gp_ekf``) fits in a worker
+  process, never on the sample loop; a fit that fails is an event, and the model in use stays;
 - a change of settings is stored with its events in one transaction first and applied only then, so
   that what runs is always what the database (and the rate limits) say;
 - every task of the session is supervised: an error ends the session as ``failed`` with an event,
@@ -47,6 +49,7 @@ from sessions.formats.mcap_io import recover
 from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, SAMPLE_PERIOD_KEY, Recorder
 from sessions.imu_calibration import StandingCollector, applied_text, apply_calibration, front_end_segments
 from sessions.live.disk import DiskLevel
+from sessions.live.gp_learning import GPLearning, GPTrainer, Note
 from sessions.live.imu_events import ImuWatch
 from sessions.live.intent_events import IntentOnsets
 from sessions.live.sources import FrameSource, LiveDevice
@@ -108,6 +111,8 @@ class SessionRuntime:
             before a recording starts and once a second.
         on_end: called once when the session ends by itself (source finished, fault, disk full), after
             the runtime stopped, with the session's final state; the manager stores it.
+        gp_trainer: the worker the GP-EKF's fits go to (the server's, shared); None: the session starts its
+            own if its stack runs ``gp_ekf`` (and stops it with the session).
 
     Raises:
         ValueError: the settings name an unknown estimator, or a primary the stack cannot run.
@@ -125,6 +130,7 @@ class SessionRuntime:
         on_state: Callable[[int, GaitState, float], None] | None = None,
         disk_check: Callable[[], DiskState] | None = None,
         on_end: Callable[[SessionRuntime, schema.SessionState, str], Awaitable[None]] | None = None,
+        gp_trainer: GPTrainer | None = None,
     ):
         self.session = session
         self.subject = subject
@@ -158,6 +164,9 @@ class SessionRuntime:
         current = store.current_imu_calibration(subject.id) if self.imu_segments else None
         self._imu_at_start = [] if current is None else apply_calibration(self.estimator.stack, current)
         self.imu_applied = current if self._imu_at_start else None
+        #: the GP-EKF's online retraining, freeze and rollback (None: the stack runs no gp_ekf)
+        self._own_trainer = gp_trainer is None
+        self.gp_learning = GPLearning.of(self.estimator.stack, gp_trainer or GPTrainer())
         self.subscribers: set[Subscriber] = set()
         self.recorder: Recorder | None = None
         self.trial: schema.Trial | None = None
@@ -218,6 +227,11 @@ class SessionRuntime:
                 task.cancel()
                 with contextlib.suppress(asyncio.CancelledError, Exception):
                     await task
+        if self.gp_learning is not None:
+            self.gp_learning.close()
+            if self._own_trainer:
+                with contextlib.suppress(Exception):
+                    await asyncio.to_thread(self.gp_learning.trainer.shutdown)
         try:
             self.stop_recording()
         except Exception:
@@ -318,6 +332,9 @@ class SessionRuntime:
                 self._recording_failed(e)
         if self.imu_collector is not None and self.imu_collector.add(t, frame):
             self._imu_calibrated()  # after the frame's record: a re-run applies it from the next frame, as here
+        if self.gp_learning is not None:
+            for note in self.gp_learning.poll(t):
+                self._gp_note(note)
         for sub in self.subscribers:
             sub.offer(state, outputs)
         if self.on_state is not None:
@@ -435,6 +452,41 @@ class SessionRuntime:
                 self._recording_failed(e)
         self._event("system", f"IMU calibration {result.id} applied: {applied_text(result, names)}",
                     field="imu_calibration", after=float(result.id or 0), actor=actor)  # fmt: skip
+
+    def _gp_note(self, note: Note) -> None:
+        """A GP-EKF learning note: recorded (``/gp_models``), and its event (field ``gp_ekf``) if it has one."""
+        self._gp_record(note.record)
+        if note.text:
+            self._gp_event(note)
+
+    def _gp_event(self, note: Note) -> schema.Event | None:
+        return self._event(note.kind, note.text, field="gp_ekf", before=note.before, after=note.after,
+                           actor=note.record.actor)  # fmt: skip
+
+    def _gp_record(self, record: schema.GPModelRecord) -> None:
+        if self.recorder is not None:
+            try:
+                self.recorder.write("/gp_models", self.estimator.last_t, record)
+            except (OSError, ValueError) as e:
+                self._recording_failed(e)
+
+    def gp_control(self, control: schema.GPLearningControl) -> schema.GPLearningState:
+        """Freeze, unfreeze or roll back the GP-EKF's learning (the caller checked that it runs): logged with
+        the actor and stored first, applied only then (at the next heel strike for a rollback), recorded.
+
+        Raises:
+            sessions.live.gp_learning.LearningRefused: a rollback to a version not kept; nothing changed.
+            ChangeNotSaved: the event could not be stored; nothing changed.
+        """
+        learning = self.gp_learning
+        assert learning is not None
+        note = learning.plan(control, self.estimator.last_t)
+        if note is not None:
+            if self._gp_event(note) is None:
+                raise ChangeNotSaved("the change could not be saved, so it was not applied")
+            learning.apply(control)
+            self._gp_record(note.record)
+        return learning.state(self.session.id)
 
     def accepts(self, frame: SensorFrame) -> bool:
         """Whether a device frame's time can be placed after the last one (a device may restart its clock)."""
@@ -658,6 +710,9 @@ class SessionRuntime:
         self.recorder.write("/settings", self.estimator.last_t, self.session.settings)
         if self.imu_applied is not None:  # each trial holds the calibration its front ends run, for a re-run
             self.recorder.write("/imu_calibration", self.estimator.last_t, self.imu_applied)
+        if self.gp_learning is not None:  # and the GP models its GP-EKF keeps from before it
+            for record in self.gp_learning.kept_records(self.estimator.last_t):
+                self.recorder.write("/gp_models", self.estimator.last_t, record)
         self._event("recording", f"recording started: {self.trial.name}")
         return self.trial
 

@@ -22,7 +22,9 @@ in the settings, the subject's leg length and mass, the sample period in the rec
 out on the times of the recorded ones and overlay them; its torque passes the live loop's last guard
 (:func:`~sessions.live.runtime.safe_torque`). In both modes the IMU mounting calibration the recording
 holds (its ``/imu_calibration`` messages: the one in force at the trial's start, and one made during it)
-is applied to the IMU front ends from where it was recorded, as it was live.
+is applied to the IMU front ends from where it was recorded, as it was live; and the GP-EKF (``gp_ekf``) does
+not retrain: it installs the model versions the recording holds (``/gp_models``) at the heel strikes where
+they were installed live (:class:`~sessions.gp_models.GPReplay`), so its outputs are those that ran.
 
 Frames are read lazily and the result is decimated on the fly (:class:`~sessions.formats.mcap_io.SeriesBuilder`),
 so a re-run of an hour-long trial needs memory for ``max_points`` rows, not for the hour. The estimator
@@ -49,10 +51,11 @@ from sessions.errors import DataFormatError
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
 from sessions.formats.mcap_io import SeriesBuilder, count_messages, iter_sensor_frames, read_messages, series_window
 from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, METADATA_NAME, SAMPLE_PERIOD_KEY
+from sessions.gp_models import GPReplay, gp_ekf_of
 from sessions.imu_calibration import apply_calibration
 from sessions.live.runtime import safe_torque
 from sessions.registry import OPT_IN, channels_of, feeds, redundant
-from sessions.schema import ImuCalibration, RerunChoices, SensorFrame, SessionSettings
+from sessions.schema import GPModelRecord, ImuCalibration, RerunChoices, SensorFrame, SessionSettings
 
 __all__ = ["recorded_settings", "recorded_stack", "rerun_choices", "rerun_series", "trial_channels"]
 
@@ -125,6 +128,8 @@ def rerun_series(
     estimator: FrameEstimator | None = None
     topics = ["/sensor", "/imu_calibration", "/settings"] if settings is None else ["/sensor", "/imu_calibration"]
     imu: ImuCalibration | None = None  # the IMU calibration the recording holds, applied as it was live
+    gp = _gp_replay(path)  # the GP-EKF's installs, each recorded after its heel strike: all read first
+    gp_ekf = None
     # Log-time order, equal times in file order: the order they were written in, so a /settings
     # message applies to the frames written after it, exactly as the change applied live.
     for topic, log_time, msg in read_messages(path, topics):
@@ -175,10 +180,14 @@ def rerun_series(
             stack = estimator.stack
             if imu is not None:
                 apply_calibration(stack, imu)
+            gp_ekf = gp_ekf_of(stack) if gp.active else None
             columns = [f"{name}.{o}" for name, outs in zip(stack.names, stack.outputs, strict=True) for o in outs]
             builder = SeriesBuilder(n, max_points, columns)
-        if not estimator.accepts(frame):
+        admission = estimator.admit(frame)
+        if admission.verdict == "order":
             continue  # reordered or repeated, skipped as live (not in gaitscope's own recordings)
+        if gp_ekf is not None:
+            gp.before(gp_ekf, admission.t, estimator.sample_period)
         state = estimator.step(frame, 0)
         torque = safe_torque(state.torque_Nm, current.max_torque_Nm)  # the live loop's last guard, as live
         if torque != state.torque_Nm:
@@ -264,6 +273,17 @@ def _settings(path: Path, log_time: int, msg: object) -> SessionSettings:
         return SessionSettings.model_validate(msg)
     except ValueError as exc:
         raise DataFormatError(f"bad /settings message at {log_time} ns: {exc}", file=str(path)) from exc
+
+
+def _gp_replay(path: Path) -> GPReplay:
+    """The recording's ``/gp_models`` records, ready to replay."""
+    replay = GPReplay()
+    for _, log_time, msg in read_messages(path, ["/gp_models"]):
+        try:
+            replay.add(GPModelRecord.model_validate(msg))
+        except ValueError as exc:
+            raise DataFormatError(f"bad /gp_models message at {log_time} ns: {exc}", file=str(path)) from exc
+    return replay
 
 
 def _imu_calibration(path: Path, log_time: int, msg: object) -> ImuCalibration:

@@ -138,6 +138,42 @@ def test_a_stack_with_broken_estimators_keeps_the_torque_finite_and_bounded(
     assert set(est.stack.failed) <= {e.name for e in extra}  # only the broken ones ever fail
 
 
+GP_FRAMES = st.lists(
+    st.fixed_dictionaries(
+        {"t": st.one_of(st.floats(-1e12, 1e12, allow_subnormal=True), st.floats(0.0, 5.0))},
+        optional={name: CHANNEL for name in ("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "foot_angle_deg")}
+        | {"heel_strike": st.booleans()},
+    ),
+    min_size=1,
+    max_size=60,
+)
+
+
+@SAFE
+@given(frames=GP_FRAMES, switch=st.tuples(st.integers(0, 60), st.sampled_from(["gp_ekf", "tbe"])))
+def test_the_gp_ekf_as_primary_keeps_the_torque_finite_and_bounded(
+    small_model: TrainedModel, frames: list[dict], switch: tuple[int, str]
+) -> None:
+    """The GP-EKF drives the torque with its own control surface (``sessions.stack``): whatever the joint
+    encoders and heel strikes say, and across primary switches, the command stays within the bound."""
+    settings = SessionSettings(
+        torque_gain=3.0, max_torque_Nm=MAX_TORQUE, primary="gp_ekf", estimators=["tbe", "gp_ekf"]
+    )
+    est = FrameEstimator(small_model, 0.9, 75.0, settings, 0.005, soft_start=False)
+    for k, fields in enumerate(frames):
+        if k == switch[0]:
+            est.retune(settings.model_copy(update={"primary": switch[1]}))
+        frame = SensorFrame.model_validate({"seq": k, **fields})
+        try:
+            state = est.step(frame, 0)
+        except FrameRefused:
+            continue
+        assert 0.0 <= state.torque_Nm <= MAX_TORQUE
+        assert _finite_state([state.phase, state.phase_rate, state.tbe_phase])
+        state.model_dump_json()
+    assert est.stack.failed == {}
+
+
 def test_a_huge_velocity_does_not_poison_the_filter(small_model: TrainedModel) -> None:
     """Reproduces the reported failure: one frame with foot_vel_dps = 1e50 made every later torque null."""
     est = FrameEstimator(small_model, 0.9, 75.0, SessionSettings(), 0.01, soft_start=False)

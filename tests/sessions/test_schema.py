@@ -16,6 +16,17 @@ EXAMPLES: dict[type[BaseModel], dict] = {
     schema.SensorFrame: {"seq": 1, "t": 0.01, "foot_angle_deg": 12.0, "heel_strike": True, "sent_ns": 5},
     schema.TorqueCommand: {"seq": 1, "t": 0.01, "torque_Nm": 3.5},
     schema.FoxgloveEvent: {"start_time": {"sec": 1, "nsec": 2}, "end_time": {"sec": 1, "nsec": 2}},
+    schema.GPLearningControl: {"action": "rollback", "version": 2, "actor": "dr-k", "reason": "stumbled"},
+    schema.GPModelRecord: {
+        "t": 12.5,
+        "what": "trained",
+        "version": 3,
+        "steps": [11, 15],
+        "span_s": [12.1, 17.4],
+        "rmse": {"hip angle": 1.1, "knee velocity": None},
+        "fit_s": 0.31,
+        "arrays": {"meta": {"shape": [5], "values": [3.0, 12.1, 17.4, 11.0, 15.0]}},
+    },
 }
 
 
@@ -46,6 +57,9 @@ def test_unknown_fields_and_bad_values_are_refused() -> None:
         schema.SettingsChange.model_validate({"max_torque_Nm": 81})
     with pytest.raises(ValidationError, match="string_pattern_mismatch"):
         schema.SubjectCreate.model_validate({"code": "../x", "leg_length_m": 0.9, "mass_kg": 70})
+    for body in ({"action": "rollback"}, {"action": "freeze", "version": 1}):
+        with pytest.raises(ValidationError, match="a rollback names the version to reinstall"):
+            schema.GPLearningControl.model_validate(body)
 
 
 # --- the sensor frame, version 2 -----------------------------------------------------------------

@@ -21,6 +21,7 @@ from sessions.live.sources import LiveDevice, frames_from_table
 from sessions.registry import ESTIMATORS, MissingChannels, StackContext, resolve
 from sessions.schema import PRIMARY_BLEND_S, GaitState, SensorFrame, SessionSettings
 from sessions.synth.cohort import CohortSpec, make_subjects
+from sessions.synth.speed_walks import SpeedProtocol, speed_walk
 from sessions.synth.trials import replay_columns, sensor_trial
 from tests.estimator_doubles import Scripted
 from tests.uploads import upload
@@ -230,6 +231,77 @@ def test_an_estimator_whose_retune_raises_fails_alone(small_model: TrainedModel,
     assert est.stack.failed == {"picky": "retune raised ValueError: cannot"}
     assert est.events == ["estimator picky failed: retune raised ValueError: cannot"]
     assert est.step(frames[0], 0).t == 0.0
+
+
+# --- a primary with its own torque: the GP-EKF's control surface (seed 003) --------------------------
+#: Seed 003's walk of VC01 at 100 Hz: speed 0.4-1.2 m/s, then a sudden stop in mid-stance (20.7 s, as in
+#: tests/estimators/test_gp_ekf.py) and standing
+SPEED_WALK = SpeedProtocol(walk_s=20.7, standing_s=6.0, rate_hz=1 / PERIOD)
+GP_SETTINGS = SETTINGS.model_copy(update={"primary": "gp_ekf", "estimators": ["phase_ekf", "tbe", "gp_ekf"]})
+
+
+@pytest.fixture(scope="module")
+def speed_walk_frames() -> tuple[list[SensorFrame], float, float]:
+    subject = make_subjects(CohortSpec())[0]
+    table = speed_walk(subject, SPEED_WALK)
+    channels = [c for c in table.columns if c in schema.CHANNELS]
+    return frames_from_table(table[["time_s", *channels]]), subject.leg_length_m, subject.mass_kg
+
+
+def _gp_outputs(est: FrameEstimator) -> dict[str, float]:
+    assert est.last is not None
+    k = est.stack.names.index("gp_ekf")
+    y = est.last.outputs[k]
+    assert y is not None
+    return dict(zip(est.stack.outputs[k], y.tolist(), strict=True))
+
+
+def test_the_gp_ekf_as_primary_drives_the_torque_with_its_own_control_surface(
+    small_model: TrainedModel, speed_walk_frames: tuple[list[SensorFrame], float, float]
+) -> None:
+    """Its ``torque_Nm`` (the surface over stance phase and phase rate), times the gain, within the bound,
+    to 0 standing: not the torque profile at its (stance) phase."""
+    frames, leg, mass = speed_walk_frames
+    commands = []
+    for gain, bound in ((2.0, 40.0), (3.0, 5.0)):
+        settings = GP_SETTINGS.model_copy(update={"torque_gain": gain, "max_torque_Nm": bound})
+        est = FrameEstimator(small_model, leg, mass, settings, PERIOD, soft_start=False)
+        torque, own, stance, still = [], [], [], []
+        for frame in frames:
+            torque.append(est.step(frame, 0).torque_Nm)
+            y = _gp_outputs(est)
+            own.append(y["torque_Nm"])
+            stance.append(y["in_stance"] == 1.0)
+            still.append(y["standing"])
+            assert torque[-1] == min(max(y["torque_Nm"] * gain, 0.0), bound) * (1.0 - y["standing"])
+        tau, surface, in_stance = np.array(torque), np.array(own), np.array(stance)
+        assert np.all(tau[~in_stance] == 0.0) and tau[in_stance].max() == min(surface.max() * gain, bound)
+        assert 0.5 * bound < tau.max() <= bound  # push-off: 0.2 x the biological moment, x the gain
+        standing = np.array(still) == 1.0  # the phase rate fell to 0 after the sudden stop
+        assert standing[-100:].all() and np.all(tau[standing] == 0.0) and tau[-1] == 0.0
+        commands.append(tau)
+    profile, _ = _run(small_model, speed_walk_frames, GP_SETTINGS.model_copy(update={"primary": "phase_ekf"}))
+    assert np.abs(_torque(profile) - commands[0]).max() > 10.0  # the profile at its phase: another torque
+
+
+def test_switching_to_the_gp_ekf_blends_from_the_profile_to_its_surface(
+    small_model: TrainedModel, speed_walk_frames: tuple[list[SensorFrame], float, float]
+) -> None:
+    ekf = _torque(_run(small_model, speed_walk_frames, GP_SETTINGS.model_copy(update={"primary": "phase_ekf"}))[0])
+    gp = _torque(_run(small_model, speed_walk_frames, GP_SETTINGS)[0])
+    settle = 300
+    normal = max(np.abs(np.diff(ekf[settle:])).max(), np.abs(np.diff(gp[settle:])).max())
+    k = settle + int(np.argmax(np.abs(ekf - gp)[settle:-100]))  # switch where they differ most
+    assert abs(ekf[k] - gp[k]) > 5.0
+    states, est = _run(
+        small_model, speed_walk_frames, GP_SETTINGS.model_copy(update={"primary": "phase_ekf"}), switch=(k, "gp_ekf")
+    )
+    blended = _torque(states)
+    assert np.abs(np.diff(blended))[k - 1 : k + 60].max() <= normal + BLEND_STEP + 1e-9
+    np.testing.assert_array_equal(blended[:k], ekf[:k])
+    done = k + round(PRIMARY_BLEND_S / PERIOD) + 1
+    np.testing.assert_array_equal(blended[done:], gp[done:])
+    assert est.primary == "gp_ekf"
 
 
 # --- sessions ------------------------------------------------------------------------------------------

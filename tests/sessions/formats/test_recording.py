@@ -218,6 +218,7 @@ def test_summary_names_encodings_and_metadata(recorded: Path) -> None:
             "/settings": ("gaitscope.SessionSettings", "jsonschema", "json"),
             "/events": ("foxglove.Event", "jsonschema", "json"),
             "/imu_calibration": ("gaitscope.ImuCalibration", "jsonschema", "json"),
+            "/gp_models": ("gaitscope.GPModelRecord", "jsonschema", "json"),
         }
         models: dict[str, type[BaseModel]] = {
             "/sensor": schema.SensorFrame,
@@ -226,6 +227,7 @@ def test_summary_names_encodings_and_metadata(recorded: Path) -> None:
             "/settings": schema.SessionSettings,
             "/events": schema.FoxgloveEvent,
             "/imu_calibration": schema.ImuCalibration,
+            "/gp_models": schema.GPModelRecord,
         }
         for c in summary.channels.values():
             assert summary.schemas[c.schema_id].data == json.dumps(models[c.topic].model_json_schema()).encode()
