@@ -10,9 +10,13 @@ export const EVENT_COLORS = { setting: "#c2410c", annotation: "#0b5cad", recordi
 
 function _value(field, v) {
   if (v === null || v === undefined) return "–";
+  if (field === "gp_ekf" && typeof v === "number") return `v${Math.round(v)}`; // the GP-EKF's model versions
   if (typeof v === "number") return fmt(v, (SETTING_LIMITS[field] && SETTING_LIMITS[field].digits) || 3);
   return String(v);
 }
+
+/** Event fields shown by another name than their machine name. */
+const FIELD_NAMES = { gp_ekf: "GP-EKF model" };
 
 /** A bounded list of `Event`s (at most `max`, newest kept), deduplicated by id. */
 export class EventList {
@@ -45,7 +49,7 @@ export class EventList {
 
   _render() {
     const rows = this.sorted().map((ev) => {
-      const change = ev.field ? `${ev.field}: ${_value(ev.field, ev.before)} → ${_value(ev.field, ev.after)}` : "";
+      const change = ev.field ? `${FIELD_NAMES[ev.field] || ev.field}: ${_value(ev.field, ev.before)} → ${_value(ev.field, ev.after)}` : "";
       const tr = h("tr", { "data-testid": "event-row", "data-kind": ev.kind, "data-id": ev.id, class: `kind-${ev.kind}` },
         h("td", { class: "num", text: fmt(ev.t, 1) }),
         h("td", {},

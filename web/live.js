@@ -3,11 +3,14 @@
 // of every estimator of the session's stack (the primary, which drives the torque, drawn widest). A stack with
 // the speed-change intent estimator (seed 001) adds its desired vs actual speed, its detections marked. The
 // hip and knee flexion come from the gait state's thigh and shank angles (sensed, or derived from raw IMUs by
-// the stack's front ends); a stack with the SDRE estimator (`sdre_knee`, seed 002) adds its knee, dashed.
+// the stack's front ends); a stack with the SDRE estimator (`sdre_knee`, seed 002) adds its knee, dashed. A stack
+// with the GP-EKF (`gp_ekf`, seed 003) gets its card (`gp_learning.js`): its phase is the STANCE phase, plotted
+// there and kept out of the gait-phase plot.
 
 import { api, errorText, openSessionStream } from "./api.js";
 import { actorSelect, mountControls } from "./controls.js";
 import { EVENT_COLORS, EventList } from "./events.js";
+import { GP_EKF, gpLearningCard } from "./gp_learning.js";
 import { COLORS, markersPlugin, Plot, Ring, StrideOverlay } from "./plots.js";
 import { errorBox, fmt, h, runAction, showError } from "./ui.js";
 
@@ -70,16 +73,21 @@ const ESTIMATOR_COLORS = [COLORS.blue, COLORS.orange, COLORS.green, COLORS.purpl
 /** Ring column of an estimator's phase (% of the cycle). */
 const estColumn = (name) => `est_${name}_pct`;
 
+/** Estimators whose `phase` output is a stance phase, not the gait phase (% of the cycle) the phase plot shows. */
+export const STANCE_PHASE = new Set([GP_EKF]);
+
 /**
- * The phase plot's spec for a stack: one line per estimator that estimates a phase (from a batch's
- * `estimators`), the primary widest and named; `failed` ones marked.
+ * The phase plot's spec for a stack: one line per estimator that estimates a gait phase (from a batch's
+ * `estimators`, less `STANCE_PHASE` ones), the primary widest and named; `failed` ones marked.
  * @param {string[]} names @param {string | null} primary @param {Set<string>} failed
  */
 export function phaseSpec(names, primary, failed) {
   const label = (n) => `${n}${n === primary ? " (primary: drives the torque)" : ""}${failed.has(n) ? " (failed)" : ""}`;
+  const title = !primary ? "Phase of every estimator; no primary: torque 0"
+    : STANCE_PHASE.has(primary) ? `Gait phase of every estimator; the torque follows ${primary}'s stance phase (its card)`
+      : `Phase of every estimator; the torque follows ${primary}`;
   return {
-    key: "phase", yLabel: "% of cycle", yRange: [0, 100],
-    title: primary ? `Phase of every estimator; the torque follows ${primary}` : "Phase of every estimator; no primary: torque 0",
+    key: "phase", yLabel: "% of cycle", yRange: [0, 100], title,
     cols: names.map(estColumn),
     series: names.map((n, i) => ({ label: label(n), color: ESTIMATOR_COLORS[i % ESTIMATOR_COLORS.length],
       width: n === primary ? 3 : 1.5, dash: n === primary ? undefined : [6, 4] })),
@@ -125,8 +133,9 @@ export function legView(focus) {
 
 export function mountLive(root, sessionId) {
   let ring = new Ring(RING_CAPACITY, COLUMNS);
-  // the session's estimators with a phase (known from the first batch), the one driving the torque, failures
-  const stack = { names: [], primary: null, failed: new Map(), key: "" };
+  // the session's estimators with a gait phase (known from the first batch; `phased`: with any phase, the
+  // primary's choices), the one driving the torque, failures
+  const stack = { names: [], phased: [], primary: null, failed: new Map(), key: "" };
   const overlay = new StrideOverlay(["torque_Nm", "foot_angle_deg", "phase_rate", "stride_length_m", "incline_deg"]);
   const events = new EventList("events-list");
   let intentMarks = []; // the detected intents, marked on the intent plot
@@ -156,6 +165,7 @@ export function mountLive(root, sessionId) {
     return [h("div", { class: "metric" }, h("span", { class: "label", text: label }), v, h("span", { class: "unit", text: unit })), v];
   };
   const [phaseCell, phaseV] = cell("phase", "Phase", "%");
+  const phaseLabel = phaseCell.querySelector(".label");
   const [cadCell, cadV] = cell("cadence", "Cadence", "strides/min");
   const [slCell, slV] = cell("stride-length", "Stride length", "m");
   const [spCell, spV] = cell("speed", "Speed", "m/s");
@@ -219,8 +229,10 @@ export function mountLive(root, sessionId) {
     health.primary.classList.toggle("warn", !stack.primary);
     health.failedEstimators.textContent = failed.size ? [...stack.failed].map(([n, why]) => `${n}: ${why}`).join("; ") : "none";
     health.failedEstimators.classList.toggle("warn", failed.size > 0);
-    const key = JSON.stringify([stack.names, stack.primary, [...failed]]);
-    if (key === stack.key || !stack.names.length) return; // the plot waits for the first batch's estimators
+    // a primary with a stance phase puts it in the gait state: the summary says which phase it shows
+    phaseLabel.textContent = STANCE_PHASE.has(stack.primary) ? `Stance phase (${stack.primary})` : "Phase";
+    const key = JSON.stringify([stack.names, stack.phased, stack.primary, [...failed]]);
+    if (key === stack.key || !stack.phased.length) return; // the plot waits for the first batch's estimators
     const cols = stack.names.map(estColumn);
     if (cols.some((c) => !ring.columns.includes(c))) {
       ring = new Ring(RING_CAPACITY, [...COLUMNS, ...cols]);
@@ -233,7 +245,7 @@ export function mountLive(root, sessionId) {
     phase.spec = phaseSpec(stack.names, stack.primary, failed);
     phase.plot = new Plot(phase.div, { ...phase.spec, xRange: follow });
     dataDirty = true;
-    const options = stack.names.filter((n) => !failed.has(n));
+    const options = stack.phased.filter((n) => !failed.has(n));
     if (JSON.stringify(options) !== JSON.stringify([...primarySelect.options].map((o) => o.value))) {
       primarySelect.replaceChildren(...options.map((n) => h("option", { value: n, text: n })));
     }
@@ -274,10 +286,12 @@ export function mountLive(root, sessionId) {
 
   // --- controls, events, leg view ------------------------------------------------------------------
   let subjectCode = "";
+  const gp = gpLearningCard(sessionId, () => localStorage.getItem("gaitscope.actor") || "clinician");
   const controls = mountControls(sessionId, {
     onEvent: (ev) => addEvents(ev),
     onSession: (s) => {
       title.textContent = `Session ${sessionId} · ${subjectCode || `subject ${s.subject_id}`} · ${s.source.kind} · ${s.state}`;
+      gp.setSession(s);
     },
   });
   const eventsCard = h("section", { class: "card", "data-testid": "events-card" }, h("h2", { text: "Events (newest first)" }), events.el);
@@ -285,7 +299,7 @@ export function mountLive(root, sessionId) {
   const layout = h("div", { class: "page live-page" },
     h("div", { class: "page-head" }, title, h("label", { class: "actor" }, "Acting as ", actorSelect()),
       h("a", { class: "button", href: "#/", text: "← Sessions" })),
-    summary, streamError,
+    summary, streamError, gp.el, // full width: its three joints side by side
     h("div", { class: "live-grid" },
       h("div", { class: "main-col" }, overlayCard, legView({ session_id: sessionId }), plotsBox),
       h("aside", { class: "side-col" }, healthCard, controls.el, eventsCard)));
@@ -314,8 +328,9 @@ export function mountLive(root, sessionId) {
     noteLatency(states);
     const est = estimators || {};
     const phased = Object.keys(est).filter((n) => est[n].columns && est[n].columns.phase);
-    if (phased.length && JSON.stringify(phased) !== JSON.stringify(stack.names)) {
-      stack.names = phased;
+    if (phased.length && JSON.stringify(phased) !== JSON.stringify(stack.phased)) {
+      stack.phased = phased;
+      stack.names = phased.filter((n) => !STANCE_PHASE.has(n));
       showStack();
     }
     for (const [n, e] of Object.entries(est)) {
@@ -325,6 +340,7 @@ export function mountLive(root, sessionId) {
       }
     }
     showIntent(est.intent);
+    gp.push(states, est[GP_EKF]);
     const intentCols = est.intent && est.intent.columns && est.intent.columns.desired_speed_m_s ? est.intent.columns : null;
     if (intentCols && intentDiv.hidden) intentDiv.hidden = false;
     const sdreKnee = est.sdre_knee && est.sdre_knee.columns ? est.sdre_knee.columns[SDRE_KNEE.col] : null;
@@ -396,6 +412,7 @@ export function mountLive(root, sessionId) {
     health.imu.textContent = { ok: "ok", fault: m.imu_note }[m.imu] || "–";
     health.imu.classList.toggle("warn", m.imu === "fault");
     if (m.estimators) {
+      gp.setStack(m.estimators);
       stack.primary = m.primary ?? null;
       stack.failed = new Map(Object.entries(m.failed_estimators || {}));
       showStack();
@@ -425,6 +442,7 @@ export function mountLive(root, sessionId) {
         case "event":
           addEvents(msg.event);
           if (msg.event.kind === "recording" || msg.event.kind === "system") controls.refreshRecording();
+          if (msg.event.field === GP_EKF) gp.onEvent();
           break;
         case "settings":
           controls.setSettings(msg.settings);
@@ -475,7 +493,8 @@ export function mountLive(root, sessionId) {
       phaseV.textContent = fmt(ring.last("phase_pct"), 1);
       health.t.textContent = `${fmt(ring.last("t"), 1)} s`;
       const st = overlay.lastStride; // the last complete stride, else the newest sample
-      const rate = st ? st.mean.phase_rate : ring.last("phase_rate");
+      // a stance-phase primary's rate is the stance's, not the stride's: the cadence is then the stride's duration
+      const rate = STANCE_PHASE.has(stack.primary) ? (st ? 1 / st.duration : NaN) : st ? st.mean.phase_rate : ring.last("phase_rate");
       const sl = st ? st.mean.stride_length_m : ring.last("stride_length_m");
       cadV.textContent = fmt(60 * rate, 1);
       slV.textContent = fmt(sl, 2);
@@ -483,6 +502,7 @@ export function mountLive(root, sessionId) {
       incV.textContent = fmt(st ? st.mean.incline_deg : ring.last("incline_deg"), 1);
       pkV.textContent = fmt(st ? st.peak.torque_Nm : NaN, 1);
     }
+    gp.frame(now);
   }
   raf = requestAnimationFrame(frame);
 
@@ -496,6 +516,7 @@ export function mountLive(root, sessionId) {
       for (const p of plots) p.plot.destroy();
       intentPlot.destroy();
       for (const b of bands) b.plot.destroy();
+      gp.destroy();
     },
   };
 }
