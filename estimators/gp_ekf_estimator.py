@@ -16,12 +16,17 @@ beyond +-4000 deg/s is missing for that sample.
 Outputs: ``phase`` is the STANCE phase (0 at heel strike, 1 at toe-off, held at 1 in swing and 0 before
 the first heel strike), named ``phase`` so that the session's plots show it; ``phase_rate`` (1/s);
 ``in_stance``, ``heel_strike``, ``toe_off`` (1.0 / 0.0); ``torque_Nm``, the control surface's command in
-stance (0 in swing); ``standing`` (0..1): in stance ``clip((hi - phidot) / (hi - lo), 0, 1)`` with
-``(lo, hi) = standing_rate`` (0.05, 0.3 /s: stances of 3-20 s are not walking), out of stance 1 after
-``standing_timeout_s`` without a heel strike; ``model_version`` (the installed models' version, 0 the
-population model); ``fault`` (:data:`~estimators.protocol.FAULTS`: 1 restarted after a gap, 2 the state
-was not finite and was reset); ``time_phase``, seed 003's time-based baseline ``t_n / T_(n-1)`` (at most 1).
-``state`` and ``covariance`` are the EKF's ``x = [phi, phidot]`` and ``P``.
+stance (0 in swing); ``standing`` (0..1): in stance ``clip((hi - phidot) / (hi - lo), 0, 1)`` with ``(lo,
+hi) = standing_rate`` (0.05, 0.3 /s: stances of 3-20 s are not walking), out of stance 1 after
+``standing_timeout_s`` without a heel strike, and beyond seed 003 a hold when still: every joint velocity
+present below ``still_dps`` (15 deg/s) for ``still_s`` (0.3 s) sets the rate to 0 (the angles alone then
+place the phase on the standing posture's) and ramps ``standing`` to 1 over ``still_ramp_s``; walking on
+restores the rate from before the hold (the paper's stiff filter otherwise runs on for a second after a
+sudden stop, which as the primary is push-off torque on a walker who has stopped); ``model_version`` (the
+installed models' version, 0 the population model); ``fault`` (:data:`~estimators.protocol.FAULTS`: 1
+restarted after a gap, 2 the state was not finite and was reset); ``time_phase``, seed 003's time-based
+baseline ``t_n / T_(n-1)`` (at most 1). ``state`` and ``covariance`` are the EKF's ``x = [phi, phidot]``
+and ``P``.
 
 The session layer drives retraining through :meth:`GPEKFEstimator.take_window`, :meth:`~GPEKFEstimator.offer`,
 ``frozen``, :meth:`~GPEKFEstimator.rollback` and :attr:`~GPEKFEstimator.installed` (see
@@ -269,12 +274,18 @@ class EstimatorConfig:
         standing_rate: ``(lo, hi)`` phase rates (1/s): ``standing`` is 1 at or below lo, 0 at or above hi.
         standing_timeout_s: out of stance, ``standing`` is 1 this long after the last heel strike.
         max_torque: bound of ``torque_Nm`` (N m).
+        still_dps, still_s, still_ramp_s: the hold when still (beyond seed 003, module docstring): every
+            joint velocity present below ``still_dps`` for ``still_s`` holds the filter and ramps
+            ``standing`` to 1 over ``still_ramp_s``; ``still_s`` 0 turns it off (the filter as published).
     """
 
     velocity_cutoff_hz: float = 20.0
     standing_rate: tuple[float, float] = (0.05, 0.3)
     standing_timeout_s: float = 2.0
     max_torque: float = 30.0
+    still_dps: float = 15.0
+    still_s: float = 0.3
+    still_ramp_s: float = 0.2
 
     def __post_init__(self) -> None:
         lo, hi = self.standing_rate
@@ -342,6 +353,8 @@ class GPEKFEstimator:
         self._t: float | None = None
         self._last_hs = -math.inf
         self._t0 = math.nan
+        self._still_since = math.nan  # when every joint velocity last fell below still_dps (NaN: moving)
+        self._held: tuple[float, float] | None = None  # the filter's phase and rate when the hold began
 
     def reset(self) -> None:
         """The initial models and state (tuning kept; retrained versions dropped)."""
@@ -349,6 +362,7 @@ class GPEKFEstimator:
         self.detector.reset()
         self._last[:] = self._vel[:] = np.nan
         self._t, self._last_hs, self._t0 = None, -math.inf, math.nan
+        self._still_since, self._held = math.nan, None
 
     def retune(self, **params: float) -> None:
         """``measurement_noise_scale`` (x the filter's ``R``) and ``torque_scale`` (the surface's fraction
@@ -370,6 +384,27 @@ class GPEKFEstimator:
     @property
     def covariance(self) -> Array:
         return self.filter.P
+
+    def _still(self, t: float, strike: bool) -> float:
+        """The hold when still: 0 moving, ramping to 1 over ``still_ramp_s`` once every joint velocity
+        present has been below ``still_dps`` for ``still_s`` (none present: moving). Records the filter's
+        phase and rate when the hold begins; a heel strike or any velocity above it ends the hold."""
+        s = self.settings
+        v = self._z[3:6]
+        present = v[np.isfinite(v)]
+        if s.still_s <= 0 or strike or not len(present) or np.abs(present).max() >= s.still_dps:
+            if self._held is not None and self.filter.in_stance:  # walking on: at the rate before the hold
+                self.filter.x[1] = self._held[1]
+            self._still_since, self._held = math.nan, None
+            return 0.0
+        if math.isnan(self._still_since):
+            self._still_since = t
+        held_for = t - self._still_since - s.still_s
+        if held_for < 0:
+            return 0.0
+        if self._held is None:
+            self._held = (float(self.filter.x[0]), float(self.filter.x[1]))
+        return min(1.0, held_for / s.still_ramp_s) if s.still_ramp_s > 0 else 1.0
 
     # retraining, for the session layer -----------------------------------------------------------------
     def take_window(self) -> TrainingWindow | None:
@@ -426,18 +461,21 @@ class GPEKFEstimator:
             strike = foot == foot and foot_vel == foot_vel and self.detector.detect(t, dt, foot, foot_vel)
         if strike:
             self._last_hs = t
+        still = self._still(t, strike)
         event = f.step(t, dt, self._z, strike)
+        if still > 0.0 and f.in_stance:  # held: rate 0, the angles alone place the phase (the posture's)
+            f.x[1] = 0.0
         if event & DIVERGED:
             fault = _DIVERGED
         phi, rate = float(f.x[0]), float(f.x[1])
         if f.in_stance:
             lo, hi = s.standing_rate
-            standing = min(max((hi - rate) / (hi - lo), 0.0), 1.0)
+            standing = max(min(max((hi - rate) / (hi - lo), 0.0), 1.0), still)
             torque = self.surface.torque_at(phi, rate, self.mass_kg, s.max_torque)
             tb = min((t - f.stance_start) * f.reset_rate, 1.0)
         else:
             since = t - (self._t0 if self._last_hs == -math.inf else self._last_hs)
-            standing = 1.0 if since > s.standing_timeout_s else 0.0
+            standing = max(1.0 if since > s.standing_timeout_s else 0.0, still)
             torque = 0.0
             phi = 0.0 if math.isnan(f.stance_start) else 1.0
             tb = phi

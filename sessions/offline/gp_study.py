@@ -40,7 +40,13 @@ from scipy.stats import wilcoxon
 
 from estimators.gp import FitOptions
 from estimators.gp_ekf import GPModelSet, fit_models
-from estimators.gp_ekf_estimator import COHORT_COLUMNS, ControlSurface, GPEKFEstimator, build_default
+from estimators.gp_ekf_estimator import (
+    COHORT_COLUMNS,
+    ControlSurface,
+    EstimatorConfig,
+    GPEKFEstimator,
+    build_default,
+)
 from sessions.registry import GP_EKF_COHORT
 from sessions.synth.cohort import CohortSpec, SubjectParams, generate_cohort, make_subjects
 from sessions.synth.speed_walks import SpeedProtocol, speed_walk
@@ -67,6 +73,10 @@ class SubjectRun:
     ekf_stop_error: float  # the GP-EKF's phase minus the frozen truth, mean over the last STOP_TAIL_S standing
     ekf_stop_rate: float  # its mean phase rate over the last STOP_TAIL_S standing (1/s)
     time_stop_error: float  # the same for the time-based phase
+    stop_torque_s: float  # s from the stop's start until the command (torque x (1 - standing)) stays < 1 N m
+    published_stop_error: float  # the same three for the filter as published (no hold when still)
+    published_stop_rate: float
+    published_stop_torque_s: float
     step_rmse: np.ndarray  # (CURVE_STEPS,) learning, per step from the first heel strike (%)
     step_rmse_frozen: np.ndarray  # the same filter frozen on the population model
     installed: tuple[int, ...]
@@ -89,11 +99,16 @@ def _population(frame: pd.DataFrame, exclude: str) -> tuple[GPModelSet, ControlS
 
 
 def _run(
-    walk: pd.DataFrame, start: tuple[GPModelSet, ControlSurface], mass_kg: float, learn: bool, options: FitOptions
+    walk: pd.DataFrame,
+    start: tuple[GPModelSet, ControlSurface],
+    mass_kg: float,
+    learn: bool,
+    options: FitOptions,
+    settings: EstimatorConfig | None = None,
 ) -> tuple[dict[str, np.ndarray], list[int], list[int], list[float]]:
     import time
 
-    est = GPEKFEstimator(*start, mass_kg=mass_kg)
+    est = GPEKFEstimator(*start, mass_kg=mass_kg, settings=settings)
     est.frozen = not learn
     names = [n for n, _ in est.outputs]
     z = walk[list(_INPUTS)].to_numpy(np.float64)
@@ -119,6 +134,15 @@ def _rmse(err: np.ndarray) -> float:
     return 100.0 * math.sqrt(float(np.mean(err**2))) if len(err) else math.nan
 
 
+def _torque_out_s(t: np.ndarray, cond: np.ndarray, out: dict[str, np.ndarray]) -> float:
+    """Seconds from the stop's start until the command (``torque_Nm x (1 - standing)``, as the stack makes
+    it when this estimator is primary) stays below 1 N m."""
+    command = out["torque_Nm"] * (1.0 - out["standing"])
+    stop = int(np.argmax(cond == "stopping"))
+    above = np.flatnonzero(command[stop:] >= 1.0)
+    return float(t[stop + above[-1] + 1] - t[stop]) if len(above) else 0.0
+
+
 def _per_step(walk: pd.DataFrame, phase: np.ndarray) -> np.ndarray:
     """Stance-phase RMSE (%) of each step's stance, from the first heel strike."""
     hs = np.flatnonzero(walk["heel_strike"].to_numpy() > 0)
@@ -139,6 +163,7 @@ def _subject(
     start = _population(population, subject.code)
     learned, installed, refused, walls = _run(walk, start, subject.mass_kg, True, options)
     frozen, _, _, _ = _run(walk, start, subject.mass_kg, False, options)
+    published, _, _, _ = _run(walk, start, subject.mass_kg, True, options, EstimatorConfig(still_s=0.0))
     truth = walk["gt_stance_phase"].to_numpy(np.float64)
     cond = walk["condition"].to_numpy()
     stance = np.isfinite(truth) & (cond == "walking")
@@ -155,6 +180,10 @@ def _subject(
         ekf_stop_error=float(np.mean(learned["phase"][tail] - truth[tail])),
         ekf_stop_rate=float(np.mean(learned["phase_rate"][tail])),
         time_stop_error=float(np.mean(learned["time_phase"][tail] - truth[tail])),
+        stop_torque_s=_torque_out_s(t, cond, learned),
+        published_stop_error=float(np.mean(published["phase"][tail] - truth[tail])),
+        published_stop_rate=float(np.mean(published["phase_rate"][tail])),
+        published_stop_torque_s=_torque_out_s(t, cond, published),
         step_rmse=_per_step(walk, learned["phase"]),
         step_rmse_frozen=_per_step(walk, frozen["phase"]),
         installed=tuple(installed),
@@ -217,15 +246,20 @@ def to_markdown(study: GPStudy) -> str:
         f"{study.fits} retrainings, {study.fit_s:.2f} s each on average (one core).",
         "",
         f"The sudden stop: over the last {STOP_TAIL_S:g} s of standing, each phase minus the stance phase the "
-        "walker stopped at (stance cycles), and the GP-EKF's mean phase rate (1/s).",
+        "walker stopped at (stance cycles) and the mean phase rate (1/s); and how long after the stop began "
+        "the command (`torque_Nm x (1 - standing)`, as the stack makes it with this estimator primary) was "
+        "still 1 N m or more. GP-EKF: with the hold when still (`docs/estimators.md`); as published: without.",
         "",
-        "| subject | stopped in | GP-EKF phase error | GP-EKF phase rate | time-based phase error |",
-        "|---|---|---|---|---|",
+        "| subject | stopped in | GP-EKF error | rate | torque out after | as published: error | rate | "
+        "torque out after | time-based error |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in study.runs:
         where = "stance" if r.stopped_in_stance else "swing"
         lines.append(
-            f"| {r.code} | {where} | {r.ekf_stop_error:+.3f} | {r.ekf_stop_rate:.3f} | {r.time_stop_error:+.3f} |"
+            f"| {r.code} | {where} | {r.ekf_stop_error:+.3f} | {r.ekf_stop_rate:.3f} | {r.stop_torque_s:.2f} s | "
+            f"{r.published_stop_error:+.3f} | {r.published_stop_rate:.3f} | {r.published_stop_torque_s:.2f} s | "
+            f"{r.time_stop_error:+.3f} |"
         )
     curve = learning_table(study)
     learned, frozen = curve["learning_rmse_pct"].to_numpy(), curve["frozen_rmse_pct"].to_numpy()

@@ -22,6 +22,7 @@ def test_the_gp_ekf_learns_beats_the_time_based_phase_and_freezes_at_a_stop(tmp_
         assert r.stopped_in_stance
         assert abs(r.ekf_stop_rate) < 0.05 and abs(r.ekf_stop_error) < 0.1  # frozen where it stopped ...
         assert r.time_stop_error > 0.2  # ... while the time-based phase ran on
+        assert r.stop_torque_s < 1.0 and r.stop_torque_s <= r.published_stop_torque_s  # the hold takes it out
         assert np.isfinite(r.step_rmse[:10]).all()
     md = to_markdown(study)
     assert "| VC01 |" in md and "Wilcoxon" in md and "Learning curve" in md
