@@ -133,12 +133,16 @@ def test_learning_card_bands_versions_freeze_and_rollback(
     expect(phase_legend).to_contain_text("tbe")
     expect(phase_legend).to_contain_text("phase_ekf")
     expect(phase_legend).not_to_contain_text("gp_ekf")
-    page.wait_for_timeout(4000)  # a few stances in the 10 s window
-    readings = _sweep(page, page.get_by_test_id("gp-stance-plot"), np.linspace(0.3, 0.98, 30))
-    pairs = [(r["t (s)"], r["stance phase"]) for r in readings]
-    assert all(t is not None and v is not None and 0.0 <= v <= 100.0 for t, v in pairs), pairs
-    stance = [(v, 100 * Device.stance(t)) for t, v in pairs if t is not None and v is not None]
-    in_stance = [(v, true) for v, true in stance if np.isfinite(true)]
+    in_stance: list[tuple[float, float]] = []
+    for _ in range(6):  # a few stances in the 10 s window (the device streams slower on a loaded machine)
+        page.wait_for_timeout(3000)
+        readings = _sweep(page, page.get_by_test_id("gp-stance-plot"), np.linspace(0.3, 0.98, 30))
+        pairs = [(r["t (s)"], r["stance phase"]) for r in readings]
+        assert all(t is not None and v is not None and 0.0 <= v <= 100.0 for t, v in pairs), pairs
+        stance = [(v, 100 * Device.stance(t)) for t, v in pairs if t is not None and v is not None]
+        in_stance = [(v, true) for v, true in stance if np.isfinite(true)]
+        if len(in_stance) >= 10:
+            break
     assert len(in_stance) >= 10, stance
     err = np.abs(np.subtract(*zip(*in_stance, strict=True)))
     assert float(np.median(err)) < 12.0, in_stance  # within a tenth of the stance, the population model's
