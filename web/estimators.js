@@ -38,6 +38,10 @@ const OVERLAID = [
   { output: "knee_sdre_deg", plot: "joints", what: "knee" },
 ];
 
+/** Estimators whose `phase` and `phase_rate` are of STANCE (0 at heel strike, 1 at toe-off: seed 003's GP-EKF),
+ * not of the gait cycle: kept off the gait-phase and phase-rate plots, where they would read as gait phase. */
+const STANCE_PHASE = new Set(["gp_ekf"]);
+
 const hasPhase = (name) => ESTIMATORS[name] !== undefined && "phase" in ESTIMATORS[name].outputs;
 
 /** "a", "a and b", "a, b and c" (or another conjunction). */
@@ -74,6 +78,7 @@ export function estimatorOverlay(names, res) {
       drawn[name].push(what);
     };
     for (const o of OVERLAID) {
+      if (STANCE_PHASE.has(name) && (o.output === "phase" || o.output === "phase_rate")) continue;
       const values = res[`${name}.${o.output}`];
       if (!values) continue;
       add(o.plot, `${name}.${o.output}`, o.scale ? values.map((v) => (v == null ? null : v * o.scale)) : values, o.what);
