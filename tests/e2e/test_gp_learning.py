@@ -17,16 +17,16 @@ from __future__ import annotations
 import functools
 import json
 import re
-import threading
 import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
-from websockets.sync.client import connect
+from websockets.sync.client import ClientConnection
 
 from tests.e2e import test_browser as tb
+from tests.e2e.devices import StreamingDevice, device_session
 from tests.e2e.test_fingerprints import _call
 from tests.e2e.test_joint_angles import _sweep
 
@@ -62,29 +62,19 @@ def _walk() -> tuple[list[dict[str, Any]], np.ndarray]:
     return frames, walk["gt_stance_phase"].to_numpy(np.float64)
 
 
-class Device(threading.Thread):
+class Device(StreamingDevice):
     """Sends the walk once at ``SEND_HZ``, each frame answered by a torque; session time is the frames' time."""
 
-    def __init__(self, base: str, session_id: int):
-        super().__init__(daemon=True)
-        self.url = base.replace("http://", "ws://") + f"/ws/devices/{session_id}"
-        self.stop = threading.Event()
-        self.error: BaseException | None = None
-
-    def run(self) -> None:
+    def stream(self, ws: ClientConnection) -> None:
         frames, _ = _walk()
-        try:
-            with connect(self.url) as ws:
-                start = time.monotonic()
-                for k, frame in enumerate(frames):
-                    if self.stop.is_set():
-                        break
-                    ws.send(json.dumps({**frame, "seq": k}))
-                    ws.recv(timeout=5)
-                    if (wait := start + (k + 1) / SEND_HZ - time.monotonic()) > 0:
-                        time.sleep(wait)
-        except BaseException as e:
-            self.error = e
+        start = time.monotonic()
+        for k, frame in enumerate(frames):
+            if self.stop.is_set():
+                break
+            ws.send(json.dumps({**frame, "seq": k}))
+            ws.recv(timeout=5)
+            if (wait := start + (k + 1) / SEND_HZ - time.monotonic()) > 0:
+                time.sleep(wait)
 
     @staticmethod
     def stance(t: float) -> float:
@@ -96,19 +86,8 @@ class Device(threading.Thread):
 @pytest.fixture
 def gp_session(server: str) -> Iterator[tuple[int, Device]]:
     _walk()  # made before the session starts, so that the device streams at once
-    subject = _call(server, "POST", "/api/subjects", {"code": "GPE1", "leg_length_m": 0.9, "mass_kg": 70.0})
-    source = {"kind": "device", "rate_hz": RATE, "channels": CHANNELS}
-    body = {"subject_id": subject["id"], "source": source, "settings": {"estimators": STACK}}
-    session = _call(server, "POST", "/api/sessions", body)
-    device = Device(server, session["id"])
-    device.start()
-    try:
-        yield session["id"], device
-    finally:
-        device.stop.set()
-        device.join(timeout=10)
-        if _call(server, "GET", f"/api/sessions/{session['id']}")["state"] == "running":  # the test stops it
-            _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+    with device_session(server, "GPE1", RATE, CHANNELS, Device, STACK) as opened:
+        yield opened
 
 
 def _version(page: Page) -> int:

@@ -13,10 +13,10 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from websockets.sync.client import connect
+from websockets.sync.client import ClientConnection
 
 from tests.e2e import test_browser as tb
-from tests.e2e.test_fingerprints import _call
+from tests.e2e.devices import StreamingDevice, device_session
 from tests.server.test_imu_calibration import IMU_CHANNELS, RATE, _standing, _walking
 
 playwright_api = pytest.importorskip("playwright.sync_api")
@@ -28,53 +28,37 @@ browser = tb.browser
 watched = tb.watched
 
 
-class Device(threading.Thread):
+class Device(StreamingDevice):
     """Streams frames in real time (100 Hz) to a device session: standing, or walking once asked to."""
 
     def __init__(self, base: str, session_id: int):
-        super().__init__(daemon=True)
-        self.url = base.replace("http://", "ws://") + f"/ws/devices/{session_id}"
+        super().__init__(base, session_id)
         self.walking = threading.Event()
-        self.stop = threading.Event()
-        self.error: BaseException | None = None
 
-    def run(self) -> None:
-        try:
-            with connect(self.url) as ws:
-                t, seq = 0.0, 0
-                while not self.stop.is_set():
-                    frames: list[dict[str, Any]] = _walking(t) if self.walking.is_set() else _standing(t, 1.0, seq)
-                    for frame in frames:
-                        if self.stop.is_set():
-                            break
-                        ws.send(json.dumps({**frame, "seq": seq}))
-                        ws.recv(timeout=5)
-                        seq += 1
-                        t = frame["t"] + 1.0 / RATE
-                        time.sleep(1.0 / RATE)
-        except BaseException as e:
-            self.error = e
+    def stream(self, ws: ClientConnection) -> None:
+        t, seq = 0.0, 0
+        while not self.stop.is_set():
+            frames: list[dict[str, Any]] = _walking(t) if self.walking.is_set() else _standing(t, 1.0, seq)
+            for frame in frames:
+                if self.stop.is_set():
+                    break
+                ws.send(json.dumps({**frame, "seq": seq}))
+                ws.recv(timeout=5)
+                seq += 1
+                t = frame["t"] + 1.0 / RATE
+                time.sleep(1.0 / RATE)
 
 
 @pytest.fixture
-def device_session(server: str) -> Iterator[tuple[int, Device]]:
-    subject = _call(server, "POST", "/api/subjects", {"code": "IMU1", "leg_length_m": 0.9, "mass_kg": 70.0})
-    source = {"kind": "device", "rate_hz": RATE, "channels": IMU_CHANNELS}
-    session = _call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
-    device = Device(server, session["id"])
-    device.start()
-    try:
-        yield session["id"], device
-    finally:
-        device.stop.set()
-        device.join(timeout=10)
-        _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+def imu_device(server: str) -> Iterator[tuple[int, Device]]:
+    with device_session(server, "IMU1", RATE, IMU_CHANNELS, Device) as opened:
+        yield opened
 
 
 def test_calibrate_from_the_live_view_then_refused_while_walking(
-    server: str, watched: tb.Watched, device_session: tuple[int, Device]
+    server: str, watched: tb.Watched, imu_device: tuple[int, Device]
 ) -> None:
-    sid, device = device_session
+    sid, device = imu_device
     page = watched.page
     page.goto(f"{server}/#/sessions/{sid}")
     card = page.get_by_test_id("imu-card")

@@ -13,18 +13,18 @@ import functools
 import json
 import math
 import re
-import threading
 import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
-from websockets.sync.client import connect
+from websockets.sync.client import ClientConnection
 
 from estimators.imu_frontend import imu_inputs
 from tests.e2e import test_browser as tb
-from tests.e2e.test_fingerprints import _call, _record
+from tests.e2e.devices import StreamingDevice, device_session
+from tests.e2e.test_fingerprints import _record
 
 if TYPE_CHECKING:
     from playwright.sync_api import Locator, Page
@@ -58,32 +58,25 @@ def _walk() -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
     return frames, {k: v.to_numpy(np.float64) for k, v in truth.items()}
 
 
-class Device(threading.Thread):
+class Device(StreamingDevice):
     """Sends the walk in real time, over and over (session time running on), each frame answered by a torque."""
 
     def __init__(self, base: str, session_id: int):
-        super().__init__(daemon=True)
-        self.url = base.replace("http://", "ws://") + f"/ws/devices/{session_id}"
-        self.stop = threading.Event()
-        self.error: BaseException | None = None
+        super().__init__(base, session_id)
         self.period = len(_walk()[0]) / RATE  # s: the walk's length; the n-th pass starts at n periods
 
-    def run(self) -> None:
+    def stream(self, ws: ClientConnection) -> None:
         frames, _ = _walk()
-        try:
-            with connect(self.url) as ws:
-                seq = 0
-                while not self.stop.is_set():
-                    for k, frame in enumerate(frames):
-                        if self.stop.is_set():
-                            break
-                        lap = seq // len(frames)
-                        ws.send(json.dumps({**frame, "t": lap * self.period + k / RATE, "seq": seq}))
-                        ws.recv(timeout=5)
-                        seq += 1
-                        time.sleep(1.0 / RATE)
-        except BaseException as e:
-            self.error = e
+        seq = 0
+        while not self.stop.is_set():
+            for k, frame in enumerate(frames):
+                if self.stop.is_set():
+                    break
+                lap = seq // len(frames)
+                ws.send(json.dumps({**frame, "t": lap * self.period + k / RATE, "seq": seq}))
+                ws.recv(timeout=5)
+                seq += 1
+                time.sleep(1.0 / RATE)
 
     def truth(self, angle: str, t: float) -> float:
         """The simulated ``thigh`` or ``knee`` angle (deg) at session time ``t``."""
@@ -93,18 +86,8 @@ class Device(threading.Thread):
 
 @pytest.fixture
 def imu_session(server: str) -> Iterator[tuple[int, Device]]:
-    subject = _call(server, "POST", "/api/subjects", {"code": "JNT1", "leg_length_m": 0.9, "mass_kg": 70.0})
-    source = {"kind": "device", "rate_hz": RATE, "channels": CHANNELS}
-    body = {"subject_id": subject["id"], "source": source, "settings": {"estimators": STACK}}
-    session = _call(server, "POST", "/api/sessions", body)
-    device = Device(server, session["id"])
-    device.start()
-    try:
-        yield session["id"], device
-    finally:
-        device.stop.set()
-        device.join(timeout=10)
-        _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+    with device_session(server, "JNT1", RATE, CHANNELS, Device, STACK) as opened:
+        yield opened
 
 
 def _number(text: str) -> float | None:

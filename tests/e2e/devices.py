@@ -1,0 +1,64 @@
+"""A simulated device streaming to a live session over the real websocket, for the e2e tests.
+
+Each test module subclasses :class:`StreamingDevice` with what it sends (``stream``) and opens a session
+for it with :func:`device_session`: subject, device session (its channels declared, its estimator stack
+if given), the device thread started, and on the way out the device stopped and the session stopped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+from collections.abc import Iterator
+from typing import Any, TypeVar
+
+from websockets.sync.client import ClientConnection, connect
+
+from tests.e2e.test_fingerprints import _call
+
+
+class StreamingDevice(threading.Thread):
+    """A device thread: ``stream(ws)`` sends until ``stop`` is set; an exception is kept in ``error``."""
+
+    def __init__(self, base: str, session_id: int):
+        super().__init__(daemon=True)
+        self.url = base.replace("http://", "ws://") + f"/ws/devices/{session_id}"
+        self.stop = threading.Event()
+        self.error: BaseException | None = None
+
+    def stream(self, ws: ClientConnection) -> None:
+        raise NotImplementedError
+
+    def run(self) -> None:
+        try:
+            with connect(self.url) as ws:
+                self.stream(ws)
+        except BaseException as e:
+            self.error = e
+
+
+D = TypeVar("D", bound=StreamingDevice)
+
+
+@contextlib.contextmanager
+def device_session(
+    server: str, code: str, rate_hz: float, channels: list[str], device: type[D], estimators: list[str] | None = None
+) -> Iterator[tuple[int, D]]:
+    """A subject ``code``'s device session streamed by a started ``device``; stopped (if still running) after."""
+    subject = _call(server, "POST", "/api/subjects", {"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
+    body: dict[str, Any] = {
+        "subject_id": subject["id"],
+        "source": {"kind": "device", "rate_hz": rate_hz, "channels": channels},
+    }
+    if estimators is not None:
+        body["settings"] = {"estimators": estimators}
+    session = _call(server, "POST", "/api/sessions", body)
+    streaming = device(server, session["id"])
+    streaming.start()
+    try:
+        yield session["id"], streaming
+    finally:
+        streaming.stop.set()
+        streaming.join(timeout=10)
+        if _call(server, "GET", f"/api/sessions/{session['id']}")["state"] == "running":
+            _call(server, "POST", f"/api/sessions/{session['id']}/stop")
