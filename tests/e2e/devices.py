@@ -12,7 +12,8 @@ import threading
 from collections.abc import Iterator
 from typing import Any, TypeVar
 
-from websockets.sync.client import ClientConnection, connect
+from websockets.sync.client import connect
+from websockets.sync.connection import Connection
 
 from tests.e2e.test_fingerprints import _call
 
@@ -26,7 +27,7 @@ class StreamingDevice(threading.Thread):
         self.stop = threading.Event()
         self.error: BaseException | None = None
 
-    def stream(self, ws: ClientConnection) -> None:
+    def stream(self, ws: Connection) -> None:
         raise NotImplementedError
 
     def run(self) -> None:

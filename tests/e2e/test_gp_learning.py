@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
-from websockets.sync.client import ClientConnection
+from websockets.sync.connection import Connection
 
 from tests.e2e import test_browser as tb
 from tests.e2e.devices import StreamingDevice, device_session
@@ -65,7 +65,7 @@ def _walk() -> tuple[list[dict[str, Any]], np.ndarray]:
 class Device(StreamingDevice):
     """Sends the walk once at ``SEND_HZ``, each frame answered by a torque; session time is the frames' time."""
 
-    def stream(self, ws: ClientConnection) -> None:
+    def stream(self, ws: Connection) -> None:
         frames, _ = _walk()
         start = time.monotonic()
         for k, frame in enumerate(frames):

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from websockets.sync.client import ClientConnection
+from websockets.sync.connection import Connection
 
 from tests.e2e import test_browser as tb
 from tests.e2e.devices import StreamingDevice, device_session
@@ -35,7 +35,7 @@ class Device(StreamingDevice):
         super().__init__(base, session_id)
         self.walking = threading.Event()
 
-    def stream(self, ws: ClientConnection) -> None:
+    def stream(self, ws: Connection) -> None:
         t, seq = 0.0, 0
         while not self.stop.is_set():
             frames: list[dict[str, Any]] = _walking(t) if self.walking.is_set() else _standing(t, 1.0, seq)

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
-from websockets.sync.client import ClientConnection
+from websockets.sync.connection import Connection
 
 from estimators.imu_frontend import imu_inputs
 from tests.e2e import test_browser as tb
@@ -65,7 +65,7 @@ class Device(StreamingDevice):
         super().__init__(base, session_id)
         self.period = len(_walk()[0]) / RATE  # s: the walk's length; the n-th pass starts at n periods
 
-    def stream(self, ws: ClientConnection) -> None:
+    def stream(self, ws: Connection) -> None:
         frames, _ = _walk()
         seq = 0
         while not self.stop.is_set():
