@@ -115,7 +115,7 @@ def test_learning_card_bands_versions_freeze_and_rollback(
     in_stance: list[tuple[float, float]] = []
     for _ in range(6):  # a few stances in the 10 s window (the device streams slower on a loaded machine)
         page.wait_for_timeout(3000)
-        readings = _sweep(page, page.get_by_test_id("gp-stance-plot"), np.linspace(0.3, 0.98, 30))
+        readings = _sweep(page, page.get_by_test_id("gp-stance-plot"), np.linspace(0.3, 0.98, 60))
         pairs = [(r["t (s)"], r["stance phase"]) for r in readings]
         assert all(t is not None and v is not None and 0.0 <= v <= 100.0 for t, v in pairs), pairs
         stance = [(v, 100 * Device.stance(t)) for t, v in pairs if t is not None and v is not None]
