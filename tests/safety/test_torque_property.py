@@ -83,15 +83,19 @@ def test_frame_estimator_torque_is_finite_and_bounded(small_model: TrainedModel,
         state.model_dump_json()  # serialisable, no NaN for JSON to turn into null
 
 
-FRAMES = st.lists(
-    st.fixed_dictionaries(
-        {"t": st.one_of(st.floats(-1e12, 1e12, allow_subnormal=True), st.floats(0.0, 5.0))},
-        optional={name: CHANNEL for name in ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps")}
-        | {"heel_strike": st.booleans()},
-    ),
-    min_size=1,
-    max_size=40,
-)
+def _frames(channels: tuple[str, ...], max_size: int) -> st.SearchStrategy[list[dict]]:
+    """Frames with any time (absurd ones among them), any subset of ``channels`` at any value, heel strikes."""
+    return st.lists(
+        st.fixed_dictionaries(
+            {"t": st.one_of(st.floats(-1e12, 1e12, allow_subnormal=True), st.floats(0.0, 5.0))},
+            optional={name: CHANNEL for name in channels} | {"heel_strike": st.booleans()},
+        ),
+        min_size=1,
+        max_size=max_size,
+    )
+
+
+FRAMES = _frames(("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps"), 40)
 BREAKS = st.lists(
     st.tuples(st.sampled_from(["raise_after", "nan_after", "diverge_after"]), st.integers(0, 40)), max_size=3
 )
@@ -138,15 +142,7 @@ def test_a_stack_with_broken_estimators_keeps_the_torque_finite_and_bounded(
     assert set(est.stack.failed) <= {e.name for e in extra}  # only the broken ones ever fail
 
 
-GP_FRAMES = st.lists(
-    st.fixed_dictionaries(
-        {"t": st.one_of(st.floats(-1e12, 1e12, allow_subnormal=True), st.floats(0.0, 5.0))},
-        optional={name: CHANNEL for name in ("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "foot_angle_deg")}
-        | {"heel_strike": st.booleans()},
-    ),
-    min_size=1,
-    max_size=60,
-)
+GP_FRAMES = _frames(("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "foot_angle_deg"), 60)
 
 
 @SAFE

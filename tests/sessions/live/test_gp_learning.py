@@ -89,6 +89,20 @@ def _send(client: TestClient, sid: int, device: WebSocketTestSession, frames: li
             assert done, "a fit took over 2 minutes"
 
 
+def _send_until_a_fit(client: TestClient, sid: int, device: WebSocketTestSession, frames: list[dict[str, Any]]) -> None:
+    """Send the frames not sent yet, each after the last one's torque came back, up to the one whose window
+    went to the worker (its fit left running)."""
+    runtime = _runtime(client, sid)
+    learning = runtime.gp_learning
+    assert learning is not None
+    for frame in frames[runtime.samples :]:
+        device.send_text(json.dumps({**frame, "type": "frame", "seq": runtime.samples}))
+        assert json.loads(device.receive_text())["type"] == "torque"
+        if learning.fitting is not None:
+            return
+    raise AssertionError("no fit was submitted")
+
+
 def _gp_events(client: TestClient, sid: int) -> list[dict[str, Any]]:
     return [e for e in client.get(f"/api/sessions/{sid}/events").json() if e["field"] == "gp_ekf"]
 
@@ -389,11 +403,7 @@ def test_a_worker_that_dies_is_an_event_and_the_next_fit_gets_a_new_one(
     learning = runtime.gp_learning
     assert learning is not None
     with client.websocket_connect(f"/ws/devices/{sid}") as device:
-        for frame in frames:  # up to the first window's submission
-            device.send_text(json.dumps({**frame, "type": "frame", "seq": runtime.samples}))
-            assert json.loads(device.receive_text())["type"] == "torque"
-            if learning.fitting is not None:
-                break
+        _send_until_a_fit(client, sid, device, frames)
         pool = learning.trainer._pool  # the worker process of the server's ProcessPoolExecutor
         (pid,) = pool._processes  # type: ignore[union-attr]
         os.kill(pid, signal.SIGKILL)
@@ -416,11 +426,7 @@ def test_a_session_stopped_during_a_fit_stops_cleanly_and_the_worker_serves_the_
     learning = runtime.gp_learning
     assert learning is not None
     with client.websocket_connect(f"/ws/devices/{sid}") as device:
-        for frame in frames:
-            device.send_text(json.dumps({**frame, "type": "frame", "seq": runtime.samples}))
-            assert json.loads(device.receive_text())["type"] == "torque"
-            if learning.fitting is not None:
-                break
+        _send_until_a_fit(client, sid, device, frames)
         fit = learning.fitting
     path = _stop(client, sid)  # the device gone, the fit under way (GPy's import alone takes a second)
     assert fit is not None and learning.fitting is None
