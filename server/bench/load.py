@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from server.bench.launch import start_server
-from sessions.registry import OPT_IN, feeds, redundant
+from sessions.formats.models import default_model_path, load_model
+from sessions.registry import StackContext, resolve
 from sessions.synth.trials import replay_input, sensor_trial
 
 #: What a device adds for the GP-EKF (``--gp-ekf``): joint encoders and its heel-strike sensor.
@@ -181,8 +182,9 @@ def _run(
     device = {"kind": "device", "rate_hz": rate, "channels": list(signals)}
     body: dict[str, object] = {"subject_id": subject["id"], "source": device}
     if gp_ekf:
-        runs = feeds(signals)
-        stack = [n for n, f in runs.items() if not f.missing and n not in OPT_IN and not redundant(n, signals)]
+        # the stack the server would choose for these channels (the registry's own rule), and the GP-EKF
+        built = StackContext(load_model(default_model_path())[0], 0.9, 70.0, 1.0 / rate)
+        stack = [e.name for e in resolve(None, signals, built)]
         body["settings"] = {"estimators": [*stack, "gp_ekf"]}
     ids = [int(_post(base, "/api/sessions", body)["id"]) for _ in range(sessions)]  # type: ignore[call-overload]
     now = time.time()
