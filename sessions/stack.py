@@ -147,6 +147,7 @@ class EstimatorStack:
         self._inputs = [input_names(e) for e in self.estimators]
         self._index = [{n: i for i, n in enumerate(outs)} for outs in self.outputs]
         self._derived = [[(i, n) for i, n in enumerate(outs) if n in _CHANNELS] for outs in self.outputs]
+        self._imu_code = [index.get("imu_code") for index in self._index]  # a front end's problem code
         #: each estimator's own torque command output (``torque_Nm``), None for those without one
         self._own_torque = [idx.get(OWN_TORQUE) for idx in self._index]
         self._position = {n: k for k, n in enumerate(self.names)}
@@ -251,7 +252,7 @@ class EstimatorStack:
                 outputs.append(None)
                 continue
             outputs.append(y)
-            code = self._index[k].get("imu_code")
+            code = self._imu_code[k]
             if code is None or y[code] != _IMU_MISSING:  # a held reading is not a measurement
                 for i, channel in self._derived[k]:
                     if math.isnan(channels.get(channel, math.nan)):

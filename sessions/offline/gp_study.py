@@ -30,6 +30,7 @@ Reported:
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Final
@@ -106,8 +107,6 @@ def _run(
     options: FitOptions,
     settings: EstimatorConfig | None = None,
 ) -> tuple[dict[str, np.ndarray], list[int], list[int], list[float]]:
-    import time
-
     est = GPEKFEstimator(*start, mass_kg=mass_kg, settings=settings)
     est.frozen = not learn
     names = [n for n, _ in est.outputs]
