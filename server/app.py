@@ -24,10 +24,10 @@ from server.origin import AllowedHostsMiddleware, SameOriginMiddleware
 from server.routes import ROUTERS, Uploads, install_error_handlers
 from server.settings import Settings
 from sessions import schema
-from sessions.estimation import warm_up
 from sessions.formats.models import gaitscope_version
 from sessions.live.disk import DiskGuard
 from sessions.live.manager import ModelStore, SessionManager
+from sessions.live.warmup import warm_up
 from sessions.store import Store
 
 log = logging.getLogger("gaitscope")

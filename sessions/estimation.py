@@ -420,27 +420,6 @@ _STEPPED: Final = frozenset(
 )  # fmt: skip
 
 
-def warm_up(model: TrainedModel, samples: int = 60) -> None:
-    """Run a throw-away estimator over a short synthetic walk so that every compiled kernel is built.
-
-    numba compiles on first call (about 25 s on a cold cache, then cached on disk): done at server
-    start-up, before it answers, so that the first session does not stall the event loop.
-    """
-    est = FrameEstimator(model, 0.9, 75.0, SessionSettings(), DEFAULT_PERIOD)
-    for k in range(samples):
-        w = 2.0 * math.pi * k * DEFAULT_PERIOD
-        frame = SensorFrame(
-            seq=k,
-            t=k * DEFAULT_PERIOD,
-            foot_angle_deg=20.0 * math.sin(w),
-            shank_angle_deg=15.0 * math.sin(w - 0.4),
-            heel_forward_m=0.2 * math.cos(w),
-            heel_up_m=-0.85 + 0.05 * math.sin(w),
-            heel_strike=k % 40 == 0,
-        )
-        est.step(frame, 0)
-
-
 #: Left out of a recorded sensor frame's own JSON: its time, which the recording puts first in session time.
 _T: Final = {"t"}
 _TORQUE: Final = '{"type":"torque","seq":%d,"t":%r,"torque_Nm":%r}'

@@ -94,12 +94,6 @@ def _version(page: Page) -> int:
     return int(page.get_by_test_id("gp-version").get_attribute("data-version") or "-1")
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="open bug: in a fresh clone's CI run the e2e server's GP-EKF installed no model within 70 s and reported no "
-    "learning event (the same test passes in a warm work tree; the in-process learning tests pass in both); see the "
-    "closing note of 2026-11-24",
-)
 def test_learning_card_bands_versions_freeze_and_rollback(
     server: str, watched: tb.Watched, gp_session: tuple[int, Device]
 ) -> None:
@@ -128,13 +122,13 @@ def test_learning_card_bands_versions_freeze_and_rollback(
         in_stance = [(v, true) for v, true in stance if np.isfinite(true)]
         if len(in_stance) >= 10:
             break
-    assert len(in_stance) >= 5, stance
+    assert len(in_stance) >= 10, stance
     err = np.abs(np.subtract(*zip(*in_stance, strict=True)))
     assert float(np.median(err)) < 12.0, in_stance  # within a tenth of the stance, the population model's
 
     # --- retraining: a new version installed, its bands drawn, an event with its window and fit ----------
-    # the first fit waits for the worker process to start and import GPy (and, in a fresh clone, for numba to
-    # compile); a window the held-back check refuses is retried 5 steps later
+    # the first fit waits for the worker process to start and import GPy; a window the held-back check refuses
+    # is retried 5 steps later
     version = page.get_by_test_id("gp-version")
     try:
         expect(version).to_have_text(re.compile(r"^v[1-9]\d*$"), timeout=70_000)
@@ -149,7 +143,10 @@ def test_learning_card_bands_versions_freeze_and_rollback(
         expect(legend).to_contain_text(f"v{first} mean")
         expect(legend).to_contain_text("(previous)")  # the version before it, faintly
         for r in _sweep(page, plot, np.linspace(0.1, 0.9, 5)):
-            mean, lo, hi, prev = r[f"v{first} mean"], r["−2 SD"], r["+2 SD"], r[next(k for k in r if "previous" in k)]
+            # the mean of v{first}, or of a newer version installed since (learning goes on meanwhile)
+            mean_label = next(k for k in r if re.fullmatch(r"v\d+ mean", k))
+            assert int(mean_label[1:].split()[0]) >= first, r
+            mean, lo, hi, prev = r[mean_label], r["−2 SD"], r["+2 SD"], r[next(k for k in r if "previous" in k)]
             assert mean is not None and lo is not None and hi is not None and prev is not None, r
             assert lo < mean < hi and hi - lo < 40.0, r  # a band of a few degrees about the mean
     rows = page.get_by_test_id("event-row").filter(has_text="GP model v1 trained on steps 1-5")

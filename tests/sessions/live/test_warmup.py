@@ -1,0 +1,79 @@
+"""The server's start-up warm-up (:mod:`sessions.live.warmup`) compiles every numba kernel a session calls:
+in a fresh process, after :func:`warm_up`, sessions of every feedable estimator (opt-in ones included) over
+realistic walks compile nothing more. Run in a subprocess, since this process may have compiled kernels
+already; numba's on-disk cache may serve the compiled code (a cache load counts as compiled)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[3]
+
+SCRIPT = textwrap.dedent(
+    """
+    import importlib, json, pkgutil
+
+    import numpy as np
+    from numba.core.registry import CPUDispatcher
+
+    import estimators
+    from sessions.estimation import FrameEstimator
+    from sessions.formats.models import default_model_path, load_model
+    from sessions.live.sources import frames_from_table
+    from sessions.live.warmup import warm_up
+    from sessions.registry import channels_of, feeds
+    from sessions.schema import SessionSettings
+    from sessions.synth.cohort import CohortSpec, make_subjects
+    from sessions.synth.speed_walks import SpeedProtocol, speed_walk
+    from sessions.synth.trials import sensor_trial
+
+    def compiled():
+        out = {}
+        for m in pkgutil.iter_modules(estimators.__path__):
+            mod = importlib.import_module(f"estimators.{m.name}")
+            for name, v in vars(mod).items():
+                if isinstance(v, CPUDispatcher) and v.__module__ == mod.__name__:
+                    out[f"{mod.__name__}.{name}"] = len(v.signatures)
+        return out
+
+    model = load_model(default_model_path())[0]
+    cold = compiled()
+    warm_up(model)
+    warm = compiled()
+    sensors, _, _ = sensor_trial([(1.0, 0.0, 6), (0.6, 5.0, 4)], rate_hz=200.0)
+    speeds = speed_walk(make_subjects(CohortSpec())[0], SpeedProtocol(walk_s=12.0, standing_s=1.0, rate_hz=200.0))
+    ran = set()
+    for table in (sensors, speeds):
+        frames = frames_from_table(table)
+        channels = channels_of(frames)
+        names = [n for n, feed in feeds(channels).items() if not feed.missing and n not in ("fp_ls",)]
+        for primary in ("phase_ekf", "gp_ekf"):
+            if primary not in names:
+                continue
+            est = FrameEstimator(model, 0.9, 75.0, SessionSettings(primary=primary), 0.005,
+                                 estimators=names, channels=channels)
+            ran.update(est.stack.names)
+            for k, frame in enumerate(frames):
+                if k % 97 == 0:  # a dropout now and then: the missing-channel branches
+                    frame = frame.model_copy(update={c: None for c in ("foot_angle_deg", "knee_angle_deg")})
+                est.step(frame, 0)
+    print(json.dumps({"cold": cold, "warm": warm, "after": compiled(), "ran": sorted(ran)}))
+    """
+)
+
+
+def test_after_the_warm_up_a_session_compiles_nothing() -> None:
+    proc = subprocess.run(
+        [sys.executable, "-c", SCRIPT], cwd=ROOT, capture_output=True, text=True, timeout=900, check=False
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    # the sessions ran the opt-in estimators, the joint-encoder GP-EKF and the IMU front ends among them
+    assert {"phase_ekf", "tbe", "gp_ekf", "sdre_knee", "imu_shank", "fp_gf", "com_kin", "intent"} <= set(got["ran"])
+    assert sum(got["warm"].values()) > sum(got["cold"].values())  # it compiled (or loaded) something
+    late = {k: (got["warm"][k], n) for k, n in got["after"].items() if n != got["warm"][k]}
+    assert not late, f"compiled during a session, after the warm-up (kernel: signatures then, now): {late}"
