@@ -713,6 +713,11 @@ class GPEKF:
         return TrainingWindow(index, rows[:, 0], step, (rows[:, 0] - t0) / T, 1.0 / T, rows[:, 1:4], rows[:, 4:7])
 
     # retraining ----------------------------------------------------------------------------------------
+    @property
+    def window_ready(self) -> bool:
+        """A training window is there to take (frozen or not)."""
+        return self._window is not None
+
     def take_window(self) -> TrainingWindow | None:
         """The newest training window not yet taken (None: none, or frozen)."""
         w, self._window = self._window, None

@@ -26,6 +26,7 @@ from server.settings import Settings
 from sessions import schema
 from sessions.formats.models import gaitscope_version
 from sessions.live.disk import DiskGuard
+from sessions.live.gp_learning import GPTrainer
 from sessions.live.manager import ModelStore, SessionManager
 from sessions.live.warmup import warm_up
 from sessions.store import Store
@@ -84,7 +85,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         models = ModelStore(settings.data_dir / "models")
         disk = DiskGuard(settings.data_dir, settings.disk_warn_mb, settings.disk_stop_mb)
         manager = SessionManager(
-            store, settings.data_dir, models, on_state=lambda *a: ctx.on_state(*a), disk_check=disk.check
+            store,
+            settings.data_dir,
+            models,
+            on_state=lambda *a: ctx.on_state(*a),
+            disk_check=disk.check,
+            gp_trainer=GPTrainer(duty=settings.gp_fit_duty),
         )
         ctx = AppContext(settings=settings, store=store, models=models, manager=manager, uploads=Uploads(settings))
         ctx.uploads.clear_leftovers()  # uploads live in memory: a restart ends them

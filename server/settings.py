@@ -10,6 +10,7 @@ from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from server.origin import LOOPBACK_HOSTS, allowed_host, allowed_hosts_for
+from sessions.live.gp_learning import DUTY
 
 
 class Settings(BaseSettings):
@@ -42,6 +43,10 @@ class Settings(BaseSettings):
             without ports; the environment gives them comma-separated
             (``GAITSCOPE_ALLOWED_HOSTS=127.0.0.1,localhost,::1,gaitlab.local``). Default the loopback
             names; ``host`` is always added unless it is a wildcard (``0.0.0.0``, ``::``).
+        gp_fit_duty: the fraction of its time the GP-EKF's shared fitting worker may spend fitting
+            (:class:`~sessions.live.gp_learning.GPTrainer`): with many learning sessions on few cores,
+            each retrains less often than seed 003's every 5 steps, so that the fits leave the cores to
+            the sample loops. 1.0: back to back.
     """
 
     model_config = SettingsConfigDict(env_prefix="GAITSCOPE_", extra="ignore")
@@ -62,6 +67,7 @@ class Settings(BaseSettings):
     slow_client_s: float = Field(default=10.0, gt=0.0, le=300.0)
     disk_warn_mb: int = Field(default=512, ge=1)
     disk_stop_mb: int = Field(default=128, ge=1)
+    gp_fit_duty: float = Field(default=DUTY, gt=0.0, le=1.0)
     allowed_hosts: Annotated[list[str], NoDecode] = Field(default_factory=lambda: list(LOOPBACK_HOSTS))
 
     @field_validator("allowed_hosts", mode="before")

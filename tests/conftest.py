@@ -43,6 +43,7 @@ def client(tmp_path: Path) -> Iterator[TestClient]:
     settings = Settings(
         data_dir=tmp_path / "data", demo=False, leg_view=False, max_upload_mb=5, upload_chunk_kb=64,
         allowed_hosts=["testserver"], disk_warn_mb=1, disk_stop_mb=1, upload_min_free_mb=1,
+        gp_fit_duty=1.0,  # the tests stream faster than real time: every window fitted as it comes
     )  # fmt: skip
     with TestClient(create_app(settings)) as c:
         yield c

@@ -197,12 +197,17 @@ def _run(
         t0 = time.monotonic()
         done = list(pool.map(_worker, jobs))
         wall = time.monotonic() - t0
+    trained = []  # GP-EKF models each session trained and installed (its versions but the population one)
+    if gp_ekf:
+        for i in ids:
+            with urllib.request.urlopen(f"{base}/api/sessions/{i}/gp-learning", timeout=10) as r:
+                trained.append(len(json.loads(r.read())["versions"]) - 1)
     for i in ids:
         _post(base, f"/api/sessions/{i}/stop", {})
     results = [r for r, _ in done]
     streams = [s for r in results[:-1] for s in r if isinstance(s, Stream)]
     generator_cpu = 100.0 * sum(cpu for _, cpu in done) / wall
-    return {"sent": results[-1], "streams": streams, "generator_cpu_pct": generator_cpu}
+    return {"sent": results[-1], "streams": streams, "generator_cpu_pct": generator_cpu, "gp_trained": trained}
 
 
 def _summary(label: str, result: dict, cpu_s: float, wall_s: float, mem: tuple[float, float]) -> dict[str, float]:
@@ -230,6 +235,12 @@ def _summary(label: str, result: dict, cpu_s: float, wall_s: float, mem: tuple[f
         f"  server CPU {out['server_cpu_pct']:5.1f} %  RSS {mem[0]:.0f} MB (peak {mem[1]:.0f})"
         f"  load generator CPU {out['generator_cpu_pct']:5.1f} %"
     )
+    if trained := result["gp_trained"]:
+        out["gp_trained_median"] = float(np.median(trained))
+        print(
+            f"{'':<28} GP-EKF models trained and installed per session, min/median/max "
+            f"{min(trained)}/{np.median(trained):.0f}/{max(trained)} (walking {wall_s:.0f} s from a cold start)"
+        )
     return out
 
 

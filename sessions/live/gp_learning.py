@@ -40,6 +40,8 @@ import contextlib
 import logging
 import math
 import multiprocessing
+import os
+import threading
 import time
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -55,13 +57,16 @@ from sessions import schema
 from sessions.gp_models import GP_EKF, arrays_of, gp_ekf_of, rmse_of, window_text
 from sessions.stack import EstimatorStack
 
-__all__ = ["FIT_OPTIONS", "GPLearning", "GPTrainer", "LearningRefused", "Note", "fit_window"]
+__all__ = ["DUTY", "FIT_OPTIONS", "GPLearning", "GPTrainer", "LearningRefused", "Note", "fit_window"]
 
 log = logging.getLogger("gaitscope")
 
 #: How a session's fits are made: seed 003's 25 inducing points, the hyperparameters by maximum likelihood.
 FIT_OPTIONS: Final = FitOptions()
 _BAND_PHASE: Final = np.linspace(0.0, 1.0, schema.GP_BAND_POINTS)
+#: The fraction of the fitting worker's time it may spend fitting (:class:`GPTrainer`).
+DUTY: Final = 0.25
+_ASK_STALE_S: Final = 1.0  # a session that has not asked for this long (s) loses its place in the queue
 
 
 def fit_window(window: TrainingWindow, options: FitOptions) -> tuple[GPModelSet, float]:
@@ -72,27 +77,87 @@ def fit_window(window: TrainingWindow, options: FitOptions) -> tuple[GPModelSet,
 
 
 def _worker_started() -> None:
-    """In the worker process, once: import what a fit needs (GPy takes a second or two) before the first
-    window comes. Its priority is left as it is: niced, its fits starved behind any busy process on a
-    machine short of cores (8-20 s a fit instead of 0.4-0.7 s), and the sample loops were no faster."""
+    """In the worker process, once: lower its priority, and import what a fit needs (GPy takes a second or
+    two) before the first window comes.
+
+    Niced to 19: a fit is a burst of 0.3-0.4 s of one core, and on a machine short of cores it delayed
+    the sample loops and the browsers' streams around it (``gaitscope loadbench --gp-ekf``, 10 sessions on
+    2 cores: p95 64 ms at normal priority, 45-53 ms niced, both with :data:`DUTY`). Alone, niced, its fits
+    starved behind any busy process (8-20 s a fit instead of 0.4-0.7 s under a CI run): the duty budget
+    now bounds how much it asks for, and a slow fit only delays the next one."""
+    os.nice(19)
     import GPy  # noqa: F401
 
 
 class GPTrainer:
     """The server's background worker for GP fits, shared by its sessions (the session manager's).
 
+    One fit at a time, and at most ``duty`` of the worker's time spent fitting: after a fit of ``d``
+    seconds the next starts no sooner than ``d * (1 / duty - 1)`` seconds later. A session asks before
+    it submits (:meth:`may_submit`); of the sessions with a window ready, the one that has asked longest
+    goes first. Seed 003 retrains every 5 steps; with one session a fit (0.3-0.4 s) every 5 steps is
+    about 8 % busy and the budget never binds. With many sessions on few cores it does: each retrains
+    less often (its filter keeps its newest window), so that the fits never take the cores the sample
+    loops need. Measured with ``gaitscope loadbench --gp-ekf`` (``docs/dashboard.md``): 10 sessions
+    fitting back to back kept the worker busy all the time on 2 cores and the devices' p95 latency went
+    from 46 ms to 160-1900 ms.
+
     Args:
         kind: ``process`` (default: a single-worker process pool, started on first use) or ``thread`` (a
             single worker thread: for measuring the difference, see the module docstring).
         options: how the GPs are fitted.
+        duty: the fraction of the worker's time it may spend fitting, in (0, 1] (1: back to back).
     """
 
-    def __init__(self, kind: Literal["process", "thread"] = "process", options: FitOptions = FIT_OPTIONS):
+    def __init__(
+        self, kind: Literal["process", "thread"] = "process", options: FitOptions = FIT_OPTIONS, duty: float = DUTY
+    ):
         if kind not in ("process", "thread"):
             raise ValueError(f"kind must be 'process' or 'thread', got {kind!r}")
+        if not (math.isfinite(duty) and 0.0 < duty <= 1.0):
+            raise ValueError(f"duty must be in (0, 1], got {duty!r}")
         self.kind = kind
         self.options = options
+        self.duty = duty
         self._pool: Executor | None = None
+        self._lock = threading.Lock()  # the fit's done-callback runs in the pool's thread
+        self._in_flight = 0
+        self._next_start = 0.0  # time.monotonic() before which no fit starts
+        self._asks: dict[int, tuple[float, float]] = {}  # asking session (id) -> (first, last) time it asked
+
+    def may_submit(self, session: object) -> bool:
+        """Whether ``session``, which has a window ready, may submit it now (then it must): no fit under way,
+        the duty budget allows one, and no session has been asking longer. A session that stopped asking
+        (for a second: stopped, frozen, or its window went) loses its place."""
+        now = time.monotonic()
+        key = id(session)
+        self._asks[key] = (self._asks.get(key, (now, now))[0], now)
+        with self._lock:
+            if self._in_flight or now < self._next_start:
+                return False
+        self._asks = {k: v for k, v in self._asks.items() if now - v[1] <= _ASK_STALE_S}
+        if min(self._asks, key=lambda k: self._asks[k][0]) != key:
+            return False
+        del self._asks[key]
+        return True
+
+    def _track(self, future: Future[tuple[GPModelSet, float]]) -> Future[tuple[GPModelSet, float]]:
+        """Count ``future`` as the fit under way until it is done; then set when the next may start."""
+        submitted = time.monotonic()
+        with self._lock:
+            self._in_flight += 1
+
+        def done(f: Future[tuple[GPModelSet, float]]) -> None:
+            now = time.monotonic()
+            fit_s = now - submitted
+            if not f.cancelled() and f.exception() is None:
+                fit_s = f.result()[1]
+            with self._lock:
+                self._in_flight -= 1
+                self._next_start = max(self._next_start, now + fit_s * (1.0 / self.duty - 1.0))
+
+        future.add_done_callback(done)
+        return future
 
     @property
     def started(self) -> bool:
@@ -116,14 +181,14 @@ class GPTrainer:
         self.start()
         assert self._pool is not None
         try:
-            return self._pool.submit(fit_window, window, self.options)
+            return self._track(self._pool.submit(fit_window, window, self.options))
         except BrokenProcessPool:
             pool, self._pool = self._pool, None
             with contextlib.suppress(Exception):
                 pool.shutdown(wait=False, cancel_futures=True)
             self.start()
             assert self._pool is not None
-            return self._pool.submit(fit_window, window, self.options)
+            return self._track(self._pool.submit(fit_window, window, self.options))
 
     def shutdown(self) -> None:
         """Stop the worker; a fit under way is finished first, queued ones are cancelled."""
@@ -207,8 +272,8 @@ class GPLearning:
         if fit is not None:
             if fit.future.done():
                 notes = (*notes, self._offer(t, fit))
-        elif GP_EKF not in self._failed:
-            window = f.take_window()
+        elif GP_EKF not in self._failed and f.window_ready and (f.frozen or self.trainer.may_submit(self)):
+            window = f.take_window()  # frozen: dropped
             if window is not None:
                 self._fit = _Fit(window, time.monotonic(), self.trainer.submit(window))
         return notes

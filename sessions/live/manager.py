@@ -57,6 +57,7 @@ class SessionManager:
         models: ModelStore,
         on_state: Callable[[int, schema.GaitState, float], None] | None = None,
         disk_check: Callable[[], DiskState] | None = None,
+        gp_trainer: GPTrainer | None = None,
     ):
         self.store = store
         self.data_dir = data_dir
@@ -64,7 +65,7 @@ class SessionManager:
         self.on_state = on_state
         self.disk_check = disk_check
         self.runtimes: dict[int, SessionRuntime] = {}
-        self.gp_trainer = GPTrainer()
+        self.gp_trainer = gp_trainer or GPTrainer()
 
     def recover_after_crash(self) -> list[schema.Trial]:
         """At start-up: end every trial and session that a crash left open; returns the recovered trials.

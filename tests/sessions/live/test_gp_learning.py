@@ -431,6 +431,7 @@ def test_a_session_stopped_during_a_fit_stops_cleanly_and_the_worker_serves_the_
     path = _stop(client, sid)  # the device gone, the fit under way (GPy's import alone takes a second)
     assert fit is not None and learning.fitting is None
     assert list(read_messages(path, ["/gp_models"])) == [] and _gp_events(client, sid) == []
+    wait([fit], timeout=120)  # the worker finishes it, unheard (one fit at a time: the next waits for it)
     sid2 = _session(client, walk)  # the same worker fits the next session's windows
     with client.websocket_connect(f"/ws/devices/{sid2}") as device:
         _send(client, sid2, device, frames, 6.0)

@@ -1,0 +1,103 @@
+"""The GP-EKF's shared fitting worker (:class:`sessions.live.gp_learning.GPTrainer`): one fit at a time,
+within its duty budget, the session that has asked longest first. On a fake clock and a fit that returns
+when told, in a worker thread, so that every step is deterministic."""
+
+from __future__ import annotations
+
+import threading
+import time
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+
+from sessions.live import gp_learning as gl
+
+
+@pytest.fixture
+def clock(monkeypatch: pytest.MonkeyPatch) -> list[float]:
+    now = [100.0]
+    monkeypatch.setattr(gl, "time", SimpleNamespace(monotonic=lambda: now[0], perf_counter=time.perf_counter))
+    return now
+
+
+def _fits(monkeypatch: pytest.MonkeyPatch, fit_s: float) -> threading.Event:
+    """Fits that finish when the event is set, each reporting ``fit_s`` seconds of fitting."""
+    go = threading.Event()
+
+    def fit(window: Any, options: Any) -> tuple[Any, float]:
+        go.wait(10)
+        return window, fit_s
+
+    monkeypatch.setattr(gl, "fit_window", fit)
+    return go
+
+
+def test_one_fit_at_a_time_then_a_pause_that_keeps_the_worker_within_its_duty(
+    monkeypatch: pytest.MonkeyPatch, clock: list[float]
+) -> None:
+    go = _fits(monkeypatch, fit_s=2.0)
+    trainer = gl.GPTrainer("thread", duty=0.25)  # a 2 s fit, then 6 s without one
+    a, b = object(), object()
+    try:
+        assert trainer.may_submit(a)
+        fit = trainer.submit("window a")  # type: ignore[arg-type]
+        assert not trainer.may_submit(b)  # a fit is under way
+        go.set()
+        assert fit.result(10) == ("window a", 2.0)
+        clock[0] += 5.9
+        assert not trainer.may_submit(b)  # within the pause
+        clock[0] += 0.2
+        assert trainer.may_submit(b)
+    finally:
+        trainer.shutdown()
+
+
+def _wait_done(trainer: gl.GPTrainer, session: object) -> bool:
+    """``may_submit(session)`` once the last fit's done-callback (the pool's thread) has run."""
+    for _ in range(200):
+        if trainer.may_submit(session):
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def test_the_session_that_asked_first_goes_first_and_one_that_stopped_asking_loses_its_place(
+    monkeypatch: pytest.MonkeyPatch, clock: list[float]
+) -> None:
+    go = _fits(monkeypatch, fit_s=0.0)
+    trainer = gl.GPTrainer("thread", duty=1.0)
+    a, b, c = object(), object(), object()
+    try:
+        assert trainer.may_submit(a)
+        fit = trainer.submit("window a")  # type: ignore[arg-type]
+        assert not trainer.may_submit(c)  # c asks first, while a's fit runs
+        clock[0] += 0.1
+        assert not trainer.may_submit(b)
+        go.set()
+        fit.result(10)
+        time.sleep(0.05)
+        assert not trainer.may_submit(b)  # c asked before b
+        assert _wait_done(trainer, c)
+        trainer.submit("window c").result(10)  # type: ignore[arg-type]
+        assert _wait_done(trainer, b)  # then b
+        go.clear()
+        fit = trainer.submit("window b")  # type: ignore[arg-type]
+        assert not trainer.may_submit(a)  # a asks during b's fit, then goes quiet (stopped, or frozen)
+        clock[0] += 0.5
+        assert not trainer.may_submit(c)
+        go.set()
+        fit.result(10)
+        time.sleep(0.05)
+        assert not trainer.may_submit(c)  # a asked 0.5 s ago: its turn
+        clock[0] += 0.6
+        assert trainer.may_submit(c)  # a has not asked for 1.1 s: c's turn
+    finally:
+        go.set()
+        trainer.shutdown()
+
+
+def test_a_duty_outside_0_1_is_refused() -> None:
+    for duty in (0.0, -1.0, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="duty must be in"):
+            gl.GPTrainer("thread", duty=duty)
