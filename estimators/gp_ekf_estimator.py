@@ -51,18 +51,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from estimators.detector import DetectorConfig, HeelStrikeDetector
 from estimators.gp import FitOptions, SparseGP, fit_sparse_gp, rbf_mean_2d
-from estimators.gp_ekf import (
-    DIVERGED,
-    GPEKF,
-    HEEL_STRIKE,
-    TOE_OFF,
-    GPEKFConfig,
-    GPModelSet,
-    Installed,
-    Offer,
-    TrainingWindow,
-    fit_models,
-)
+from estimators.gp_ekf import DIVERGED, GPEKF, HEEL_STRIKE, TOE_OFF, GPEKFConfig, Installed, Offer
+from estimators.gp_models import GPModelSet, TrainingWindow, fit_models
 from estimators.protocol import HEEL_STRIKE as HS_CHANNEL
 from estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
 
@@ -408,7 +398,7 @@ class GPEKFEstimator:
 
     # retraining, for the session layer -----------------------------------------------------------------
     def take_window(self) -> TrainingWindow | None:
-        """:meth:`GPEKF.take_window`: fit it with :func:`~estimators.gp_ekf.fit_models`, then :meth:`offer`."""
+        """:meth:`GPEKF.take_window`: fit it with :func:`~estimators.gp_models.fit_models`, then :meth:`offer`."""
         return self.filter.take_window()
 
     def offer(self, models: GPModelSet) -> Offer:

@@ -17,8 +17,8 @@ from typing import Final
 
 import numpy as np
 
-from estimators.gp_ekf import CHANNEL_NAMES, GPModelSet
 from estimators.gp_ekf_estimator import GPEKFEstimator
+from estimators.gp_models import CHANNEL_NAMES, GPModelSet
 from sessions import schema
 from sessions.stack import EstimatorStack
 
@@ -34,7 +34,7 @@ def gp_ekf_of(stack: EstimatorStack) -> GPEKFEstimator | None:
 
 
 def arrays_of(models: GPModelSet) -> dict[str, schema.GPArray]:
-    """A model set's arrays (:meth:`~estimators.gp_ekf.GPModelSet.to_arrays`) as a record holds them."""
+    """A model set's arrays (:meth:`~estimators.gp_models.GPModelSet.to_arrays`) as a record holds them."""
     return {
         k: schema.GPArray(shape=list(a.shape), values=np.asarray(a, dtype=np.float64).ravel().tolist())
         for k, a in models.to_arrays().items()

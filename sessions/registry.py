@@ -26,8 +26,8 @@ import numpy as np
 from estimators.com_kinematics import KinematicCoM
 from estimators.detector import HeelStrikeDetector
 from estimators.fingerprint import FingerprintEKF, Mode
-from estimators.gp_ekf import GPModelSet
 from estimators.gp_ekf_estimator import COHORT_COLUMNS, ControlSurface, GPEKFEstimator, build_default, load_default
+from estimators.gp_models import GPModelSet
 from estimators.heel_strike import HeelStrikeBackup
 from estimators.imu_frontend import SEGMENTS as IMU_SEGMENTS
 from estimators.imu_frontend import FrontEndConfig, ImuFrontEnd

@@ -51,8 +51,8 @@ from typing import Final, Literal
 import numpy as np
 
 from estimators.gp import FitOptions
-from estimators.gp_ekf import GPModelSet, TrainingWindow, fit_models
 from estimators.gp_ekf_estimator import GPEKFEstimator
+from estimators.gp_models import GPModelSet, TrainingWindow, fit_models
 from sessions import schema
 from sessions.gp_models import GP_EKF, arrays_of, gp_ekf_of, rmse_of, window_text
 from sessions.stack import EstimatorStack

@@ -5,7 +5,7 @@ Issue #11: a retrain of 5 steps must finish well within the next 5 steps. The wi
 estimator offers on seed 003's protocol (:mod:`sessions.synth.speed_walks`, the cohort's default
 subject), at the start of the sinusoid (0.8 m/s and rising). Timed:
 
-- :func:`estimators.gp_ekf.fit_models`, as sessions run it (six FITC sparse GPs, 25 inducing points at
+- :func:`estimators.gp_models.fit_models`, as sessions run it (six FITC sparse GPs, 25 inducing points at
   training inputs, maximum likelihood, one BLAS thread, GPy's numpy kernel gradients);
 - the baseline: the same six fits the way GPy's documentation writes one,
   ``GPy.models.SparseGPRegression(X, Y, num_inducing=25).optimize(max_iters=200)`` (variational DTC,
@@ -23,8 +23,8 @@ from typing import Final
 
 import numpy as np
 
-from estimators.gp_ekf import TrainingWindow, fit_models
 from estimators.gp_ekf_estimator import GPEKFEstimator
+from estimators.gp_models import TrainingWindow, fit_models
 from estimators.protocol import input_names
 from sessions.registry import gp_ekf_default
 from sessions.synth.cohort import CohortSpec, make_subjects

@@ -4,7 +4,7 @@ Protocol (:mod:`sessions.synth.speed_walks`): each cohort subject walks on a tre
 sinusoid between 0.4 and 1.2 m/s with a 20 s period, then stops suddenly and stands. The GP-EKF
 (:class:`estimators.gp_ekf_estimator.GPEKFEstimator`) runs sample by sample at 200 Hz from the joint
 encoders, with the device's heel strikes, and learns as it walks: each time it offers a training window
-(every 5 completed steps) the window is fitted here at once (:func:`estimators.gp_ekf.fit_models`) and
+(every 5 completed steps) the window is fitted here at once (:func:`estimators.gp_models.fit_models`) and
 offered back, so the new model is installed at the next heel strike if it passes the held-back check.
 A live session fits in a worker and installs at the first heel strike after the fit ends; a fit takes
 well under the 5 steps it has (``gaitscope bench``), so the live model is at most a few steps later.
@@ -40,7 +40,6 @@ import pandas as pd
 from scipy.stats import wilcoxon
 
 from estimators.gp import FitOptions
-from estimators.gp_ekf import GPModelSet, fit_models
 from estimators.gp_ekf_estimator import (
     COHORT_COLUMNS,
     ControlSurface,
@@ -48,6 +47,7 @@ from estimators.gp_ekf_estimator import (
     GPEKFEstimator,
     build_default,
 )
+from estimators.gp_models import GPModelSet, fit_models
 from sessions.registry import GP_EKF_COHORT
 from sessions.synth.cohort import CohortSpec, SubjectParams, generate_cohort, make_subjects
 from sessions.synth.speed_walks import SpeedProtocol, speed_walk

@@ -15,16 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from estimators.gp import FitOptions
-from estimators.gp_ekf import (
-    GPEKF,
-    GPEKFConfig,
-    GPModelSet,
-    Offer,
-    TrainingWindow,
-    check_models,
-    fit_models,
-    heldout_rmse,
-)
+from estimators.gp_ekf import GPEKF, GPEKFConfig, Offer
 from estimators.gp_ekf_estimator import (
     COHORT_COLUMNS,
     ControlSurface,
@@ -33,6 +24,7 @@ from estimators.gp_ekf_estimator import (
     default_arrays,
     load_default,
 )
+from estimators.gp_models import GPModelSet, TrainingWindow, check_models, fit_models, heldout_rmse
 from estimators.protocol import HEEL_STRIKE as HS
 from estimators.protocol import Estimator, input_names, output_names
 from sessions import schema as s

@@ -26,7 +26,7 @@ from fastapi.testclient import TestClient
 from starlette.testclient import WebSocketTestSession
 
 from estimators.gp import FitOptions
-from estimators.gp_ekf import GPModelSet, TrainingWindow, fit_models
+from estimators.gp_models import GPModelSet, TrainingWindow, fit_models
 from estimators.pipeline import TrainedModel
 from sessions import schema
 from sessions.estimation import FrameEstimator
