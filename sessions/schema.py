@@ -614,7 +614,7 @@ GPModelWhat = Literal["trained", "refused", "failed", "installed", "kept", "froz
 
 
 class GPArray(_Strict):
-    """One array of a GP model set (``estimators.gp_ekf.GPModelSet.to_arrays``): its shape and its values in
+    """One array of a GP model set (``estimators.gp_models.GPModelSet.to_arrays``): its shape and its values in
     C order (JSON numbers read back to the same float64)."""
 
     shape: list[int] = Field(max_length=4)
@@ -683,6 +683,11 @@ class GPLearningState(BaseModel):
     rollback: bool = Field(description="the waiting version is a rollback")
     frozen: bool = Field(description="learning is frozen: no fit, no install but a rollback")
     pending: GPPendingFit | None
+    queued_s: float | None = Field(
+        default=None,
+        description="a training window is ready and has waited this long (s) for the fitting worker, which the "
+        "server's learning sessions share within its duty budget (null: none waiting)",
+    )
     versions: list[GPModelInfo] = Field(description="the versions kept, by version (rollback targets)")
     last: str = Field(description="the last learning event's text ('' none yet)")
     phase: list[float] = Field(description="stance phase of the band's points, 0..1")

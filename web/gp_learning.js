@@ -155,6 +155,9 @@ export function gpLearningCard(sessionId, actor) {
         text: `v${state.waiting} waiting for the next heel strike${state.rollback ? " (rollback)" : ""}` }),
       pending ? h("span", { class: "badge badge-average", "data-testid": "gp-pending",
         text: `fitting v${pending.version} on steps ${pending.steps[0]}–${pending.steps[1]} (${span(pending.span_s)} s)` }) : null,
+      state.queued_s === null || state.queued_s === undefined || pending ? null : h("span", {
+        class: "badge badge-average", "data-testid": "gp-queued",
+        text: `next window waiting ${state.queued_s.toFixed(0)} s for the fitting worker (shared by the server's learning sessions)` }),
       state.frozen ? h("span", { class: "badge badge-frozen", "data-testid": "gp-frozen", text: "FROZEN: not learning" }) : null,
     ].filter((c) => c !== null));
     last.textContent = state.last || "No retraining yet: the first window is offered after 5 completed stances.";

@@ -243,6 +243,7 @@ class GPLearning:
         self._rollback_by: str | None = None  # who asked for the waiting rollback
         self._models = estimator.filter.models
         self.last = ""
+        self._queued_since: float | None = None  # time.monotonic() a ready window began to wait for the worker
         trainer.start()
 
     @classmethod
@@ -272,10 +273,14 @@ class GPLearning:
         if fit is not None:
             if fit.future.done():
                 notes = (*notes, self._offer(t, fit))
-        elif GP_EKF not in self._failed and f.window_ready and (f.frozen or self.trainer.may_submit(self)):
-            window = f.take_window()  # frozen: dropped
-            if window is not None:
-                self._fit = _Fit(window, time.monotonic(), self.trainer.submit(window))
+        elif GP_EKF not in self._failed and f.window_ready:
+            if f.frozen or self.trainer.may_submit(self):
+                window = f.take_window()  # frozen: dropped
+                self._queued_since = None
+                if window is not None:
+                    self._fit = _Fit(window, time.monotonic(), self.trainer.submit(window))
+            elif self._queued_since is None:
+                self._queued_since = time.monotonic()
         return notes
 
     def _installed(self) -> Note:
@@ -436,6 +441,7 @@ class GPLearning:
             rollback=f.waiting_version is not None and self._rollback_by is not None,
             frozen=self.estimator.frozen,
             pending=pending,
+            queued_s=None if self._queued_since is None else round(time.monotonic() - self._queued_since, 3),
             versions=[_info(v, m, v == f.initial.version, installs.get(v, [])) for v, m in sorted(sets.items())],
             last=self.last,
             phase=_BAND_PHASE.tolist(),

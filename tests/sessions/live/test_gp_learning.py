@@ -437,3 +437,23 @@ def test_a_session_stopped_during_a_fit_stops_cleanly_and_the_worker_serves_the_
         _send(client, sid2, device, frames, 6.0)
     assert client.get(f"/api/sessions/{sid2}/gp-learning").json()["version"] == 1
     _stop(client, sid2)
+
+
+def test_a_window_waiting_for_the_shared_worker_is_shown_until_it_goes(
+    client: TestClient, walk: tuple[list[dict[str, Any]], float, float], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    frames = walk[0]
+    sid = _session(client, walk)
+    learning = _runtime(client, sid).gp_learning
+    assert learning is not None
+    monkeypatch.setattr(learning.trainer, "may_submit", lambda session: False)  # the budget spent elsewhere
+    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+        _send(client, sid, device, frames, 7.0)  # past the first window (5 stances)
+        state = client.get(f"/api/sessions/{sid}/gp-learning").json()
+        assert state["pending"] is None and state["queued_s"] is not None and state["queued_s"] >= 0.0
+        assert learning.estimator.filter.window_ready  # kept, not dropped
+        monkeypatch.undo()  # the worker is free: the window goes at the next sample
+        _send_until_a_fit(client, sid, device, frames)
+        state = client.get(f"/api/sessions/{sid}/gp-learning").json()
+        assert state["queued_s"] is None and state["pending"]["steps"] == [1, 5]
+    _stop(client, sid)
