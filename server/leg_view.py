@@ -19,6 +19,14 @@ Scene, in the sagittal plane x (forward) / z (up), y = 0, seen by default from t
     /world/leg/thigh/shank             frame at the knee (the thigh's distal end)
     /world/leg/thigh/shank/foot        frame at the ankle; its +x points to the toes
     /world/ghost/...                   the same tree, translucent, posed by the gait model
+    /world/waiting                     label: "waiting for data" until the first show(), then shown
+                                       only when a state has neither leg to draw
+
+Until the first :meth:`LegView.show` the measured leg stands straight in grey under a "waiting for
+data" label and the ghost is hidden: the view is never blank (a fresh server after a restart, a review
+not yet posed), and the grey and the label say this pose is not data. viser's control panel (the
+session, phase, incline and torque) starts minimized so the leg fills the view, even in a phone-sized
+iframe where viser shows it as a bottom sheet; the camera looks at the leg from the subject's right.
 
 Angles follow :mod:`sessions.schema` (LocoHub): thigh and shank from vertical, positive when the
 distal end is ahead; foot from horizontal, positive toes up; all counter-clockwise seen from the
@@ -76,10 +84,20 @@ THIGH, SHANK_NODE, FOOT_NODE = "/thigh", "/thigh/shank", "/thigh/shank/foot"
 _GROUND_SIZE = (4.0, 0.8, 0.01)  # m: along x, y and its thickness
 _WIDTH_FRAC = 0.045  # segment box width (y and x) as a fraction of height (choice)
 _LEG_COLOR = (40, 110, 200)
+_WAITING_COLOR = (150, 150, 150)  # the leg before any data: grey, so it never reads as a measurement
 _GHOST_COLOR = (255, 140, 0)
 _GHOST_OPACITY = 0.35
 _GHOST_FATTER = 1.3  # the ghost's boxes are wider so their faces never coincide with the leg's
 _DEFAULT_LEG_LENGTH = 0.88  # m, until the first show()
+WAITING: Final = "/world/waiting"
+WAITING_TEXT: Final = "Waiting for data"
+#: The label's words when a state has neither leg to draw (no shank angle, and no finite estimate).
+NO_LEG_TEXT: Final = "No leg angles at this moment"
+#: The camera: from the subject's right, a little above the knee, close enough that the leg fills a
+#: 300 px tall view (45 deg vertical field of view: about 1.6 m of height visible at the leg).
+CAMERA_POSITION: Final = (0.15, -1.95, 0.55)
+CAMERA_LOOK_AT: Final = (0.15, 0.0, 0.45)
+CAMERA_FOV_DEG: Final = 45.0
 
 
 def quat_y(angle_rad: float) -> np.ndarray:
@@ -168,8 +186,9 @@ class _Leg:
     def __init__(self, scene: viser.SceneApi, root: str, ghost: bool) -> None:
         color, opacity = (_GHOST_COLOR, _GHOST_OPACITY) if ghost else (_LEG_COLOR, None)
         self.fat = _GHOST_FATTER if ghost else 1.0
-        # Hidden until the first show(): a default pose would look like data.
-        self.root = scene.add_frame(root, show_axes=False, visible=False)
+        # The ghost is hidden until the first show() (a default prediction would look like data); the
+        # measured leg stands in grey (see LegView.waiting).
+        self.root = scene.add_frame(root, show_axes=False, visible=not ghost)
         self.thigh = scene.add_frame(root + THIGH, show_axes=False)
         self.shank = scene.add_frame(root + SHANK_NODE, show_axes=False)
         self.foot = scene.add_frame(root + FOOT_NODE, show_axes=False)
@@ -199,6 +218,10 @@ class _Leg:
         if foot is not None:
             self.foot.wxyz = _sagittal(foot - shank)
         self.boxes[2].visible = foot is not None
+
+    def paint(self, color: tuple[int, int, int]) -> None:
+        for box in self.boxes:
+            box.color = color
 
 
 _serve_lock = threading.Lock()  # one guarded start at a time: the wrapper is process-wide while it lasts
@@ -267,15 +290,26 @@ class LegView:
 
     def _build(self) -> None:
         server = self.server
-        server.initial_camera.position = (0.2, -2.6, 0.6)
-        server.initial_camera.look_at = (0.2, 0.0, 0.45)
+        server.initial_camera.position = CAMERA_POSITION
+        server.initial_camera.look_at = CAMERA_LOOK_AT
+        server.initial_camera.fov = math.radians(CAMERA_FOV_DEG)
         scene = server.scene
         self._ground = scene.add_box(GROUND, color=(170, 170, 170), dimensions=_GROUND_SIZE, cast_shadow=False)
         self._leg = _Leg(scene, LEG, ghost=False)
         self._ghost = _Leg(scene, GHOST, ghost=True)
         self._resize(_DEFAULT_LEG_LENGTH)
         self._set_incline(0.0)
+        self._leg.pose(0.0, 0.0, 0.0)
+        self._leg.paint(_WAITING_COLOR)
+        self._waiting = True
+        self._label = scene.add_label(
+            WAITING, WAITING_TEXT, position=(0.0, 0.0, _DEFAULT_LEG_LENGTH + 0.15), anchor="bottom-center"
+        )
         gui = server.gui
+        # No logo and no share button: the share button offers a public tunnel, which a clinic's
+        # offline dashboard must not suggest. The panel starts minimized (replayed to every client).
+        gui.configure_theme(show_logo=False, show_share_button=False)
+        gui.main_panel.minimize()
         gui.add_markdown("Leg: measured (blue) and gait model (translucent orange)")
         # Markdown rather than disabled text inputs: read-only by nature, one message per update,
         # and viser 1.1's GuiInputHandle.value setter is invisible to mypy (a method sits between
@@ -298,6 +332,11 @@ class LegView:
     @property
     def closed(self) -> bool:
         return self._closed
+
+    @property
+    def waiting(self) -> bool:
+        """True until the first :meth:`show`: the leg stands in grey under a "waiting for data" label."""
+        return self._waiting
 
     def set_model(self, model: TrainedModel) -> None:
         """Pose the ghost with ``model`` from the next :meth:`show` on."""
@@ -324,6 +363,9 @@ class LegView:
             measured = _measured_angles(state)
             ghost = segment_angles_for(state, self._model, leg_length_m)
             with self.server.atomic():
+                if self._waiting:
+                    self._waiting = False
+                    self._leg.paint(_LEG_COLOR)
                 if leg_length_m != self._leg_length:
                     self._resize(leg_length_m)
                 thigh, shank = measured["thigh_deg"], measured["shank_deg"]
@@ -333,6 +375,11 @@ class LegView:
                 self._ghost.root.visible = ghost is not None
                 if ghost is not None:
                     self._ghost.pose(ghost["thigh_deg"], ghost["shank_deg"], ghost["foot_deg"])
+                # Never a bare floor: with neither leg to draw, the label says why.
+                no_leg = ghost is None and (thigh is None or shank is None)
+                if no_leg:
+                    self._label.text = NO_LEG_TEXT
+                self._label.visible = no_leg
                 incline = _finite(state.incline_deg)
                 if incline is not None:
                     self._set_incline(incline)

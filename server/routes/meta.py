@@ -2,19 +2,30 @@
 
 from __future__ import annotations
 
-from typing import Any
+import uuid
+from typing import Any, Final
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Response
 
 from sessions import schema
 from sessions.formats.models import gaitscope_version
 
 router = APIRouter(prefix="/api")
 
+#: Names this server process; a restarted server answers with another one, which is how the
+#: dashboard's header tells "the server restarted" from "the network dropped for a moment".
+INSTANCE: Final = uuid.uuid4().hex
+_VERSION: Final = gaitscope_version()  # read once: importlib.metadata scans the path on every call
+
 
 @router.get("/health")
-def health() -> dict[str, str]:
-    return {"status": "ok", "version": gaitscope_version()}
+async def health(response: Response) -> dict[str, str]:
+    """``status`` (always ``"ok"`` when it answers), ``version`` and ``instance`` (see :data:`INSTANCE`).
+
+    The dashboard polls it every second: never cached, and answered on the event loop (no thread hop).
+    """
+    response.headers["Cache-Control"] = "no-store"
+    return {"status": "ok", "version": _VERSION, "instance": INSTANCE}
 
 
 @router.get("/schema")
