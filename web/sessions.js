@@ -69,7 +69,9 @@ export function mountSessions(root) {
       h("td", { text: s.source.kind }),
       h("td", {}, h("span", { class: `state state-${s.state}`, text: s.state })),
       h("td", { text: fmtUtc(s.created_utc) }),
-    )) : [h("tr", {}, h("td", { colspan: 5, class: "empty", text: "No sessions yet." }))]));
+      h("td", {}, h("a", { href: `#/sessions/${s.id}/summary`, "data-testid": `session-summary-${s.id}`,
+        text: s.state === "running" ? "So far" : "Summary" })),
+    )) : [h("tr", {}, h("td", { colspan: 6, class: "empty", text: "No sessions yet." }))]));
   }
 
   let trialsSig = null;
@@ -182,7 +184,7 @@ export function mountSessions(root) {
   const lists = h("div", { class: "lists" },
     h("section", { class: "card" }, h("div", { class: "card-head" }, h("h2", { text: "Sessions" }), refreshBtn),
       h("div", { class: "table-scroll" }, h("table", { class: "table", "data-testid": "sessions-table" },
-        h("thead", {}, h("tr", {}, ...["Session", "Subject", "Source", "State", "Created"].map((t) => h("th", { text: t })))),
+        h("thead", {}, h("tr", {}, ...["Session", "Subject", "Source", "State", "Created", "Summary and report"].map((t) => h("th", { text: t })))),
         sessionsBody))),
     h("section", { class: "card" }, h("h2", { text: "Trials" }),
       h("div", { class: "table-scroll" }, h("table", { class: "table", "data-testid": "trials-table" },

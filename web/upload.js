@@ -1,10 +1,13 @@
 // Chunked upload of a recording (.mcap / .csv / .parquet): create, PUT chunks in order, finish -> Trial.
+// A refusal is shown in the user's terms (which file, row and column, what is wrong); a recording that was never
+// finished (cut off by a crash) is refused as recoverable, and a button sends it again to be recovered.
 
-import { api, ApiError, putChunk } from "./api.js";
+import { api, ApiError, describeDetail, putChunk } from "./api.js";
 import { errorBox, field, h, runAction, showError, ValidationError } from "./ui.js";
 
 const NAME_RE = /^[^/\\]+\.(mcap|csv|parquet)$/; // UploadCreate.filename
 const RETRIES = 3; // per chunk, for network failures and 5xx only
+const RECOVERABLE_HEADER = "X-Gaitscope-Recoverable"; // server/routes/uploads.py
 
 const _sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
@@ -20,31 +23,101 @@ async function _putWithRetry(id, offset, blob) {
   }
 }
 
+/**
+ * The server's reason a file was refused, in the user's terms: `file trial.csv, column 'thigh_angle_deg', row 7: x`
+ * reads "trial.csv, row 7, column thigh_angle_deg: x".
+ */
+export function refusalText(detail) {
+  const text = describeDetail(detail);
+  const m = text.match(/^file (.+?)(?:, column '([^']*)')?(?:, row (\d+))?: (.*)$/s);
+  if (!m) return text;
+  const [, file, column, row, what] = m;
+  const where = [row ? `row ${row}` : null, column ? `column ${column}` : null].filter(Boolean).join(", ");
+  return `${file}${where ? `, ${where}` : ""}: ${what}`;
+}
+
+/** `POST /api/uploads/{id}/finish`: the Trial, or an ApiError with `recoverable` set from the server's header. */
+async function _finish(id, recover) {
+  const resp = await fetch(`/api/uploads/${encodeURIComponent(id)}/finish${recover ? "?recover=true" : ""}`,
+    { method: "POST", headers: { Accept: "application/json" } });
+  if (resp.ok) return resp.json();
+  let detail = resp.statusText;
+  try {
+    detail = (await resp.json()).detail;
+  } catch {
+    // not JSON: the status text says enough
+  }
+  const words = resp.status === 422 ? "The file was not accepted" : `The upload failed (error ${resp.status})`;
+  const err = new ApiError(resp.status, detail, `${words}: ${refusalText(detail)}`);
+  err.recoverable = resp.headers.get(RECOVERABLE_HEADER) === "1";
+  throw err;
+}
+
 /** The upload form; `subjectSelect` is filled by the sessions page. Returns {el, unmount}. */
 export function mountUpload(subjectSelect) {
   let cancelled = false;
   let activeId = null;
+  let pending = null; // the recoverable file refused last: {file, subjectId}
   const file = h("input", { type: "file", id: "upload-file", "data-testid": "upload-file", accept: ".mcap,.csv,.parquet" });
   const progress = h("progress", { id: "upload-progress", "data-testid": "upload-progress", max: 1, value: 0 });
   const progressText = h("span", { class: "hint", "data-testid": "upload-progress-text", "aria-live": "polite" });
   const submit = h("button", { type: "submit", class: "primary", "data-testid": "upload-submit", text: "Upload" });
   const cancel = h("button", { type: "button", "data-testid": "upload-cancel", text: "Cancel", disabled: true });
   const error = errorBox("upload-error");
+  const recoverBtn = h("button", { type: "button", class: "primary", "data-testid": "upload-recover", text: "Recover this recording" });
+  const recoverBox = h("div", { class: "upload-recover", "data-testid": "upload-recover-box", hidden: true },
+    h("p", { class: "hint", text: "Recovering keeps everything recorded up to where the file was cut off (the last second or so may be lost) and stores it as a new trial." }),
+    recoverBtn);
   const form = h("form", { class: "card form", "data-testid": "upload-form", novalidate: true },
     h("h2", { text: "Upload a recording" }),
-    field("File", file, ".mcap (finished, indexed), replay .csv or LocoHub .parquet"),
+    field("File", file, ".mcap (a gaitscope recording), replay .csv or LocoHub .parquet"),
     field("Subject", subjectSelect),
     h("div", { class: "progress-row" }, progress, progressText),
-    h("div", { class: "buttons" }, submit, cancel), error);
+    h("div", { class: "buttons" }, submit, cancel), error, recoverBox);
 
   cancel.addEventListener("click", () => {
     cancelled = true;
   });
 
+  async function send(f, subjectId, recover) {
+    progress.value = 0;
+    progressText.textContent = recover ? "sending it again to recover it…" : "starting…";
+    const up = await api("POST", "/api/uploads", { filename: f.name, size: f.size, subject_id: subjectId });
+    activeId = up.id;
+    let offset = up.received || 0;
+    const chunk = Math.max(1, up.chunk_size);
+    try {
+      while (offset < f.size) {
+        if (cancelled) throw new ValidationError("Upload cancelled.");
+        const res = await _putWithRetry(up.id, offset, f.slice(offset, Math.min(offset + chunk, f.size)));
+        offset = res.received;
+        progress.value = offset / f.size;
+        progressText.textContent = `${Math.round((100 * offset) / f.size)} % (${offset} of ${f.size} bytes)`;
+      }
+      progressText.textContent = recover ? "recovering the recording and checking it…" : "checking the file…";
+      activeId = null; // from here the server owns it: a refused finish stores nothing and drops the upload
+      const trial = await _finish(up.id, recover);
+      progressText.textContent = `stored as trial ${trial.id}${recover ? " (recovered)" : ""}`;
+      location.hash = `#/trials/${trial.id}`;
+    } catch (err) {
+      progressText.textContent = "not stored";
+      // A half-sent upload is deleted so it holds no space on the server.
+      if (activeId) api("DELETE", `/api/uploads/${encodeURIComponent(activeId)}`).catch(() => {});
+      activeId = null;
+      if (err.recoverable && !recover) {
+        pending = { file: f, subjectId };
+        recoverBox.hidden = false;
+      }
+      throw err;
+    }
+  }
+
   form.addEventListener("submit", (ev) => {
     ev.preventDefault();
     cancelled = false;
     cancel.disabled = false;
+    pending = null;
+    recoverBox.hidden = true;
     runAction(submit, error, async () => {
       const f = file.files && file.files[0];
       if (!f) throw new ValidationError("Choose a file to upload.");
@@ -54,41 +127,32 @@ export function mountUpload(subjectSelect) {
       if (f.size < 1) throw new ValidationError("The file is empty.");
       const subjectId = Number(subjectSelect.value);
       if (!subjectId) throw new ValidationError("Choose the subject this recording belongs to.");
-      progress.value = 0;
-      progressText.textContent = "starting…";
-      const up = await api("POST", "/api/uploads", { filename: f.name, size: f.size, subject_id: subjectId });
-      activeId = up.id;
-      let offset = up.received || 0;
-      const chunk = Math.max(1, up.chunk_size);
-      try {
-        while (offset < f.size) {
-          if (cancelled) throw new ValidationError("Upload cancelled.");
-          const res = await _putWithRetry(up.id, offset, f.slice(offset, Math.min(offset + chunk, f.size)));
-          offset = res.received;
-          progress.value = offset / f.size;
-          progressText.textContent = `${Math.round((100 * offset) / f.size)} % (${offset} of ${f.size} bytes)`;
-        }
-        progressText.textContent = "checking the file…";
-        activeId = null; // from here the server owns it: a refused finish stores nothing and drops the upload
-        const trial = await api("POST", `/api/uploads/${encodeURIComponent(up.id)}/finish`);
-        progressText.textContent = `stored as trial ${trial.id}`;
-        location.hash = `#/trials/${trial.id}`;
-      } catch (err) {
-        progressText.textContent = "not stored";
-        // A half-sent upload is deleted so it holds no space on the server.
-        if (activeId) api("DELETE", `/api/uploads/${encodeURIComponent(activeId)}`).catch(() => {});
-        activeId = null;
-        if (err instanceof ApiError && err.status === 422) {
-          throw new ApiError(err.status, err.detail, `The file was not accepted: ${err.message.replace(/^Not accepted: /, "")}`);
-        }
-        throw err;
-      }
+      await send(f, subjectId, false);
     }).finally(() => {
       cancel.disabled = true;
     });
   });
+
+  recoverBtn.addEventListener("click", () => {
+    if (!pending) return;
+    const { file: f, subjectId } = pending;
+    cancelled = false;
+    cancel.disabled = false;
+    submit.disabled = true;
+    runAction(recoverBtn, error, async () => {
+      await send(f, subjectId, true);
+      pending = null;
+      recoverBox.hidden = true;
+    }).finally(() => {
+      cancel.disabled = true;
+      submit.disabled = false;
+    });
+  });
+
   file.addEventListener("change", () => {
     showError(error, null);
+    pending = null;
+    recoverBox.hidden = true;
     progress.value = 0;
     progressText.textContent = "";
   });

@@ -8,6 +8,7 @@ from fastapi import APIRouter, HTTPException
 from server.routes.common import Ctx, OptionalId, trained_model
 from sessions import schema
 from sessions.live.manager import SessionStateError
+from sessions.store import Conflict
 
 router = APIRouter(prefix="/api")
 
@@ -74,8 +75,24 @@ async def recording(session_id: int, body: schema.RecordingControl, c: Ctx) -> s
     if runtime is None:
         raise HTTPException(409, f"session {session_id} is not running")
     if body.action == "start":
-        return runtime.start_recording(body.name)
+        if runtime.trial is not None:
+            return runtime.trial  # already recording: that trial, under its own name
+        return runtime.start_recording(_free_trial_name(c, session_id, body.name.strip()))
     trial = runtime.stop_recording()
     if trial is None:
         raise HTTPException(409, f"session {session_id} is not recording")
     return trial
+
+
+def _free_trial_name(c: Ctx, session_id: int, name: str) -> str:
+    """The name a new trial of the session gets: ``name`` if no trial of the session has it (409 if one does),
+    or, for no name, the first free ``trial N`` (trial names are unique within a session)."""
+    taken = {t.name.casefold() for t in c.store.list_trials(session_id)}
+    if name:
+        if name.casefold() in taken:
+            raise Conflict(f"session {session_id} already has a trial named {name!r}: choose another name")
+        return name
+    number = len(taken) + 1
+    while f"trial {number}" in taken:
+        number += 1
+    return f"trial {number}"

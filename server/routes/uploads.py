@@ -18,7 +18,9 @@ restart ends every upload (:meth:`Uploads.clear_leftovers`). The rules:
   ``uploads/<id>.import.mcap`` and returns counts; here the session and trial rows are created in one
   transaction that moves the recording into ``recordings/`` before it commits
   (:meth:`~sessions.store.Store.create_upload_trial`): both appear or neither does. A finished upload
-  is gone whatever the outcome (a later request is 404).
+  is gone whatever the outcome (a later request is 404). An MCAP recording that was never finished is
+  refused as recoverable (header ``X-Gaitscope-Recoverable``); sent again and finished with
+  ``recover=true``, it is re-indexed first, as start-up recovery does for the server's own recordings.
 - Every message names the user's file, never a server path.
 """
 
@@ -49,11 +51,15 @@ from sessions.formats.imports import ImportJob, ImportRefused, ImportResult, run
 if TYPE_CHECKING:
     from server.app import AppContext
 
-__all__ = ["UploadState", "Uploads", "router"]
+__all__ = ["RECOVERABLE", "RECOVERABLE_HEADER", "UploadState", "Uploads", "router"]
 
 router = APIRouter(prefix="/api")
 
 _MIB: Final = 1024 * 1024
+#: How :func:`sessions.formats.mcap_io.check_mcap` ends the message for an unfinished recording.
+RECOVERABLE: Final = "gaitscope can recover it"
+#: Set (to "1") on the 422 refusing a recording that can be recovered: the browser offers the recovery.
+RECOVERABLE_HEADER: Final = "X-Gaitscope-Recoverable"
 _DISK_FULL: Final = (errno.ENOSPC, errno.EDQUOT)
 
 
@@ -173,8 +179,14 @@ class Uploads:
             state.touched = time.monotonic()
             return state.info
 
-    async def finish(self, upload_id: str, c: AppContext) -> schema.Trial:
-        """Import a complete upload as a new session with one trial (422 for a bad file)."""
+    async def finish(self, upload_id: str, c: AppContext, *, recover: bool = False) -> schema.Trial:
+        """Import a complete upload as a new session with one trial (422 for a bad file).
+
+        An MCAP recording that was never finished (cut off by a crash or a full disk) is refused with a
+        422 that says it can be recovered and carries the header :data:`RECOVERABLE_HEADER`; sent again
+        and finished with ``recover=True``, it is re-indexed first (:func:`sessions.formats.mcap_io.recover`,
+        the crash recovery of the server's own recordings), then imported.
+        """
         state = self._get(upload_id)
         info = state.info
         if state.lock.locked():
@@ -185,6 +197,8 @@ class Uploads:
         self._importing[upload_id] = info.size
         recording = self.folder / f"{upload_id}.import.mcap"
         try:
+            if info.filename.lower().endswith(".mcap"):
+                await _unfinished_mcap(state.path, info.filename, recover)
             subject = c.store.get_subject(state.subject_id)
             model = c.models.get("default")[0]
             result = await self._run(ImportJob(state.path, info.filename, recording, subject, model))
@@ -277,6 +291,33 @@ class Uploads:
             raise _disk_error(err, job.filename) from None
 
 
+async def _unfinished_mcap(path: Path, name: str, recover: bool) -> None:
+    """Refuse an MCAP recording that was never finished (422, recoverable), or recover it when asked."""
+    from sessions.errors import DataFormatError
+    from sessions.formats.mcap_io import check_mcap
+    from sessions.formats.mcap_io import recover as recover_mcap
+
+    try:
+        await asyncio.to_thread(check_mcap, path, name=name)
+        return
+    except DataFormatError as err:
+        if RECOVERABLE not in str(err):
+            return  # any other problem: the import says it, in its words
+    if not recover:
+        raise HTTPException(
+            422,
+            f"file {name}: the MCAP file is incomplete (its recording was never finished: cut off by a crash, a "
+            "full disk or the device stopping); gaitscope can recover what was recorded up to where it stops",
+            headers={RECOVERABLE_HEADER: "1"},
+        )
+    try:
+        await asyncio.to_thread(recover_mcap, path)
+    except DataFormatError:
+        raise HTTPException(422, f"file {name}: the recording could not be recovered (damaged beyond repair)") from None
+    except OSError as err:
+        raise _disk_error(err, name) from None
+
+
 def _gone(upload_id: str) -> HTTPException:
     return HTTPException(404, f"upload {upload_id} does not exist (finished, cancelled, expired or never started)")
 
@@ -316,8 +357,9 @@ async def upload_chunk(upload_id: str, request: Request, c: Ctx, offset: Annotat
 
 
 @router.post("/uploads/{upload_id}/finish", status_code=201)
-async def finish_upload(upload_id: str, c: Ctx) -> schema.Trial:
-    return await c.uploads.finish(upload_id, c)
+async def finish_upload(upload_id: str, c: Ctx, recover: bool = False) -> schema.Trial:
+    """Import the upload; ``recover=true`` first recovers an MCAP recording that was never finished."""
+    return await c.uploads.finish(upload_id, c, recover=recover)
 
 
 @router.delete("/uploads/{upload_id}", status_code=204)

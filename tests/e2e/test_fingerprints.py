@@ -266,13 +266,14 @@ def test_record_a_calibration_walk_now(server: str, walks: dict[str, Any], watch
         expect(bar).to_have_attribute("aria-valuenow", re.compile(r"^([1-9]|1\d)$"))  # a second or more
         expect(left).to_have_text(re.compile(r"^\d+ s of 20 s · \d+ s left$"))
         (trial,) = _recording(server, session_id)
-        assert trial["name"] == "calibration walk" and trial["id"] > other["id"], trial
+        # trial names are unique within a session: the fixture's "calibration walk" is taken, so "... 2", ...
+        assert re.fullmatch(r"calibration walk( \d+)?", trial["name"]) and trial["id"] > other["id"], trial
         return trial
 
     # --- Cancel: the other screen's recording was finished (and kept), this one stopped, nothing fitted ---------
     cancelled = walk_started()
     assert _call(server, "GET", f"/api/trials/{other['id']}")["status"] == "finished"
-    expect(note).to_contain_text(f"Recording trial {cancelled['id']} (“calibration walk”) on session {session_id}")
+    expect(note).to_contain_text(f"Recording trial {cancelled['id']} (“{cancelled['name']}”) on session {session_id}")
     expect(page.get_by_test_id("calibrate-submit")).to_be_disabled()  # one calibration at a time
     page.get_by_test_id("walk-cancel").click()
     expect(page.get_by_test_id("calibrate-ok")).to_contain_text(

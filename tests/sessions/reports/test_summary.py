@@ -1,0 +1,66 @@
+"""Stride segmentation, curves and words of :mod:`sessions.reports.summary`, on made-up gait states."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sessions import schema
+from sessions.reports import summary as sm
+
+TRIAL = schema.Trial(id=1, session_id=1, name="t", status="finished", path="x.mcap", started_utc="2026-01-01T00:00:00Z")
+
+
+def _data(strike_times: list[float], *, rate: float = 100.0, fault_at: float | None = None) -> sm.TrialData:
+    t = np.arange(0.0, strike_times[-1] + 0.5, 1.0 / rate)
+    strikes = np.zeros(t.size, dtype=bool)
+    for ts in strike_times:
+        strikes[round(ts * rate)] = True
+    fault = np.zeros(t.size, dtype=bool)
+    if fault_at is not None:
+        fault[round(fault_at * rate)] = True
+    cols = {
+        "t": t,
+        "stride_length_m": np.full(t.size, 1.2),
+        "incline_deg": np.full(t.size, 4.9),
+        "torque_Nm": np.sin(2 * np.pi * t),
+        "thigh_angle_deg": 20 * np.cos(2 * np.pi * t),
+        "shank_angle_deg": np.full(t.size, np.nan),
+        "foot_angle_deg": np.full(t.size, np.nan),
+    }
+    return sm.TrialData(TRIAL, cols, {"heel_strike": strikes, "fault": fault, "backup_reset": np.zeros(t.size, bool)})
+
+
+def test_strides_run_heel_strike_to_heel_strike_and_skip_odd_ones() -> None:
+    d = _data([0.0, 1.0, 2.0, 2.2, 6.0, 7.0, 8.0], fault_at=7.5)
+    # 2.0-2.2 too short, 2.2-6.0 too long (standing), 7.0-8.0 holds a fault
+    assert sm._strides(d) == [(0, 100), (100, 200), (600, 700)]
+
+
+def test_a_stride_curve_is_resampled_over_the_stride() -> None:
+    d = _data([0.0, 1.0, 2.0])
+    curve = sm._curve(d, "torque_Nm", 0, 100)
+    assert curve.shape == (sm.POINTS,)
+    np.testing.assert_allclose(curve, np.sin(2 * np.pi * np.linspace(0, 1, sm.POINTS)), atol=2e-3)
+    assert np.isnan(sm._curve(d, "foot_angle_deg", 0, 100)).all()
+
+
+def test_bins_and_setting_words() -> None:
+    assert sm._bin(1.13, sm.SPEED_BIN) == 1.2 and sm._bin(4.9, sm.INCLINE_BIN) == 5.0 and sm._bin(-0.4, 2.5) == 0.0
+    ev = schema.Event(id=1, session_id=1, t=3.0, wall_utc="x", kind="setting", text="torque_gain 1 -> 1.3",
+                      field="torque_gain", before=1.0, after=1.3, actor="dr-k")  # fmt: skip
+    assert sm.setting_text(ev) == "Torque gain 1.00 -> 1.30, by dr-k"
+    ev = ev.model_copy(update={"field": "primary", "before": "phase_ekf", "after": "tbe"})
+    assert sm.setting_text(ev) == "Estimator driving the torque phase_ekf -> tbe, by dr-k"
+
+
+def test_health_counts_gaps_and_missing_angles() -> None:
+    d = _data([0.0, 1.0, 2.0])
+    cut = np.ones(d.n, dtype=bool)
+    cut[50:60] = False  # a 0.11 s gap
+    thigh = d.columns["thigh_angle_deg"].copy()
+    thigh[10:20] = np.nan
+    cols = {k: v[cut] for k, v in d.columns.items()} | {"thigh_angle_deg": thigh[cut]}
+    d2 = sm.TrialData(TRIAL, cols, {k: v[cut] for k, v in d.flags.items()})
+    h = sm._health([d2], [TRIAL])
+    assert h.samples == d2.n and h.gaps == 1 and abs(h.longest_gap_s - 0.11) < 1e-9
+    assert h.rate_hz == 100.0 and h.missing_percent == round(100 * 10 / d2.n, 2)
