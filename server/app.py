@@ -113,6 +113,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             await ctx.manager.stop_all()
             ctx.uploads.shutdown()
+            if (exports := getattr(app.state, "exports", None)) is not None:
+                exports.shutdown()  # the report exports' worker (server/routes/reports.py)
             if ctx.leg_view is not None:
                 ctx.leg_view.close()
             store.close()

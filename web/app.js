@@ -1,11 +1,15 @@
-// Entry point: the hash router (`#/`, `#/sessions/{id}`, `#/trials/{id}`, `#/subjects/{id}`) and the server badge.
+// Entry point: the hash router (`#/`, `#/sessions/{id}`, `#/trials/{id}`, `#/subjects/{id}`) and the server badge
+// (`server_status.js`: checked every second, says when the server is lost and when it is back).
 // Each view is `mount(container, id) -> {unmount()}`; unmount closes sockets, timers and plots.
 
-import { api, errorText } from "./api.js";
+import { api } from "./api.js";
 import { mountLive } from "./live.js";
+import { mountReport } from "./report.js";
 import { mountReview } from "./review.js";
+import { watchServer } from "./server_status.js";
 import { mountSessions } from "./sessions.js";
 import { mountSubject } from "./subject.js";
+import { mountSubjects } from "./subjects.js";
 import { h } from "./ui.js";
 
 const ROUTES = [
@@ -13,6 +17,8 @@ const ROUTES = [
   [/^#\/sessions\/(\d+)$/, (el, m) => mountLive(el, Number(m[1]))],
   [/^#\/trials\/(\d+)$/, (el, m) => mountReview(el, Number(m[1]))],
   [/^#\/subjects\/(\d+)$/, (el, m) => mountSubject(el, Number(m[1]))],
+  [/^#\/subjects\/?$/, (el) => mountSubjects(el)],
+  [/^#\/sessions\/(\d+)\/summary$/, (el, m) => mountReport(el, Number(m[1]))],
 ];
 
 let current = null;
@@ -42,18 +48,6 @@ function route() {
     h("p", {}, "No page at ", h("code", { text: hash }), ". ", h("a", { href: "#/", text: "Back to sessions" }))));
 }
 
-async function serverBadge() {
-  const el = document.getElementById("server-status");
-  try {
-    const health = await api("GET", "/api/health");
-    el.textContent = `server ${health.status}, v${health.version}`;
-    el.classList.add("ok");
-  } catch (err) {
-    el.textContent = errorText(err);
-    el.classList.add("bad");
-  }
-}
-
 // Opening the bare URL (as `gaitscope serve` prints it) goes straight to the newest running session.
 async function firstVisit() {
   if (location.hash) return false;
@@ -73,4 +67,4 @@ window.addEventListener("hashchange", route);
 firstVisit().then((moved) => {
   if (!moved) route();
 });
-serverBadge();
+watchServer(document.getElementById("server-status")); // live: lost and back within a second or two
