@@ -1,9 +1,61 @@
 // uPlot wrappers, the live ring buffer, the per-stride overlay and min/max decimation.
 // Memory is bounded everywhere: the ring and the stride store are fixed-size typed arrays.
+//
+// ===================================== Plot API (issue #12) ==========================================
+// Import everything from this module. Existing calls keep working unchanged: `new Plot(div, spec)`,
+// `setSeries`, `setData`, `redraw`, `destroy`, `markersPlugin`, `spec.onSelect` + `spec.drag`.
+//
+// new Plot(container, spec): spec options (new ones marked *)
+//   title, yLabel, xLabel, series [{label, color, dash, width, spanGaps, points, value, unit*}], height,
+//   xRange ([a, b] or (u, min, max) => [a, b], e.g. a live window following the data), yRange, bands,
+//   plugins, drag + onSelect (a drag reports [x0, x1] to onSelect INSTEAD of zooming: the review timeline)
+//   * group: a PlotGroup. Plots of one group share the x zoom, the cursor (hover values at the same time in
+//     every plot), the event markers and pause. Without one, the plot is a group of its own.
+//   * key / yKey: the signal, a key of Y_RANGES (plot_ranges.js: phase, stance, phase_rate, incline,
+//     stride_length, stride, torque, foot, shank, joints, thigh, hip, knee, ankle, intent, speed). Gives the
+//     default y range and the unit; with a key the plot has a "Y range" control (min/max, "Default"),
+//     remembered in localStorage ("gaitscope.plots.y.<key>") and applied to every plot of that key on the
+//     page. Per-stride band plots: pass yKey ("torque", "foot") to give them the table's range too.
+//     y range used: the user's > spec.yRange > Y_RANGES[key] > auto. Leave yRange out to use the table.
+//   * unit: unit of the hover values (default: the series' `unit`, the table's, else from yLabel,
+//     "% of cycle" -> "%"). Shown after each legend value (CSS ::after, data-unit); the legend's
+//     .u-value textContent stays the bare number (tests read it).
+//   * zoom: false to turn zoom and pan off (default on).   * tools: false to hide the toolbar.
+// Interaction (every zoomable plot): drag across = zoom that time range (all plots of the group);
+//   mouse wheel = zoom about the cursor (zooming out past the data resets; within 0.4 s of a page scroll
+//   the wheel scrolls the page instead); Shift+drag, or a drag in pan mode (toolbar "Pan"), = pan;
+//   double-click or "Reset" = back to the plot's own range (a live window follows the data again); toolbar
+//   "+"/"−" zoom about the middle, "‹"/"›" move a quarter of the view (touch screens, keyboard).
+// Drawing: a plot out of view (scrolled away, in a hidden panel) only keeps the data setData gives it and
+//   draws the newest when it shows again, so calling setData on every plot at every frame stays cheap.
+// Plot methods (new): setMarkers(list) (this plot's own markers, drawn with its group's), zoomAt(factor, t),
+//   pause(), resume(), paused, yRange(), drawnMarkers ([{t, label, kind, x, row}] of the last draw; row
+//   null: no room for the label, its text is in the hover tip), group, u (the uPlot).
+//
+// new PlotGroup({pauseOnZoom = false, onChange = null})
+//   setX(x0, x1) zoom every plot (false if refused), resetX(), view() -> [x0, x1] shown, x (zoom or null),
+//   zoomBy(factor, t?) (< 1 in), panBy(fraction of the view, + later): for keyboard shortcuts (+/-, arrows).
+//   setMarkers([{t, label, kind, color?}]): a labelled vertical line per marker in every plot; kinds with a
+//     colour (MARKER_COLORS): setting, annotation, recording, system, intent, heel_strike, cursor; hovering
+//     within 6 px of a line shows "label (at t s)" in a tip. Throws TypeError naming a marker without t/label.
+//   setContext({max_torque_Nm}) context of the table's ranges (the torque's is 0 to the session's bound).
+//   pause(): every plot keeps drawing what it showed (a copy) while its setData keeps only the newest data;
+//     zoom and pan work on the paused view. resume(): draws the newest data, zoom reset (catches up).
+//     paused; pauseOnZoom: a zoom or pan pauses first (for a live view). setPanMode(on), panMode.
+//   onChange(fn): fn(group) after every zoom, pan, reset, pause, resume (e.g. to label a Pause button).
+//
+// measureFrames(seconds = 5) -> Promise<{fps, p95_ms, p50_ms, mean_ms, max_ms, frames, seconds, over_20ms}>
+//   requestAnimationFrame intervals (plot_frametime.js). From a test:
+//   page.evaluate("async () => (await import('/plot_frametime.js')).measureFrames(5)")
+// =====================================================================================================
 
+import { COLORS, Plot } from "./plot_view.js";
 import uPlot from "./vendor/uPlot.esm.js";
 
-export { uPlot };
+export { measureFrames } from "./plot_frametime.js";
+export { MARKER_COLORS, PlotGroup } from "./plot_group.js";
+export { storedRange, storeRange, unitOf, Y_RANGES } from "./plot_ranges.js";
+export { COLORS, Plot, uPlot };
 
 /**
  * Fixed-capacity columns of float64 samples. Each sample is written twice (at i and i + capacity) so the
@@ -83,12 +135,6 @@ export class Ring {
   }
 }
 
-const _AXIS = { stroke: "#111", font: "14px system-ui, sans-serif", labelFont: "bold 14px system-ui, sans-serif",
-  grid: { stroke: "#d0d4da", width: 1 }, ticks: { stroke: "#9aa0a6", width: 1 } };
-
-/** Colours with strong contrast on white, distinguishable with common colour-vision deficiencies. */
-export const COLORS = { blue: "#0b5cad", orange: "#c2410c", green: "#1d7a3a", purple: "#6b21a8", teal: "#0f766e", grey: "#4b5563" };
-
 /** Draws vertical lines at `getMarkers()` -> [{t, color}] (events on a timeline, a review cursor). */
 export function markersPlugin(getMarkers) {
   return {
@@ -113,95 +159,6 @@ export function markersPlugin(getMarkers) {
       }],
     },
   };
-}
-
-/** uPlot options of one y series of a spec: a line, or (`points`) dots without a line. */
-function _seriesOpts(s) {
-  return {
-    label: s.label, stroke: s.color, width: s.width || 2, dash: s.dash, spanGaps: !!s.spanGaps,
-    ...(s.points ? { paths: () => null, points: { show: true, size: 10, width: 2, fill: s.color } } : { points: { show: false } }),
-    value: s.value || ((u, v) => (v == null ? "–" : v.toFixed(2))),
-  };
-}
-
-/**
- * A line plot of columns against time (or any x) that follows its container's width.
- * @param {HTMLElement} container
- * @param {{title: string, yLabel: string, xLabel?: string, series: {label: string, color: string,
- *   dash?: number[], width?: number, spanGaps?: boolean, points?: boolean, value?: Function}[],
- *   height?: number, xRange?: Function, yRange?: number[]|Function, bands?: object[], plugins?: object[],
- *   drag?: boolean, onSelect?: (x0: number, x1: number) => void}} spec
- */
-export class Plot {
-  constructor(container, spec) {
-    this.container = container;
-    this.spec = spec;
-    this.height = spec.height || 170;
-    this._build(spec.series);
-    this._observer = new ResizeObserver(() => {
-      const w = Math.max(container.clientWidth, 300);
-      if (w !== this.u.width) this.u.setSize({ width: w, height: this.height });
-    });
-    this._observer.observe(container);
-  }
-
-  _build(series) {
-    const spec = this.spec;
-    const onSelect = spec.onSelect;
-    const opts = {
-      title: spec.title,
-      width: Math.max(this.container.clientWidth, 300),
-      height: this.height,
-      scales: { x: { time: false, ...(spec.xRange ? { range: spec.xRange } : {}) },
-        y: spec.yRange ? { range: spec.yRange } : {} },
-      axes: [{ ..._AXIS, label: spec.xLabel || "time (s)" }, { ..._AXIS, label: spec.yLabel, size: 60 }],
-      series: [
-        { label: spec.xLabel || "t (s)", value: (u, v) => (v == null ? "–" : v.toFixed(2)) },
-        ...series.map(_seriesOpts),
-      ],
-      bands: spec.bands,
-      legend: { live: true },
-      cursor: { drag: { x: !!spec.drag, y: false, setScale: false }, points: { show: false } },
-      plugins: spec.plugins || [],
-      hooks: onSelect ? { setSelect: [(u) => {
-        if (u.select.width < 4) return;
-        const x0 = u.posToVal(u.select.left, "x");
-        const x1 = u.posToVal(u.select.left + u.select.width, "x");
-        u.setSelect({ left: 0, width: 0, top: 0, height: 0 }, false);
-        onSelect(x0, x1);
-      }] } : {},
-    };
-    this.series = series;
-    const empty = [new Float64Array(0), ...series.map(() => new Float64Array(0))];
-    this.u = new uPlot(opts, empty, this.container);
-  }
-
-  /**
-   * Replaces the plotted series (legend included) when they differ from the current ones; the data
-   * follows with the next `setData`. (The plot is rebuilt: uPlot's `delSeries` fails without cursor points.)
-   * @returns {boolean} whether they changed
-   */
-  setSeries(series) {
-    const key = (list) => JSON.stringify(list.map((s) => [s.label, s.color, s.dash, s.width, !!s.points]));
-    if (key(series) === key(this.series)) return false;
-    this.u.destroy();
-    this._build(series);
-    return true;
-  }
-
-  /** Replaces the data: `[x, ...series]` arrays of equal length. */
-  setData(data) {
-    this.u.setData(data);
-  }
-
-  redraw() {
-    this.u.redraw(false, false);
-  }
-
-  destroy() {
-    this._observer.disconnect();
-    this.u.destroy();
-  }
 }
 
 /** Linear interpolation of `y(x)` at `n` equally spaced points of [x[0], x[last]] (NaN where y is). */
