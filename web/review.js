@@ -6,13 +6,21 @@
 // speed-change intent (seed 001) as the trial recorded it, desired vs actual speed (or the channels the trial
 // lacks for it), with a re-run's overlaid when the re-run ran the intent estimator. The knee of the hip and
 // knee plot is drawn only from every sample (a view the server did not decimate): see `derive`.
+// Issue #12: the recorded setting changes and the review notes as labelled markers (review_markers.js),
+// playback and keys (review_playback.js), notes saved with the trial (review_notes.js), A/B comparison of
+// named re-runs (review_ab.js); a trial still recording opens with a link to its live session.
 
 import { api, errorText, query } from "./api.js";
 import { EstimatorPicker, estimatorLabel, estimatorOverlay, listText, overlayLegend, rerunEstimators } from "./estimators.js";
-import { EVENT_COLORS, EventList } from "./events.js";
-import { bandPlot, INTENT_SPEC, intentValue, kneeFlexion, legView, PLOT_SPECS } from "./live.js";
-import { COLORS, decimateMinMax, markersPlugin, Plot, StrideOverlay, uPlot } from "./plots.js";
-import { SettingsEditor } from "./settings.js";
+import { EventList } from "./events.js";
+import { legView } from "./leg_view.js";
+import { bandPlot, INTENT_SPEC, intentValue, kneeFlexion, PLOT_SPECS } from "./live.js";
+import { COLORS, decimateMinMax, markersPlugin, Plot, PlotGroup, StrideOverlay, uPlot } from "./plots.js";
+import { abCard } from "./review_ab.js";
+import { changeText, eventMarkers, markerLabels, noteMarkers, settingLabel, spanShading } from "./review_markers.js";
+import { notesCard } from "./review_notes.js";
+import { playback, reviewKeys } from "./review_playback.js";
+import { SETTING_LIMITS, SettingsEditor } from "./settings.js";
 import { errorBox, fmt, fmtUtc, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
 import { DEFAULT_SETTINGS } from "./wire.js";
 
@@ -44,16 +52,24 @@ function derive(series, maxPoints) {
 
 export function mountReview(root, trialId) {
   const st = { trial: null, full: null, view: null, range: null, cursor: null, events: [], rerun: null, alive: true,
-    intent: null, intentView: null }; // IntentSeries of the whole trial, and of the view
+    intent: null, intentView: null, // IntentSeries of the whole trial, and of the view
+    notes: [], baseSettings: null }; // review notes (ReviewAnnotation), the recorded settings
   const error = errorBox("review-error");
   const title = h("h1", { "data-testid": "review-title", text: `Trial ${trialId}` });
   const info = h("p", { class: "hint", "data-testid": "trial-info" });
   const download = h("a", { class: "button", href: `/api/trials/${trialId}/download`, download: `gaitscope_trial${trialId}.mcap`,
     "data-testid": "download-link", text: "Download MCAP (opens in Foxglove)" });
+  // events (setting changes in words), review notes, the cursor: labelled markers on every time plot, drawn
+  // by the plots' groups (the review's plots share zoom, cursor and hover values; so do the A/B's)
   const marks = () => [
-    ...st.events.map((e) => ({ t: e.t, color: EVENT_COLORS[e.kind], width: 2, dash: [4, 3] })),
-    ...(st.cursor == null ? [] : [{ t: st.cursor, color: "#111", width: 2 }]),
+    ...eventMarkers(st.events),
+    ...noteMarkers(st.notes),
+    ...(st.cursor == null ? [] : [{ t: st.cursor, kind: "cursor", label: "" }]),
   ];
+  const group = new PlotGroup();
+  const abGroup = new PlotGroup();
+  /** Plugins of a time plot in `div`: the notes' spans shaded, and the labels drawn kept on `div`. */
+  const timePlugins = (div, plot) => [spanShading(() => st.notes), markerLabels(div, plot)];
 
   // --- timeline, zoom, scrubber -------------------------------------------------------------------
   const timelineDiv = h("div", { class: "plot", "data-testid": "timeline" });
@@ -66,9 +82,12 @@ export function mountReview(root, trialId) {
     "aria-label": "Cursor time" });
   const cursorText = h("span", { class: "value", "data-testid": "cursor-time", text: "–" });
   const viewerError = errorBox("viewer-error");
+  const bounds = () => (st.full && st.full.t.length ? [st.full.t[0], st.full.t[st.full.t.length - 1]] : null);
+  const player = playback({ cursor: () => st.cursor, setCursor: (t) => followCursor(t), bounds });
   const timelineCard = h("section", { class: "card" },
     h("h2", { text: "Timeline (drag across it to zoom)" }), timelineDiv,
     h("div", { class: "scrub-row" }, h("label", { for: "scrubber", class: "caption", text: "Cursor" }), scrubber, cursorText, h("span", { text: "s" })),
+    player.el,
     h("div", { class: "inline zoom-row" }, h("label", {}, "From ", from, " s"), h("label", {}, "to ", to, " s"), zoomBtn, allBtn),
     zoomError, viewerError);
 
@@ -81,14 +100,19 @@ export function mountReview(root, trialId) {
   const plots = PLOT_SPECS.map((spec) => {
     const div = h("div", { class: "plot", "data-testid": `review-plot-${spec.key}` });
     plotsBox.append(div, ...(spec.key === "joints" ? [kneeNote] : []));
-    return { spec, plot: new Plot(div, { ...spec, series: [...spec.series, ...overlaySeries(spec.key)], plugins: [markersPlugin(marks)] }) };
+    const entry = { spec };
+    entry.plot = new Plot(div, { ...spec, group, series: [...spec.series, ...overlaySeries(spec.key)],
+      plugins: timePlugins(div, () => entry.plot) });
+    return entry;
   });
   // desired vs actual speed: the recorded intent, or why there is none
   const intentNote = h("p", { class: "hint", "data-testid": "review-intent-note", text: "Loading the speed-change intent…" });
   const intentDiv = h("div", { class: "plot", "data-testid": "review-plot-intent", hidden: true });
   const intentCard = h("section", { class: "card", "data-testid": "review-intent" },
     h("h2", { text: "Speed-change intent (seed 001): desired vs actual speed" }), intentNote, intentDiv);
-  const intentPlot = new Plot(intentDiv, { ...INTENT_SPEC, plugins: [markersPlugin(marks)] });
+  const intentRef = { plot: null };
+  const intentPlot = new Plot(intentDiv, { ...INTENT_SPEC, group, plugins: timePlugins(intentDiv, () => intentRef.plot) });
+  intentRef.plot = intentPlot;
   const strideNote = h("span", { class: "hint", "data-testid": "review-stride-count" });
   const bandT = h("div", { class: "plot" });
   const bandF = h("div", { class: "plot" });
@@ -117,7 +141,12 @@ export function mountReview(root, trialId) {
   const rerunError = errorBox("rerun-error");
   const rerunOk = h("p", { class: "ok", role: "status", "data-testid": "rerun-ok" });
   const rerunLegend = h("ul", { class: "overlay-legend", "data-testid": "rerun-legend", "aria-label": "Estimators overlaid", hidden: true });
+  const rerunStart = h("p", { class: "rerun-start", "data-testid": "rerun-start", text: "A re-run starts from the settings "
+    + "that ran: those recorded when the trial began, then each recorded change at the moment it happened (listed below "
+    + "and marked on the timeline). Choose \"What if\" to hold other settings over the whole trial instead." });
+  const rerunChanges = h("ul", { class: "rerun-changes", "data-testid": "rerun-changes", "aria-label": "Recorded setting changes" });
   const rerunCard = h("section", { class: "card", "data-testid": "rerun-card" }, h("h2", { text: "Re-run" }),
+    rerunStart, h("h3", { text: "Recorded setting changes" }), rerunChanges,
     h("p", { class: "hint", text: "The trial's raw sensor frames through the chosen estimators again. The re-run's gait state "
       + "(the phase the torque follows, the torque, the incline) is overlaid in purple; each estimator's own outputs in its colour." }),
     picker.el,
@@ -151,21 +180,37 @@ export function mountReview(root, trialId) {
   showMode();
 
   const events = new EventList("review-events", { onSelect: (ev) => setCursor(ev.t, true) });
-  root.append(h("div", { class: "page review-page" },
-    h("div", { class: "page-head" }, title, download, h("a", { class: "button", href: "#/", text: "← Sessions" })),
-    info, error, timelineCard,
+  const notes = notesCard(trialId, { cursor: () => st.cursor, range: bounds, onSelect: (t) => setCursor(t, true),
+    onChange: (list) => {
+      st.notes = list;
+      redrawMarks();
+    } });
+  const ab = abCard(trialId, { baseSettings: () => st.baseSettings, range: () => st.range, zoomed: () => st.view !== st.full,
+    group: abGroup, plugins: timePlugins });
+  const recording = h("section", { class: "card still-recording", "data-testid": "review-recording", hidden: true });
+  const body = h("div", { class: "review-body" }, timelineCard,
     h("div", { class: "live-grid" },
       h("div", { class: "main-col" }, plotsBox, overlayCard, intentCard),
-      h("aside", { class: "side-col" }, legView(null), rerunCard,
-        h("section", { class: "card" }, h("h2", { text: "Events of the trial" }), events.el)))));
+      h("aside", { class: "side-col" }, legView(null), notes.el, rerunCard,
+        h("section", { class: "card" }, h("h2", { text: "Events of the trial" }), events.el))),
+    ab.el);
+  root.append(h("div", { class: "page review-page" },
+    h("div", { class: "page-head" }, title, download, h("a", { class: "button", href: "#/", text: "← Sessions" })),
+    info, error, recording));
+  // The plots and the leg view join the page once the trial is known to be reviewable (a leg view's frame
+  // loaded out of sight and shown later stalls the page while it starts its 3D drawing).
+  const page = root.lastElementChild;
 
+  const timelineRef = { plot: null };
   const timeline = new Plot(timelineDiv, {
     title: "Torque command, whole trial", yLabel: "N·m", height: 200, drag: true,
     series: [{ label: "torque", color: COLORS.orange }],
-    plugins: [markersPlugin(() => [...marks(), ...(st.range && st.view !== st.full
-      ? [{ t: st.range[0], color: COLORS.blue, width: 3 }, { t: st.range[1], color: COLORS.blue, width: 3 }] : [])])],
+    // the view's range as two blue lines (the timeline's own; the events and notes are its markers)
+    plugins: [...timePlugins(timelineDiv, () => timelineRef.plot), markersPlugin(() => (st.range && st.view !== st.full
+      ? [{ t: st.range[0], color: COLORS.blue, width: 3 }, { t: st.range[1], color: COLORS.blue, width: 3 }] : []))],
     onSelect: (x0, x1) => zoom(x0, x1),
   });
+  timelineRef.plot = timeline;
   const bands = [
     { c: "torque_Nm", plot: bandPlot(bandT, "Torque command", "N·m", COLORS.orange, { line: "#e8a07f", band: "rgba(194,65,12,0.18)" }) },
     { c: "foot_angle_deg", plot: bandPlot(bandF, "Foot angle (measured)", "deg", COLORS.blue, { line: "#7fa6d1", band: "rgba(11,92,173,0.18)" }) },
@@ -248,10 +293,12 @@ export function mountReview(root, trialId) {
     return api("GET", `/api/trials/${trialId}/intent${query({ ...range, max_points: MAX_POINTS })}`);
   }
 
+  /** The markers (events, notes, cursor) drawn again in every time plot. */
   function redrawMarks() {
-    timeline.redraw();
-    intentPlot.redraw();
-    for (const { plot } of plots) plot.redraw();
+    const list = marks();
+    group.setMarkers(list);
+    abGroup.setMarkers(list);
+    timeline.setMarkers(list);
   }
 
   // --- actions ----------------------------------------------------------------------------------------
@@ -273,6 +320,7 @@ export function mountReview(root, trialId) {
       st.view = s;
       st.intentView = intent;
       st.range = [t0, t1];
+      group.resetX(); // the fetched range, not a zoom into the previous one
       from.value = t0.toFixed(2);
       to.value = t1.toFixed(2);
       drawView();
@@ -283,6 +331,7 @@ export function mountReview(root, trialId) {
   }
 
   function showAll() {
+    group.resetX();
     st.view = st.full;
     st.intentView = st.intent;
     st.range = [st.full.t[0], st.full.t[st.full.t.length - 1]];
@@ -338,6 +387,42 @@ export function mountReview(root, trialId) {
   }
   scrubber.addEventListener("input", () => setCursor(Number(scrubber.value), false));
 
+  // Playback and keys move the cursor; a zoomed view follows it to its next stretch of the trial.
+  let following = false;
+  function followCursor(t) {
+    const b = bounds();
+    if (!b) return;
+    const x = Math.min(Math.max(t, b[0]), b[1]);
+    setCursor(x, true);
+    const r = st.range;
+    if (r && st.view !== st.full && !following && (x > r[1] || x < r[0])) {
+      const w = r[1] - r[0];
+      const t0 = x > r[1] ? Math.min(x, b[1] - w) : Math.max(b[0], x - w);
+      following = true;
+      zoom(t0, t0 + w).finally(() => {
+        following = false;
+      });
+    }
+  }
+  /** Zoom the view around the cursor by `factor` (0.5: in, 2: out), the whole trial at most. */
+  function zoomBy(factor) {
+    const b = bounds();
+    if (!b || !st.range) return;
+    const w = (st.range[1] - st.range[0]) * factor;
+    if (w >= b[1] - b[0]) {
+      showAll();
+      return;
+    }
+    const c = st.cursor == null ? (st.range[0] + st.range[1]) / 2 : st.cursor;
+    const t0 = Math.min(Math.max(b[0], c - w / 2), b[1] - w);
+    zoom(t0, t0 + Math.max(w, 0.06));
+  }
+  const removeKeys = reviewKeys({
+    toggle: () => player.toggle(),
+    step: (dir, big) => followCursor((st.cursor == null ? 0 : st.cursor) + dir * (big ? 1 : 0.1)),
+    zoom: zoomBy,
+  });
+
   rerunBtn.addEventListener("click", () => {
     if (picker.problem() !== null) return;
     rerunOk.textContent = "";
@@ -365,7 +450,7 @@ export function mountReview(root, trialId) {
       const changes = st.events.filter((e) => e.kind === "setting").length;
       const ran = `Estimators: ${listText(names.map(estimatorLabel))}.`;
       rerunOk.textContent = asWhatIf
-        ? `Overlaid: ${Object.entries(settings).map(([k, v]) => `${k} ${v}`).join(", ")} (what if, over the whole trial). ${ran}`
+        ? `Overlaid: ${whatIfText(settings)} (what if, over the whole trial). ${ran}`
         : `Overlaid: the recorded settings, ${changes} recorded change${changes === 1 ? "" : "s"} replayed`
           + `${estimators ? "" : " (what ran)"}. ${ran}`;
       drawView();
@@ -375,6 +460,13 @@ export function mountReview(root, trialId) {
       if (rerunOk.textContent === "re-running…") rerunOk.textContent = "";
     });
   });
+  /** A what-if's settings in words: those that differ from the ones the trial began with. */
+  function whatIfText(settings) {
+    const base = st.baseSettings || {};
+    const changed = Object.entries(settings).filter(([k, v]) => base[k] === undefined || Math.abs(v - base[k]) > 1e-9);
+    if (!changed.length) return "the settings the trial began with, held without its changes";
+    return changed.map(([k, v]) => `${settingLabel(k)} ${fmt(v, (SETTING_LIMITS[k] && SETTING_LIMITS[k].digits) || 2)}`).join(", ");
+  }
   rerunClear.addEventListener("click", () => {
     st.rerun = null;
     rerunClear.disabled = true;
@@ -385,15 +477,53 @@ export function mountReview(root, trialId) {
   });
 
   // --- load -------------------------------------------------------------------------------------------
-  api("GET", `/api/trials/${trialId}/estimators`).then((choices) => {
-    if (st.alive) picker.set(choices);
-  }).catch((err) => {
-    if (st.alive) picker.failed(`The estimators of this trial could not be listed: ${errorText(err)}.`);
-  });
-  (async () => {
+  /** The recorded setting changes in words, for the re-run form (what a re-run with them replays). */
+  function showChanges() {
+    const changes = st.events.filter((e) => e.kind === "setting");
+    rerunChanges.replaceChildren(...(changes.length
+      ? changes.map((e) => h("li", { "data-testid": "rerun-change" }, h("span", { class: "num", text: `at ${fmt(e.t, 1)} s: ` }),
+        h("span", { text: changeText(e) })))
+      : [h("li", { class: "hint", text: "None: the settings stayed as they began." })]));
+  }
+
+  /** A trial still being recorded: say so, link its live session, and open the review once it stops. */
+  function stillRecording(trial) {
+    download.hidden = true;
+    const live = h("a", { class: "button primary", href: `#/sessions/${trial.session_id}`, "data-testid": "review-open-live",
+      text: "Open the live session" });
+    const note = h("p", { "data-testid": "review-recording-note", text: `Still recording: trial ${trial.id} is being recorded `
+      + `now (started ${fmtUtc(trial.started_utc)}). Watch it in its live session; this page opens the review by itself `
+      + "when the recording stops." });
+    recording.replaceChildren(h("h2", { text: "Still recording" }), note, h("div", { class: "buttons" }, live));
+    recording.hidden = false;
+    const poll = setInterval(async () => {
+      if (!st.alive) return clearInterval(poll);
+      try {
+        const now = await api("GET", `/api/trials/${trialId}`);
+        if (now.status === "recording") return;
+        clearInterval(poll);
+        if (!st.alive) return;
+        recording.hidden = true;
+        download.hidden = false;
+        loadAll(now);
+      } catch (err) {
+        showError(error, `Could not check whether the recording has stopped: ${errorText(err)}`);
+      }
+    }, 2000);
+    st.poll = poll;
+  }
+
+  async function loadAll(trial) {
+    showError(error, null);
+    page.append(body);
+    api("GET", `/api/trials/${trialId}/estimators`).then((choices) => {
+      if (st.alive) picker.set(choices);
+    }).catch((err) => {
+      if (st.alive) picker.failed(`The estimators of this trial could not be listed: ${errorText(err)}.`);
+    });
+    notes.load().catch((err) => showError(error, `The notes of this trial could not be loaded: ${errorText(err)}`));
     try {
-      const [trial, series, evs, intent] = await Promise.all([
-        api("GET", `/api/trials/${trialId}`),
+      const [series, evs, intent] = await Promise.all([
         api("GET", `/api/trials/${trialId}/series${query({ max_points: MAX_POINTS })}`),
         api("GET", `/api/trials/${trialId}/events`),
         loadIntent().catch((err) => {
@@ -405,10 +535,10 @@ export function mountReview(root, trialId) {
       st.intent = intent;
       showIntentNote();
       st.trial = trial;
-      title.textContent = `Trial ${trial.id}${trial.name ? ` · ${trial.name}` : ""}`;
       info.textContent = `${trial.status}, ${fmt(trial.duration_s, 1)} s, ${trial.samples} samples, session ${trial.session_id}, started ${fmtUtc(trial.started_utc)}`;
       st.events = evs;
       events.add(...evs);
+      showChanges();
       st.full = derive(series, MAX_POINTS);
       if (!st.full.t.length) throw new ValidationError("This trial holds no gait states to show.");
       const [T0, T1] = [st.full.t[0], st.full.t[st.full.t.length - 1]];
@@ -428,17 +558,36 @@ export function mountReview(root, trialId) {
         radio(modeWhatIf).checked = true;
         showMode();
         modeNote.textContent = `${errorText(err)}.`;
+        rerunStart.textContent = "This trial does not record the settings it began with, so a re-run cannot start from what "
+          + "ran: it holds the settings below over the whole trial.";
       }
       if (!st.alive) return;
       editor.setBaseline(st.baseSettings);
+      ab.setBaseline(st.baseSettings);
+      // the torque plots' range: 0 to the trial's torque bound
+      group.setContext({ max_torque_Nm: st.baseSettings.max_torque_Nm });
+      abGroup.setContext({ max_torque_Nm: st.baseSettings.max_torque_Nm });
     } catch (err) {
       showError(error, err);
     }
-  })();
+  }
+
+  api("GET", `/api/trials/${trialId}`).then((trial) => {
+    if (!st.alive) return;
+    title.textContent = `Trial ${trial.id}${trial.name ? ` · ${trial.name}` : ""}`;
+    if (trial.status === "recording") stillRecording(trial);
+    else loadAll(trial);
+  }).catch((err) => {
+    showError(error, err);
+  });
 
   return {
     unmount() {
       st.alive = false;
+      clearInterval(st.poll);
+      player.stop();
+      removeKeys();
+      ab.destroy();
       timeline.destroy();
       intentPlot.destroy();
       for (const { plot } of plots) plot.destroy();

@@ -1,5 +1,6 @@
 """``/api/trials``: recorded and uploaded trials: their events, decimated series, speed-change intent, MCAP
-download, recorded settings, the estimators a re-run can run, and re-runs through them."""
+download, recorded settings, the estimators a re-run can run, re-runs through them, A/B comparisons of
+re-runs (``/compare``) and the notes added in review (``/annotations``)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,14 @@ import asyncio
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
-from fastapi import APIRouter, Body, HTTPException, Query
+from fastapi import APIRouter, Body, HTTPException, Query, Response
+from fastapi import Path as PathParam
 from fastapi.responses import FileResponse
 
 from estimators.pipeline import TrainedModel
 from server.routes.common import Ctx, OptionalId, reviewable_trial, trained_model
 from sessions import schema
+from sessions.store import NotAllowed
 
 if TYPE_CHECKING:
     from server.app import AppContext
@@ -143,3 +146,79 @@ def _fingerprint(c: AppContext, trial: schema.Trial, path: Path, personalization
     if p.subject_id != subject_id:
         raise HTTPException(422, f"personalization {personalization_id} is not of trial {trial.id}'s subject")
     return p.fingerprint
+
+
+@router.post("/trials/{trial_id}/compare")
+async def compare(
+    trial_id: int,
+    c: Ctx,
+    body: schema.CompareRequest,
+    t0: _SeriesTime = None,
+    t1: _SeriesTime = None,
+    max_points: _MaxPoints = 2000,
+) -> schema.Comparison:
+    """Two or more named re-runs of the trial side by side (A/B): each one's torque and phase, its
+    difference from the first, its mean stride and its figures (peak torque, mean phase rate, stride
+    length; errors against the ground truth when the trial has one: a simulated session's walk)."""
+    from sessions.review.compare import WindowTooLong, simulated_truth
+    from sessions.review.compare import compare as compare_runs
+
+    trial, path = reviewable_trial(c, trial_id)
+    session = c.store.get_session(trial.session_id)
+    subject = c.store.get_subject(session.subject_id)
+    fingerprint = _fingerprint(c, trial, path, None)
+    source = session.source
+
+    def model(name: str) -> TrainedModel:
+        return trained_model(c, name)
+
+    def run() -> schema.Comparison:
+        truth = simulated_truth(source, path) if isinstance(source, schema.SimulatedSource) else None
+        return compare_runs(
+            path, model, subject.leg_length_m, subject.mass_kg, body.runs, t0, t1, max_points, fingerprint, truth
+        )
+
+    try:
+        return await asyncio.to_thread(run)
+    except WindowTooLong as exc:
+        raise HTTPException(422, str(exc)) from None
+
+
+_AnnotationId = Annotated[int, PathParam(ge=1, le=schema.INT64_MAX)]
+_Actor = Annotated[str, Query(min_length=1, max_length=64, description="who deletes it: only its author may")]
+
+
+@router.get("/trials/{trial_id}/annotations")
+def list_annotations(trial_id: int, c: Ctx) -> list[schema.ReviewAnnotation]:
+    """The notes added to the trial in review, by time."""
+    return c.store.list_review_annotations(trial_id)
+
+
+@router.post("/trials/{trial_id}/annotations", status_code=201)
+async def add_annotation(trial_id: int, c: Ctx, body: schema.ReviewAnnotationCreate) -> schema.ReviewAnnotation:
+    """A note at a time (``t``) or over a span (``t`` to ``t_end``) of the trial, saved with it; 422 when it
+    lies outside the recording."""
+    from sessions.formats.mcap_io import read_series
+
+    _, path = reviewable_trial(c, trial_id)
+    ends = await asyncio.to_thread(read_series, path, None, None, 2)
+    times = [t for t in ends["t"] if t is not None]
+    if times:
+        lo, hi = min(times), max(times)
+        for name, value in (("t", body.t), ("t_end", body.t_end)):
+            if value is not None and not lo - 0.01 <= value <= hi + 0.01:
+                where = "start" if name == "t" else "end"
+                raise HTTPException(
+                    422, f"the note's {where} ({value:g} s) is outside the trial ({lo:.2f} to {hi:.2f} s)"
+                )
+    return c.store.add_review_annotation(trial_id, body)
+
+
+@router.delete("/trials/{trial_id}/annotations/{annotation_id}", status_code=204)
+def delete_annotation(trial_id: int, annotation_id: _AnnotationId, actor: _Actor, c: Ctx) -> Response:
+    """Delete a note; only whoever wrote it may (403 for anyone else)."""
+    try:
+        c.store.delete_review_annotation(trial_id, annotation_id, actor)
+    except NotAllowed as exc:
+        raise HTTPException(403, str(exc)) from None
+    return Response(status_code=204)

@@ -1,0 +1,85 @@
+// The review's markers, drawn by the plots' groups (plots.js `PlotGroup.setMarkers`): recorded setting changes
+// in words ("Torque gain 1.00 → 1.30, by dr-k", also the re-run form's list), notes (their spans shaded) and
+// the other events.
+
+import { estimatorLabel } from "./estimators.js";
+import { SETTING_LIMITS } from "./settings.js";
+import { fmt } from "./ui.js";
+
+/** Names a clinician reads for the fields a setting event may change. */
+const FIELD_LABELS = { primary: "Estimator driving the torque", gp_ekf: "GP-EKF model" };
+
+/** A setting's plain name: its label up to any explanation after a colon ("Intent gain boost"). */
+export function settingLabel(field) {
+  if (FIELD_LABELS[field]) return FIELD_LABELS[field];
+  const lim = SETTING_LIMITS[field];
+  return lim ? lim.label.split(":")[0] : String(field).replaceAll("_", " ");
+}
+
+function _value(field, v) {
+  if (v === null || v === undefined) return "–";
+  if (field === "primary") return estimatorLabel(String(v));
+  if (field === "gp_ekf" && typeof v === "number") return `version ${Math.round(v)}`;
+  if (typeof v === "number") return fmt(v, (SETTING_LIMITS[field] && SETTING_LIMITS[field].digits) || 2);
+  return String(v);
+}
+
+/** "Torque gain 1.00 → 1.30, by dr-k" for a setting `Event` with a field; its own text otherwise. */
+export function changeText(ev) {
+  if (!ev.field) return `${ev.text}, by ${ev.actor}`;
+  return `${settingLabel(ev.field)} ${_value(ev.field, ev.before)} → ${_value(ev.field, ev.after)}, by ${ev.actor}`;
+}
+
+/**
+ * Markers of a trial's events for `PlotGroup.setMarkers` ([{t, label, kind}]): setting changes labelled in words,
+ * annotations with their text; the other kinds (recording, system, intent) a line each, their text in the hover tip.
+ */
+export function eventMarkers(events) {
+  return events.map((ev) => ({
+    t: ev.t, kind: ev.kind,
+    label: ev.kind === "setting" ? changeText(ev) : ev.kind === "annotation" ? `Note: ${ev.text}` : "",
+  }));
+}
+
+/** Markers of review notes: a labelled line at `t` (a span's start; `spanShading` shades it to `t_end`). */
+export function noteMarkers(notes) {
+  return notes.map((n) => ({ t: n.t, kind: "annotation", label: `Note: ${n.text}` }));
+}
+
+/** A uPlot plugin shading the spans of review notes (`getNotes()` -> [{t, t_end}], those without t_end skipped). */
+export function spanShading(getNotes) {
+  return {
+    hooks: {
+      drawClear: [(u) => {
+        const spans = getNotes().filter((n) => n.t_end != null);
+        if (!spans.length) return;
+        const { ctx, bbox } = u;
+        ctx.save();
+        ctx.fillStyle = "rgba(11,92,173,0.12)";
+        for (const n of spans) {
+          const a = Math.max(u.valToPos(n.t, "x", true), bbox.left);
+          const b = Math.min(u.valToPos(n.t_end, "x", true), bbox.left + bbox.width);
+          if (b > a) ctx.fillRect(a, bbox.top, b - a, bbox.height);
+        }
+        ctx.restore();
+      }],
+    },
+  };
+}
+
+/**
+ * A uPlot plugin that writes the labels a `Plot` drew (its `drawnMarkers`) on `el` as `data-marker-labels`
+ * (JSON), after each draw: what a test, or a screen reader's description, can read of the canvas.
+ * @param {HTMLElement} el the plot's container
+ * @param {() => object} plot the `Plot` (created after its plugins)
+ */
+export function markerLabels(el, plot) {
+  return {
+    hooks: {
+      draw: [() => {
+        const p = plot();
+        if (p) el.dataset.markerLabels = JSON.stringify(p.drawnMarkers.filter((m) => m.label).map((m) => m.label));
+      }],
+    },
+  };
+}

@@ -1,0 +1,111 @@
+// Review notes: a note at the cursor's time or over a span of the trial, saved with it
+// (`/api/trials/{id}/annotations`), listed by time, deletable by whoever wrote it, and drawn on the plots
+// as labelled markers (review_markers.js).
+
+import { api, query } from "./api.js";
+import { errorBox, fmt, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
+
+/** Who is acting: the name chosen on this tablet (the live view's "Acting as"). */
+export function currentActor() {
+  return localStorage.getItem("gaitscope.actor") || "clinician";
+}
+
+/**
+ * The notes card.
+ * @param {number} trialId
+ * @param {{cursor: () => (number | null), range: () => (number[] | null), onChange: (notes: object[]) => void,
+ *   onSelect: (t: number) => void}} hooks the cursor's time, the trial's time range, and what to do when the
+ *   notes change or one is chosen
+ */
+export function notesCard(trialId, hooks) {
+  const st = { notes: [] };
+  const text = h("input", { type: "text", id: "note-text", "data-testid": "note-text", maxlength: 500,
+    placeholder: "e.g. toe catch, subject stumbles" });
+  const spanBox = h("input", { type: "checkbox", id: "note-span", "data-testid": "note-span" });
+  const from = h("input", { type: "number", id: "note-from", "data-testid": "note-from", step: 0.01, inputmode: "decimal" });
+  const to = h("input", { type: "number", id: "note-to", "data-testid": "note-to", step: 0.01, inputmode: "decimal",
+    disabled: true });
+  const useCursor = h("button", { type: "button", "data-testid": "note-at-cursor", text: "At the cursor" });
+  const add = h("button", { type: "button", class: "primary", "data-testid": "note-add", text: "Add note" });
+  const error = errorBox("note-error");
+  const list = h("ul", { class: "review-notes", "data-testid": "note-list", "aria-label": "Notes of the trial" });
+  const el = h("section", { class: "card", "data-testid": "notes-card" },
+    h("h2", { text: "Notes" }),
+    h("p", { class: "hint", text: "A note at a time, or over a span, saved with the trial and shown on the plots. "
+      + "Only whoever wrote a note may delete it." }),
+    h("label", { for: "note-text", class: "caption", text: "Note" }), text,
+    h("div", { class: "inline note-times" },
+      h("label", {}, "At ", from, " s"),
+      h("label", { class: "choice" }, spanBox, h("span", { text: "over a span, to" })),
+      h("label", {}, to, " s"), useCursor),
+    h("div", { class: "buttons" }, add), error, list);
+
+  spanBox.addEventListener("change", () => {
+    to.disabled = !spanBox.checked;
+    if (spanBox.checked && to.value === "" && from.value !== "") to.value = (Number(from.value) + 1).toFixed(2);
+  });
+  function atCursor() {
+    const t = hooks.cursor();
+    if (t != null) from.value = t.toFixed(2);
+  }
+  useCursor.addEventListener("click", atCursor);
+
+  function render() {
+    const items = st.notes.map((n) => {
+      const when = n.t_end == null ? `${fmt(n.t, 2)} s` : `${fmt(n.t, 2)}–${fmt(n.t_end, 2)} s`;
+      const go = h("button", { type: "button", class: "link", "data-testid": "note-go", text: when,
+        title: "Move the cursor here" });
+      go.addEventListener("click", () => hooks.onSelect(n.t));
+      const mine = n.actor === currentActor();
+      const del = h("button", { type: "button", class: "small", "data-testid": "note-delete", text: "Delete",
+        disabled: !mine, title: mine ? "Delete this note" : `Only ${n.actor} may delete it` });
+      const delError = errorBox("note-delete-error");
+      del.addEventListener("click", () => runAction(del, delError, async () => {
+        await api("DELETE", `/api/trials/${trialId}/annotations/${n.id}${query({ actor: currentActor() })}`);
+        st.notes = st.notes.filter((x) => x.id !== n.id);
+        changed();
+      }));
+      return h("li", { "data-testid": "note-row", "data-id": n.id }, go, " ",
+        h("span", { class: "note-text", "data-testid": "note-row-text", text: n.text }), " ",
+        h("span", { class: "hint", text: `by ${n.actor}` }), " ", del, delError);
+    });
+    list.replaceChildren(...(items.length ? items : [h("li", { class: "hint", text: "No notes yet." })]));
+  }
+  function changed() {
+    render();
+    hooks.onChange(st.notes);
+  }
+
+  add.addEventListener("click", () => runAction(add, error, async () => {
+    const range = hooks.range();
+    if (!range) throw new ValidationError("The trial is not loaded yet.");
+    const words = text.value.trim();
+    if (!words) throw new ValidationError("Write the note first.");
+    if (from.value === "") atCursor();
+    const lo = +range[0].toFixed(2) - 0.01;
+    const hi = +range[1].toFixed(2) + 0.01;
+    const t = readNumber(from, { label: "The note's time", min: lo, max: hi });
+    const body = { t: Math.max(t, 0), text: words, actor: currentActor() };
+    if (spanBox.checked) {
+      const tEnd = readNumber(to, { label: "The span's end", min: lo, max: hi });
+      if (tEnd <= t) throw new ValidationError("The span must end after it starts.");
+      body.t_end = tEnd;
+    }
+    const note = await api("POST", `/api/trials/${trialId}/annotations`, body);
+    st.notes = [...st.notes, note].sort((a, b) => a.t - b.t || a.id - b.id);
+    if (text.value.trim() === words) text.value = ""; // not what was typed meanwhile
+    showError(error, null);
+    changed();
+  }));
+
+  return {
+    el,
+    /** Loads the trial's notes (`GET .../annotations`). */
+    async load() {
+      st.notes = await api("GET", `/api/trials/${trialId}/annotations`);
+      changed();
+    },
+    notes: () => st.notes,
+    atCursor,
+  };
+}
