@@ -1217,6 +1217,227 @@ def estimator_channels(names: Iterable[str]) -> dict[str, tuple[str, type[BaseMo
     return {f"{ESTIMATOR_TOPIC_PREFIX}{name}": ESTIMATOR_SCHEMA for name in names}
 
 
+# =================================================================================================
+# People, sessions, reports (issue #12 section 4): a stopped session's summary and its exports
+# (sessions.reports, server/routes/reports.py).
+# =================================================================================================
+
+
+class StrideProfilePoint(BaseModel):
+    """One stride of a session: when it started, its speed and incline (the speed and incline profile)."""
+
+    trial_id: int
+    t: float = Field(description="session time (s) of the heel strike that starts it")
+    duration_s: float
+    speed_m_s: float = Field(description="estimated stride length over the stride's duration")
+    incline_deg: float = Field(description="mean estimated incline over the stride")
+
+
+class StrideCondition(BaseModel):
+    """The strides walked at one condition (speed and incline, binned), as curves over the stride (0-100 %).
+
+    ``mean`` and every row of ``strides`` have one value per point of ``percent`` (None where the signal was
+    missing); ``strides`` keeps at most :data:`SUMMARY_MAX_OVERLAY` of them (evenly spread)."""
+
+    label: str
+    speed_m_s: float
+    incline_deg: float
+    strides: int
+    percent: list[float]
+    signals: dict[str, list[float | None]] = Field(description="signal -> mean curve")
+    overlays: dict[str, list[list[float | None]]] = Field(description="signal -> a few single strides' curves")
+
+
+class DataHealthFigures(BaseModel):
+    """How good the session's data is, over every recorded trial."""
+
+    samples: int
+    recorded_s: float
+    rate_hz: float | None = Field(description="median sample rate; null without samples")
+    gaps: int = Field(description="breaks in the data longer than three sample periods")
+    longest_gap_s: float
+    missing_percent: float = Field(description="samples without a measured thigh, shank or foot angle, in %")
+    faults: int = Field(description="samples at which the filters were reset or the torque forced to 0")
+    backup_resets: int
+    trials_recovered: int
+    trials_damaged: int
+
+
+class SettingChangeRow(BaseModel):
+    """One setting change, in words a clinician reads."""
+
+    t: float
+    wall_utc: str
+    text: str = Field(description='e.g. "Torque gain 1.00 -> 1.30, by clinician"')
+
+
+class SessionSummary(BaseModel):
+    """What a stopped session gives: ``GET /api/sessions/{id}/summary``."""
+
+    session_id: int
+    subject_id: int
+    subject_code: str
+    state: SessionState
+    source: str = Field(description="in words: simulated walker, replay of a trial, live device, upload")
+    started_utc: str | None
+    stopped_utc: str | None
+    duration_s: float = Field(description="from start to stop (recorded time when those are unknown)")
+    trials: list[Trial]
+    strides: int
+    mean_speed_m_s: float | None
+    mean_stride_length_m: float | None
+    mean_cadence_spm: float | None = Field(description="strides per minute")
+    profile: list[StrideProfilePoint]
+    settings_start: SessionSettings | None = Field(description="in force when the first trial started")
+    settings_end: SessionSettings
+    settings_history: list[SettingChangeRow]
+    conditions: list[StrideCondition]
+    health: DataHealthFigures
+    events: list[Event]
+
+
+#: Overlaid single strides kept per condition and signal in a summary.
+SUMMARY_MAX_OVERLAY: Final = 12
+
+ExportKind = Literal["pdf", "csv"]
+
+
+class ExportCreate(_Strict):
+    """``POST /api/sessions/{id}/exports``: a PDF report or a CSV of the estimates."""
+
+    kind: ExportKind
+
+
+class ExportJob(BaseModel):
+    """An export being made (``GET /api/exports/{id}``); its file is ``GET /api/exports/{id}/file`` once done."""
+
+    id: str
+    session_id: int
+    kind: ExportKind
+    state: Literal["running", "done", "failed"]
+    progress: float = Field(ge=0.0, le=1.0)
+    step: str = Field(description="what it is doing, in words")
+    filename: str
+    error: str = ""
+
+
+# --- review: A/B comparison of re-runs and review annotations (issue #12; sessions.review.compare) ---------
+# (The lead may add these to WIRE for web/wire.js; they are served by /api/trials/{id}/compare and /annotations.)
+
+#: Most re-runs one comparison runs side by side (each is a full re-run of the trial's frames).
+MAX_COMPARED_RUNS: Final = 4
+
+
+class ComparedRunSpec(_Strict):
+    """One re-run of an A/B comparison: its name (the user's) and how it runs (as :class:`RerunRequest`)."""
+
+    name: str = Field(min_length=1, max_length=40, description="the name the user gives it ('A', 'gain 1.3')")
+    settings: SessionSettings | None = Field(
+        default=None, description="null: the recorded settings and their changes (what ran); else held over the trial"
+    )
+    estimators: list[EstimatorName] | None = Field(default=None, max_length=16, description="null: the recorded stack")
+
+    @field_validator("name")
+    @classmethod
+    def _named(cls, v: str) -> str:
+        v = v.strip()
+        if not v:
+            raise ValueError("a re-run's name must not be blank")
+        return v
+
+
+class CompareRequest(_Strict):
+    """Two or more re-runs of one trial compared (``POST /api/trials/{id}/compare``); the first is the reference."""
+
+    runs: list[ComparedRunSpec] = Field(min_length=2, max_length=MAX_COMPARED_RUNS)
+
+    @model_validator(mode="after")
+    def _unique_names(self) -> CompareRequest:
+        seen: set[str] = set()
+        for run in self.runs:
+            key = run.name.casefold()
+            if key in seen:
+                raise ValueError(f"two re-runs are named {run.name!r}: give each its own name")
+            seen.add(key)
+        return self
+
+
+class RunFigures(BaseModel):
+    """Figures of one re-run over the compared window; errors only when the trial's ground truth is known."""
+
+    strides: int = Field(description="complete strides (heel strike to heel strike, 0.3-4 s)")
+    peak_torque_Nm: float | None = Field(description="mean over the strides of each stride's peak torque command")
+    mean_phase_rate_1_s: float | None = Field(description="mean estimated phase rate (strides per second)")
+    mean_stride_length_m: float | None = Field(description="mean estimated stride length")
+    phase_rmse_pct: float | None = Field(default=None, description="RMS phase error against the truth (% of a cycle)")
+    phase_rate_rmse_1_s: float | None = Field(default=None, description="RMS phase-rate error against the truth")
+    stride_length_rmse_m: float | None = Field(default=None, description="RMS stride-length error against the truth")
+    incline_rmse_deg: float | None = Field(default=None, description="RMS incline error against the truth")
+
+
+class ComparedRun(BaseModel):
+    """One re-run's figures, its time series (on the comparison's ``t``) and its mean stride."""
+
+    name: str
+    figures: RunFigures
+    torque_Nm: list[float | None] = Field(description="torque command, row for row with the comparison's t")
+    phase_pct: list[float | None] = Field(description="phase (% of the gait cycle), row for row with t")
+    torque_diff_Nm: list[float | None] = Field(description="this run's torque minus the first run's")
+    phase_diff_pct: list[float | None] = Field(description="this run's phase minus the first run's, wrapped to ±50 %")
+    stride_torque_mean_Nm: list[float | None] = Field(description="mean torque per % of the stride (stride_pct)")
+    stride_torque_sd_Nm: list[float | None] = Field(description="its standard deviation across strides")
+
+
+class Comparison(BaseModel):
+    """The answer of ``POST /api/trials/{id}/compare``."""
+
+    t: list[float] = Field(description="session time (s) of the rows, decimated keeping every series' extremes")
+    stride_pct: list[float] = Field(description="0-100 % of the stride, the x of the runs' mean strides")
+    ground_truth: str | None = Field(description="where the truth the errors are against comes from; null: none known")
+    runs: list[ComparedRun]
+
+
+class ReviewAnnotationCreate(_Strict):
+    """A note added in review at a time, or over a span, of a trial (``POST /api/trials/{id}/annotations``)."""
+
+    t: float = Field(ge=0.0, le=1e9, allow_inf_nan=False, description="session time (s) it is at (or starts at)")
+    t_end: float | None = Field(
+        default=None, ge=0.0, le=1e9, allow_inf_nan=False, description="end of its span (s); null: a single time"
+    )
+    text: str = Field(min_length=1, max_length=500)
+    actor: str = Field(default="clinician", min_length=1, max_length=64)
+
+    @field_validator("text", "actor")
+    @classmethod
+    def _not_blank(cls, v: str) -> str:
+        v = v.strip()
+        if not v:
+            raise ValueError("must not be blank")
+        return v
+
+    @model_validator(mode="after")
+    def _span(self) -> ReviewAnnotationCreate:
+        if self.t_end is not None and self.t_end <= self.t:
+            raise ValueError(f"the span must end after it starts (t_end {self.t_end:g} s <= t {self.t:g} s)")
+        return self
+
+
+class ReviewAnnotation(ReviewAnnotationCreate):
+    id: int
+    trial_id: int
+    created_utc: str
+
+
+# --- live view: undo the last settings change (issue #12) --------------------------------------------------
+
+
+class SettingsUndo(_Strict):
+    """Undo the session's last applied settings change (``POST /api/sessions/{id}/settings/undo``): its fields go
+    back to their values before it, within the same bounds and rate limits as any change, logged as a change."""
+
+    actor: str = _ACTOR
+
+
 #: Every class that crosses a socket or a file, as ``GET /api/schema`` serves them and ``web/wire.js``
 #: types them (the classes they refer to come along in their JSON schemas' ``$defs``).
 WIRE: Final[tuple[type[BaseModel], ...]] = (
@@ -1226,5 +1447,6 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs, CalibrationRequest, PersonalizationChange,
     Personalization, CohortPoint, Fingerprints, PersonalizationExport, IntentSeries, ImuCalibrationRequest,
     ImuCalibration, ImuCalibrationStatus, GPArray, GPModelRecord, GPModelInfo, GPBand, GPPendingFit,
-    GPLearningState, GPLearningControl,
+    GPLearningState, GPLearningControl, SessionSummary, ExportCreate, ExportJob, CompareRequest, Comparison,
+    ReviewAnnotationCreate, ReviewAnnotation, SettingsUndo,
 )  # fmt: skip

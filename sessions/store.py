@@ -756,3 +756,57 @@ class Store:
                 .limit(1)
             ).first()
             return None if row is None else _imu_calibration(row)
+
+    # --- review annotations (issue #12; a note at a time or over a span of a trial) ----------------------
+
+    def add_review_annotation(self, trial_id: int, body: schema.ReviewAnnotationCreate) -> schema.ReviewAnnotation:
+        """Save a note added in review with trial ``trial_id`` (:class:`NotFound` if there is no such trial)."""
+        with self._write() as session:
+            self._get(session, _TrialRow, trial_id)
+            row = _ReviewAnnotationRow(
+                trial_id=trial_id, t=float(body.t), t_end=None if body.t_end is None else float(body.t_end),
+                text=body.text, actor=body.actor, created_utc=_stamp(),
+            )  # fmt: skip
+            session.add(row)
+            session.flush()
+            return _review_annotation(row)
+
+    def list_review_annotations(self, trial_id: int) -> list[schema.ReviewAnnotation]:
+        """A trial's review notes, by time (then by when they were added)."""
+        with self._read() as session:
+            self._get(session, _TrialRow, trial_id)
+            q = select(_ReviewAnnotationRow).where(_ReviewAnnotationRow.trial_id == trial_id)
+            q = q.order_by(_ReviewAnnotationRow.t, _ReviewAnnotationRow.id)
+            return [_review_annotation(r) for r in session.scalars(q)]
+
+    def delete_review_annotation(self, trial_id: int, annotation_id: int, actor: str) -> None:
+        """Delete a trial's review note. Only whoever wrote it may (:class:`NotAllowed` for anyone else);
+        :class:`NotFound` if the trial has no such note."""
+        with self._write() as session:
+            self._get(session, _TrialRow, trial_id)
+            row = session.get(_ReviewAnnotationRow, annotation_id) if 0 < annotation_id <= schema.INT64_MAX else None
+            if row is None or row.trial_id != trial_id:
+                raise NotFound(f"trial {trial_id} has no note {annotation_id}")
+            if row.actor != actor:
+                raise NotAllowed(f"note {annotation_id} was written by {row.actor}: only they may delete it")
+            session.delete(row)
+
+
+class NotAllowed(PermissionError):
+    """The action is not this actor's to take (a review note deleted by someone other than its author)."""
+
+
+class _ReviewAnnotationRow(_Base):
+    __tablename__ = "review_annotations"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trials.id"), index=True)
+    t: Mapped[float]
+    t_end: Mapped[float | None]
+    text: Mapped[str] = mapped_column(Text)
+    actor: Mapped[str] = mapped_column(String(64))
+    created_utc: Mapped[str] = mapped_column(String(40))
+
+
+def _review_annotation(row: _ReviewAnnotationRow) -> schema.ReviewAnnotation:
+    return schema.ReviewAnnotation.model_validate(row, from_attributes=True)

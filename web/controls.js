@@ -1,24 +1,30 @@
-// The live view's control panels: settings (apply / revert), recording, annotations, session start/stop.
-// Every request's refusal is shown in plain words next to its control.
+// The live view's control panels: settings (apply / revert / undo the last change), recording, annotations,
+// session start/stop. Raising the maximum torque asks for a confirmation first. Every request's refusal is
+// shown in plain words next to its control.
 
 import { api } from "./api.js";
+import { describeEvent } from "./events.js";
 import { imuCalibrationCard } from "./imu_calibration.js";
-import { SettingsEditor } from "./settings.js";
+import { SETTING_LIMITS, SettingsEditor } from "./settings.js";
 import { armedButton, errorBox, h, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
 
 const ACTOR_KEY = "gaitscope.actor";
 
 /** Who is acting (written into every event as its actor); remembered on this tablet. */
-export function actorSelect() {
+export function actorSelect(onChange = () => {}) {
   const sel = h("select", { id: "actor", "data-testid": "actor", "aria-label": "Acting as" },
     h("option", { value: "clinician", text: "clinician" }), h("option", { value: "experimenter", text: "experimenter" }));
   sel.value = localStorage.getItem(ACTOR_KEY) || "clinician";
-  sel.addEventListener("change", () => localStorage.setItem(ACTOR_KEY, sel.value));
+  sel.addEventListener("change", () => {
+    localStorage.setItem(ACTOR_KEY, sel.value);
+    onChange(sel.value);
+  });
   return sel;
 }
 
-function _actor() {
+/** Who is acting now (the "Acting as" choice on this tablet). */
+export function actingUser() {
   return localStorage.getItem(ACTOR_KEY) || "clinician";
 }
 
@@ -30,31 +36,83 @@ export function mountControls(sessionId, hooks) {
   const base = `/api/sessions/${sessionId}`;
 
   // --- settings ----------------------------------------------------------------------------------
-  const editor = new SettingsEditor("setting");
+  const editor = new SettingsEditor("setting", { rateLimited: true });
   const applyBtn = h("button", { type: "button", class: "primary", "data-testid": "settings-apply", text: "Apply" });
   const revertBtn = h("button", { type: "button", "data-testid": "settings-revert", text: "Revert edits" });
+  const undoBtn = h("button", { type: "button", "data-testid": "settings-undo", text: "Undo last change", disabled: true });
+  const undoWhat = h("p", { class: "hint", "data-testid": "settings-undo-what", text: "No change to undo yet." });
   const settingsError = errorBox("settings-error");
   const settingsOk = h("p", { class: "ok", role: "status", "data-testid": "settings-ok" });
+  // raising the maximum torque: a second, explicit step
+  const confirmText = h("p", { "data-testid": "confirm-raise-text" });
+  const confirmBtn = h("button", { type: "button", class: "danger", "data-testid": "confirm-raise", text: "Raise it" });
+  const cancelBtn = h("button", { type: "button", "data-testid": "confirm-cancel", text: "Cancel" });
+  const confirmBox = h("div", { class: "confirm-box", role: "alertdialog", "aria-label": "Confirm raising the maximum torque",
+    "data-testid": "confirm-raise-box", hidden: true }, confirmText, h("div", { class: "buttons" }, confirmBtn, cancelBtn));
+  let pending = null; // the changes waiting for the confirmation
+  const label = (k) => SETTING_LIMITS[k].label.split(":")[0];
+  async function apply(changes) {
+    const session = await api("PATCH", `${base}/settings`, { ...changes, actor: actingUser() });
+    editor.setBaseline(session.settings);
+    settingsOk.textContent = `Applied: ${Object.keys(changes).map(label).join(", ")}.`;
+    hooks.onSession(session);
+  }
   applyBtn.addEventListener("click", () => {
     settingsOk.textContent = "";
     runAction(applyBtn, settingsError, async () => {
       const changes = editor.changes();
-      const names = Object.keys(changes);
-      if (!names.length) throw new ValidationError("Nothing to apply: no setting differs from the session's.");
-      const session = await api("PATCH", `${base}/settings`, { ...changes, actor: _actor() });
-      editor.setBaseline(session.settings);
-      settingsOk.textContent = `Applied: ${names.join(", ")}.`;
-      hooks.onSession(session);
+      if (!Object.keys(changes).length) throw new ValidationError("Nothing to apply: no setting differs from the session's.");
+      const now = editor.baseline.max_torque_Nm;
+      if (changes.max_torque_Nm !== undefined && changes.max_torque_Nm > now) {
+        pending = changes;
+        confirmText.textContent = `Raise the maximum torque from ${now} to ${changes.max_torque_Nm} N·m? ` +
+          "The device may then push harder on the subject.";
+        confirmBox.hidden = false;
+        confirmBtn.focus();
+        return;
+      }
+      await apply(changes);
     });
+  });
+  confirmBtn.addEventListener("click", () => runAction(confirmBtn, settingsError, async () => {
+    const changes = pending;
+    pending = null;
+    confirmBox.hidden = true;
+    if (changes) await apply(changes);
+  }));
+  cancelBtn.addEventListener("click", () => {
+    pending = null;
+    confirmBox.hidden = true;
+    settingsOk.textContent = "Not applied: the maximum torque was not raised.";
   });
   revertBtn.addEventListener("click", () => {
     editor.revert();
+    pending = null;
+    confirmBox.hidden = true;
     showError(settingsError, null);
     settingsOk.textContent = "";
   });
+  undoBtn.addEventListener("click", () => {
+    settingsOk.textContent = "";
+    runAction(undoBtn, settingsError, async () => {
+      const session = await api("POST", `${base}/settings/undo`, { actor: actingUser() });
+      editor.setBaseline(session.settings);
+      settingsOk.textContent = "Undone: the settings are back to what they were before the last change.";
+      hooks.onSession(session);
+    }).then(() => {
+      undoBtn.disabled = !lastChange;
+    });
+  });
+  let lastChange = null;
+  /** The newest setting event (what "Undo" would set back). */
+  function setLastChange(ev) {
+    lastChange = ev;
+    undoWhat.textContent = ev ? `Last change: ${describeEvent(ev).headline}.` : "No change to undo yet.";
+    undoBtn.disabled = !ev || !rec.running;
+  }
   const settingsCard = h("section", { class: "card", "data-testid": "settings-card" },
     h("h2", { text: "Assistance and estimator" }), editor.el,
-    h("div", { class: "buttons" }, applyBtn, revertBtn), settingsError, settingsOk);
+    h("div", { class: "buttons" }, applyBtn, revertBtn, undoBtn), undoWhat, confirmBox, settingsError, settingsOk);
 
   // --- recording ---------------------------------------------------------------------------------
   const recName = h("input", { id: "recording-name", "data-testid": "recording-name", maxlength: FIELD_LIMITS.RecordingControl.name.maxLength, placeholder: "trial name (optional)" });
@@ -117,7 +175,7 @@ export function mountControls(sessionId, hooks) {
       const text = annText.value.trim();
       if (!text) throw new ValidationError("Write the annotation first.");
       if (text.length > 500) throw new ValidationError("An annotation may have at most 500 characters.");
-      const event = await api("POST", `${base}/annotations`, { text, actor: _actor() });
+      const event = await api("POST", `${base}/annotations`, { text, actor: actingUser() });
       annText.value = "";
       hooks.onEvent(event);
     });
@@ -140,6 +198,7 @@ export function mountControls(sessionId, hooks) {
     sessStopBtn.hidden = session.state !== "running";
     const running = session.state === "running";
     applyBtn.disabled = !running;
+    undoBtn.disabled = !running || !lastChange;
     rec.running = running;
     if (!running) rec.recording = false; // stopping a session finishes its recording
     renderRecording();
@@ -149,12 +208,16 @@ export function mountControls(sessionId, hooks) {
   }
 
   // --- IMU calibration (sessions whose stack has IMU front ends) ---------------------------------
-  const imu = imuCalibrationCard(sessionId, _actor);
+  const imu = imuCalibrationCard(sessionId, actingUser);
 
   refreshRecording();
   return {
     el: h("div", { class: "controls" }, settingsCard, imu.el, recordingCard, annForm, sessionCard),
+    /** The cards one by one, for a page that lays them out itself. */
+    cards: { settings: settingsCard, imu: imu.el, recording: recordingCard, annotation: annForm, session: sessionCard },
+    editor,
     setSession,
+    setLastChange,
     /** A `SettingsMessage` (possibly another client's change). */
     setSettings(settings) {
       editor.setBaseline(settings, { fromElsewhere: true });

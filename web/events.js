@@ -1,8 +1,10 @@
 // The events list (setting changes, annotations, system and recording events, detected speed-change intents),
-// newest first.
+// newest first, each in plain words ("Torque gain 1.00 → 1.30, by clinician"), never a raw field name;
+// `describeEvent` gives the same words to the live plots' markers.
 
 import { SETTING_LIMITS } from "./settings.js";
 import { fmt, h } from "./ui.js";
+import { ESTIMATORS } from "./wire.js";
 
 /** Marker colours on timelines, per event kind. */
 export const EVENT_COLORS = { setting: "#c2410c", annotation: "#0b5cad", recording: "#1d7a3a", system: "#4b5563",
@@ -15,8 +17,42 @@ function _value(field, v) {
   return String(v);
 }
 
-/** Event fields shown by another name than their machine name. */
-const FIELD_NAMES = { gp_ekf: "GP-EKF model" };
+/** Event fields shown by another name than their machine name (the settings' names come from SETTING_LIMITS). */
+const FIELD_NAMES = { gp_ekf: "GP-EKF model", primary: "Torque follows", imu_calibration: "IMU calibration" };
+
+/** What each kind of event is called on screen. */
+export const KIND_NAMES = { setting: "Setting", annotation: "Note", system: "System", recording: "Recording", intent: "Intent" };
+
+/** A field's name on screen. */
+export function fieldName(field) {
+  if (SETTING_LIMITS[field]) return SETTING_LIMITS[field].label.split(":")[0]; // no explanation after a colon
+  return FIELD_NAMES[field] || field.replace(/_/g, " ").replace(/^./, (c) => c.toUpperCase());
+}
+
+function _shown(field, v) {
+  if (field === "primary" && typeof v === "string") return (ESTIMATORS[v] && ESTIMATORS[v].label) || v;
+  return _value(field, v);
+}
+
+/** A change of a clinician's setting (or of the primary estimator): one line, its author in it. */
+export const isSettingChange = (ev) => ev.kind === "setting" && (!!SETTING_LIMITS[ev.field] || ev.field === "primary");
+
+/**
+ * An event in plain words: `headline` (a setting change as "Torque gain 1.00 → 1.30, by clinician", an
+ * undo saying so; any other event as its text, its author shown apart) and `short` (for a marker on a plot).
+ * @returns {{headline: string, short: string, undo: boolean}}
+ */
+export function describeEvent(ev) {
+  const by = ev.actor && ev.actor !== "system" ? `, by ${ev.actor}` : "";
+  if (isSettingChange(ev)) {
+    const undo = /\(undo of /.test(ev.text || "");
+    const change = `${fieldName(ev.field)} ${_shown(ev.field, ev.before)} → ${_shown(ev.field, ev.after)}`;
+    return { headline: `${change}${undo ? " (undo of the previous change)" : ""}${by}`, short: `${undo ? "Undo: " : ""}${change}`, undo };
+  }
+  if (ev.kind === "annotation") return { headline: ev.text, short: `Note: ${ev.text}`, undo: false };
+  const text = ev.text ? ev.text.charAt(0).toUpperCase() + ev.text.slice(1) : "";
+  return { headline: text, short: text, undo: false };
+}
 
 /** A bounded list of `Event`s (at most `max`, newest kept), deduplicated by id. */
 export class EventList {
@@ -27,7 +63,7 @@ export class EventList {
     this.body = h("tbody", {});
     this.el = h("div", { class: "events-scroll" },
       h("table", { class: "table events", "data-testid": testid },
-        h("thead", {}, h("tr", {}, h("th", { text: "t (s)" }), h("th", { text: "Event: what, before → after, who" }))),
+        h("thead", {}, h("tr", {}, h("th", { text: "Time (s)" }), h("th", { text: "What happened, and who did it" }))),
         this.body));
     this._render();
   }
@@ -49,14 +85,19 @@ export class EventList {
 
   _render() {
     const rows = this.sorted().map((ev) => {
-      const change = ev.field ? `${FIELD_NAMES[ev.field] || ev.field}: ${_value(ev.field, ev.before)} → ${_value(ev.field, ev.after)}` : "";
-      const tr = h("tr", { "data-testid": "event-row", "data-kind": ev.kind, "data-id": ev.id, class: `kind-${ev.kind}` },
+      const { headline, undo } = describeEvent(ev);
+      // a change of a field that is not a setting (a GP-EKF model, a calibration) keeps its own line
+      const setting = isSettingChange(ev);
+      const other = ev.field && !setting
+        ? `${fieldName(ev.field)}: ${_shown(ev.field, ev.before)} → ${_shown(ev.field, ev.after)}` : "";
+      const tr = h("tr", { "data-testid": "event-row", "data-kind": ev.kind, "data-id": ev.id, class: `kind-${ev.kind}${undo ? " undo" : ""}` },
         h("td", { class: "num", text: fmt(ev.t, 1) }),
         h("td", {},
-          h("div", {}, h("span", { class: "kind", style: `border-color:${EVENT_COLORS[ev.kind] || "#4b5563"}`, text: ev.kind }), " ",
-            h("span", { class: "text", "data-testid": "event-text", text: ev.text })),
-          change ? h("div", { class: "change", "data-testid": "event-change", text: change }) : null,
-          h("div", { class: "hint", "data-testid": "event-actor", text: `by ${ev.actor}` })));
+          h("div", {}, h("span", { class: "kind", style: `border-color:${EVENT_COLORS[ev.kind] || "#4b5563"}`, text: KIND_NAMES[ev.kind] || ev.kind }), " ",
+            h("span", { class: "text", "data-testid": "event-text", text: headline })),
+          other ? h("div", { class: "change", "data-testid": "event-change", text: other }) : null,
+          !setting && ev.actor && ev.actor !== "system"
+            ? h("div", { class: "hint", "data-testid": "event-actor", text: `by ${ev.actor}` }) : null));
       if (this.onSelect) {
         tr.classList.add("clickable");
         tr.tabIndex = 0;

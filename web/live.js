@@ -6,17 +6,29 @@
 // the stack's front ends); a stack with the SDRE estimator (`sdre_knee`, seed 002) adds its knee, dashed. A stack
 // with the GP-EKF (`gp_ekf`, seed 003) gets its card (`gp_learning.js`): its phase is the STANCE phase, plotted
 // there and kept out of the gait-phase plot.
+//
+// Layout (issue #12): panels in a grid (`live_layout.js`: which, their order and width, remembered per acting
+// user), the key plots (phase, torque, phase rate, incline) first, in view without scrolling at 1440x900; on
+// a phone the data health and the stop control come first. The time plots are one `PlotGroup`: pause and
+// resume (data keeps arriving), zoom and pan a paused view, linked cursors with hover values, the setting
+// changes and annotations as labelled markers. A new connection gets the session's last 30 s first (the
+// server's history), so the plots open full. The health box judges the figures (`live_health.js`); the stream
+// reconnects by itself, at once when the server is back, and says what happened to a session that ended.
 
-import { api, errorText, openSessionStream } from "./api.js";
-import { actorSelect, mountControls } from "./controls.js";
-import { EVENT_COLORS, EventList } from "./events.js";
+import { api, openSessionStream } from "./api.js";
+import { actingUser, actorSelect, mountControls } from "./controls.js";
+import { describeEvent, EVENT_COLORS, EventList, isSettingChange } from "./events.js";
 import { GP_EKF, gpLearningCard } from "./gp_learning.js";
-import { COLORS, markersPlugin, Plot, Ring, StrideOverlay } from "./plots.js";
+import { legView } from "./leg_view.js";
+import { HealthBox } from "./live_health_box.js";
+import { PanelLayout } from "./live_layout.js";
+import { sessionEndBanner } from "./live_session_end.js";
+import { COLORS, Plot, PlotGroup, Ring, StrideOverlay } from "./plots.js";
+import { onServerChange } from "./server_status.js";
 import { errorBox, fmt, h, runAction, showError } from "./ui.js";
 
 export const WINDOW_S = 10; // seconds of full-rate history the live plots show
 const RING_CAPACITY = 2048; // > 10 s at the 60 Hz the stream is asked for (34 s), bounded memory
-const STALE_MS = 1000;
 const COLUMNS = ["t", "phase_pct", "tbe_pct", "phase_rate", "incline_deg", "stride_length_m", "torque_Nm",
   "foot_angle_deg", "foot_pred_deg", "shank_angle_deg", "shank_pred_deg", "desired_speed_m_s", "speed_m_s",
   "hip_flex_deg", "knee_flex_deg", "knee_sdre_deg"];
@@ -105,31 +117,9 @@ export function bandPlot(container, title, yLabel, color, fill) {
   });
 }
 
-/** Resolves the leg view's address for this browser: a loopback URL is moved to the dashboard's host. */
-export function viewerUrl(url) {
-  const u = new URL(url);
-  const loop = (host) => ["127.0.0.1", "localhost", "[::1]"].includes(host);
-  if (loop(u.hostname) && !loop(location.hostname)) u.hostname = location.hostname;
-  return u.toString();
-}
-
-/** The 3D leg view iframe (or why it is missing); `focus` tells the server what to show. */
-export function legView(focus) {
-  const box = h("section", { class: "card leg-card" }, h("h2", { text: "3D leg view" }));
-  const msg = h("p", { class: "hint", "data-testid": "leg-view-message" });
-  box.append(msg);
-  api("GET", "/api/viewer").then((v) => {
-    if (!v.url) {
-      msg.textContent = "The leg view is switched off on this server.";
-      return;
-    }
-    box.append(h("iframe", { title: "3D leg view", "data-testid": "leg-view", src: viewerUrl(v.url), loading: "lazy" }));
-    return focus && api("POST", "/api/viewer/focus", focus);
-  }).catch((err) => {
-    msg.textContent = `The leg view is unavailable: ${errorText(err)}`;
-  });
-  return box;
-}
+/** The key plots, first and in view at 1440x900; the rest go in the "more plots" panel. */
+const KEY_PLOTS = ["phase", "torque", "phase_rate", "incline"];
+const KEY_HEIGHT = 180;
 
 export function mountLive(root, sessionId) {
   let ring = new Ring(RING_CAPACITY, COLUMNS);
@@ -138,27 +128,20 @@ export function mountLive(root, sessionId) {
   const stack = { names: [], phased: [], primary: null, failed: new Map(), key: "" };
   const overlay = new StrideOverlay(["torque_Nm", "foot_angle_deg", "phase_rate", "stride_length_m", "incline_deg"]);
   const events = new EventList("events-list");
-  let intentMarks = []; // the detected intents, marked on the intent plot
-  const addEvents = (...evs) => {
-    events.add(...evs);
-    if (evs.some((e) => e.kind === "intent")) {
-      intentMarks = [...events.events.values()].filter((e) => e.kind === "intent")
-        .map((e) => ({ t: e.t, color: EVENT_COLORS.intent, width: 2, dash: [4, 3] }));
-    }
-  };
+  const group = new PlotGroup({ pauseOnZoom: true });
   let lastT = -Infinity;
-  let lastBatchAt = 0;
   let dataDirty = false;
   let strideDirty = false;
   let lastText = 0;
   let raf = 0;
   let lastStatePoll = performance.now();
   let alive = true;
+  let helloWall = 0; // Date.now() at the last hello: states the server had before it are the history
+  let serverLost = false; // the page lost the server since the stream last opened
+  let ended = false;
 
   // --- header, summary, health --------------------------------------------------------------------
   const title = h("h1", { "data-testid": "live-title", text: `Session ${sessionId}` });
-  const indicator = h("div", { class: "indicator stale", "data-testid": "live-indicator", role: "status", text: "NO DATA" });
-  const conn = h("span", { class: "hint", "data-testid": "connection", text: "connecting…" });
   const streamError = errorBox("stream-error");
   const cell = (key, label, unit) => {
     const v = h("span", { class: "value", "data-testid": `summary-${key}`, text: "–" });
@@ -177,44 +160,37 @@ export function mountLive(root, sessionId) {
   intentCell.hidden = true;
   const summary = h("div", { class: "summary", "data-testid": "summary" }, phaseCell, cadCell, slCell, spCell, incCell, pkCell, intentCell);
 
-  const hv = (key) => h("dd", { "data-testid": `health-${key}`, text: "–" });
-  const health = { t: hv("session-time"), rate: hv("rate"), latency: hv("latency"), serverLatency: hv("server-latency"), input: hv("dropped-input"), client: hv("dropped-client"), clients: hv("clients"), samples: hv("samples"), implausible: hv("implausible"), faults: hv("faults"), disk: hv("disk"),
-    primary: hv("primary"), failedEstimators: hv("failed-estimators"), tracking: hv("tracking"), imu: hv("imu") };
-  const healthCard = h("section", { class: "card health", "data-testid": "health" }, h("h2", { text: "Data health" }), indicator,
-    h("dl", {}, h("dt", { text: "Session time" }), health.t, h("dt", { text: "Rate" }), health.rate, h("dt", { text: "Device → screen latency p50 / p95" }), health.latency,
-      h("dt", { text: "Device → server p50 / p95" }), health.serverLatency,
-      h("dt", { text: "Dropped device frames" }), health.input, h("dt", { text: "Dropped batches (this screen)" }), health.client,
-      h("dt", { text: "Screens connected" }), health.clients, h("dt", { text: "Samples" }), health.samples,
-      h("dt", { text: "Implausible sensor values (ignored)" }), health.implausible,
-      h("dt", { text: "Estimator resets / torque faults" }), health.faults, h("dt", { text: "Recording disk" }), health.disk,
-      h("dt", { text: "Torque follows (primary estimator)" }), health.primary,
-      h("dt", { text: "Failed estimators" }), health.failedEstimators,
-      h("dt", { text: "Gait tracking" }), health.tracking,
-      h("dt", { text: "IMUs" }), health.imu), conn);
+  const healthBox = new HealthBox();
+  const health = healthBox.f;
   // switching the primary: a setting (validated, rate-limited and logged by the server)
   const primarySelect = h("select", { id: "primary-select", "data-testid": "primary-select", "aria-label": "Primary estimator" });
   const primaryBtn = h("button", { type: "button", "data-testid": "primary-apply", text: "Switch" });
   const primaryError = errorBox("primary-error");
   primaryBtn.addEventListener("click", () => runAction(primaryBtn, primaryError, async () => {
-    const actor = localStorage.getItem("gaitscope.actor") || "clinician";
-    const session = await api("PATCH", `/api/sessions/${sessionId}/settings`, { primary: primarySelect.value, actor });
+    const session = await api("PATCH", `/api/sessions/${sessionId}/settings`, { primary: primarySelect.value, actor: actingUser() });
     controls.setSession(session);
   }));
-  healthCard.append(h("div", { class: "inline", "data-testid": "primary-switch" },
+  healthBox.el.append(h("div", { class: "inline", "data-testid": "primary-switch" },
     h("label", { for: "primary-select", text: "Torque follows " }), primarySelect, primaryBtn), primaryError);
 
-  // --- plots --------------------------------------------------------------------------------------
-  const plotsBox = h("div", { class: "plots" });
+  // --- plots: one group (shared zoom, cursor, markers, pause) ----------------------------------------
   const follow = (u, min, max) => (max == null ? [0, WINDOW_S] : [max - WINDOW_S, max]);
+  const keyBox = h("div", { class: "plots key-plots" });
+  const moreBox = h("div", { class: "plots more-plots" });
+  const plotOf = (spec) => new Plot(spec.div, { ...spec.spec, xRange: follow, group, height: spec.height });
   const plots = PLOT_SPECS.map((spec) => {
+    const key = KEY_PLOTS.includes(spec.key);
     const div = h("div", { class: "plot", "data-testid": `plot-${spec.key}` });
-    plotsBox.append(div);
-    return { spec, div, plot: new Plot(div, { ...spec, xRange: follow }) };
+    const entry = { spec, div, height: key ? KEY_HEIGHT : 170 };
+    entry.plot = new Plot(div, { ...spec, xRange: follow, group, height: entry.height });
+    return entry;
   });
+  for (const k of KEY_PLOTS) keyBox.append(plots.find((p) => p.spec.key === k).div);
+  for (const p of plots) if (!KEY_PLOTS.includes(p.spec.key)) moreBox.append(p.div);
   // desired vs actual speed: shown once a batch says the stack has the intent estimator
   const intentDiv = h("div", { class: "plot", "data-testid": "plot-intent-speed", hidden: true });
-  plotsBox.insertBefore(intentDiv, plots[1].div);
-  const intentPlot = new Plot(intentDiv, { ...INTENT_SPEC, xRange: follow, plugins: [markersPlugin(() => intentMarks)] });
+  moreBox.prepend(intentDiv);
+  const intentPlot = new Plot(intentDiv, { ...INTENT_SPEC, xRange: follow, group });
   const joints = plots.find((p) => p.spec.key === "joints");
   /** The SDRE knee joins the joints plot once a batch says the stack runs `sdre_knee`. */
   function showSdre() {
@@ -243,7 +219,7 @@ export function mountLive(root, sessionId) {
     phase.plot.destroy();
     phase.div.replaceChildren();
     phase.spec = phaseSpec(stack.names, stack.primary, failed);
-    phase.plot = new Plot(phase.div, { ...phase.spec, xRange: follow });
+    phase.plot = plotOf(phase);
     dataDirty = true;
     const options = stack.phased.filter((n) => !failed.has(n));
     if (JSON.stringify(options) !== JSON.stringify([...primarySelect.options].map((o) => o.value))) {
@@ -251,6 +227,35 @@ export function mountLive(root, sessionId) {
     }
     if (stack.primary && options.includes(stack.primary)) primarySelect.value = stack.primary;
   }
+
+  // pause / resume (the data keeps arriving; resuming catches up), and the paused view's zoom and pan
+  const pauseBtn = h("button", { type: "button", class: "primary", "data-testid": "live-pause", text: "Pause",
+    title: "Pause the plots (the data keeps arriving); Resume catches up", "aria-pressed": "false" });
+  const pauseNote = h("span", { class: "hint", "data-testid": "live-pause-note", "aria-live": "polite",
+    text: "Following the newest 10 s. Drag across a plot or use the wheel to zoom (it pauses)." });
+  pauseBtn.addEventListener("click", () => (group.paused ? group.resume() : group.pause()));
+  group.onChange((g) => {
+    pauseBtn.textContent = g.paused ? "Resume" : "Pause";
+    pauseBtn.setAttribute("aria-pressed", String(g.paused));
+    pauseNote.textContent = g.paused
+      ? "Paused: the data keeps arriving. Drag or wheel to zoom, Shift+drag to pan; Resume catches up."
+      : "Following the newest 10 s. Drag across a plot or use the wheel to zoom (it pauses).";
+  });
+  /** Setting changes and annotations as labelled markers on every time plot; detected intents on their plot. */
+  function showMarkers() {
+    const all = [...events.events.values()];
+    group.setMarkers(all.filter((e) => isSettingChange(e) || e.kind === "annotation")
+      .map((e) => ({ t: e.t, label: describeEvent(e).short, kind: e.kind })));
+    intentPlot.setMarkers(all.filter((e) => e.kind === "intent")
+      .map((e) => ({ t: e.t, label: describeEvent(e).short, kind: "intent", color: EVENT_COLORS.intent })));
+    const settings = all.filter(isSettingChange).sort((a, b) => a.t - b.t || a.id - b.id);
+    controls.setLastChange(settings.length ? settings[settings.length - 1] : null);
+  }
+  const addEvents = (...evs) => {
+    events.add(...evs);
+    showMarkers();
+  };
+
   const strideCount = h("span", { class: "hint", "data-testid": "stride-count", text: "waiting for heel strikes…" });
   const bandTorque = h("div", { class: "plot", "data-testid": "overlay-torque" });
   const bandFoot = h("div", { class: "plot", "data-testid": "overlay-foot" });
@@ -279,53 +284,56 @@ export function mountLive(root, sessionId) {
     localStorage.removeItem(baselineKey());
     showBaseline(null);
   });
-  const overlayCard = h("section", { class: "card overlay" },
-    h("div", { class: "card-head" }, h("h2", { text: "Per stride: mean ± SD of the last 20" }), strideCount),
-    h("div", { class: "overlay-plots" }, bandTorque, bandFoot),
-    h("div", { class: "baseline-row" }, setBaselineBtn, clearBaselineBtn, baselineNote));
 
-  // --- controls, events, leg view ------------------------------------------------------------------
+  // --- controls, events, leg view, panels ------------------------------------------------------------
   let subjectCode = "";
-  const gp = gpLearningCard(sessionId, () => localStorage.getItem("gaitscope.actor") || "clinician");
+  const sessionEnd = sessionEndBanner();
+  const gp = gpLearningCard(sessionId, actingUser);
   const controls = mountControls(sessionId, {
     onEvent: (ev) => addEvents(ev),
     onSession: (s) => {
       title.textContent = `Session ${sessionId} · ${subjectCode || `subject ${s.subject_id}`} · ${s.source.kind} · ${s.state}`;
       gp.setSession(s);
+      group.setContext({ max_torque_Nm: s.settings.max_torque_Nm });
+      if (s.state === "running") sessionEnd.hide();
     },
   });
-  const eventsCard = h("section", { class: "card", "data-testid": "events-card" }, h("h2", { text: "Events (newest first)" }), events.el);
-
-  const layout = h("div", { class: "page live-page" },
-    h("div", { class: "page-head" }, title, h("label", { class: "actor" }, "Acting as ", actorSelect()),
-      h("a", { class: "button", href: "#/", text: "← Sessions" })),
-    summary, streamError, gp.el, // full width: its three joints side by side
-    h("div", { class: "live-grid" },
-      h("div", { class: "main-col" }, overlayCard, legView({ session_id: sessionId }), plotsBox),
-      h("aside", { class: "side-col" }, healthCard, controls.el, eventsCard)));
-  root.append(layout);
+  const card = (id, heading, ...body) => h("section", { class: "card", "data-testid": `${id}-card` }, h("h2", { text: heading }), ...body);
+  const panels = [
+    { id: "key-plots", title: "Key plots", size: 2, el: card("key-plots", "Phase, torque, phase rate, incline",
+      h("div", { class: "live-tools" }, pauseNote), keyBox) },
+    { id: "summary", title: "Summary figures", size: 1, el: summary },
+    { id: "health", title: "Data health", size: 1, el: healthBox.el },
+    { id: "session", title: "Session (start, stop)", size: 1, el: controls.cards.session },
+    { id: "settings", title: "Assistance settings", size: 1, el: controls.cards.settings },
+    { id: "overlays", title: "Per-stride overlays", size: 2, el: h("section", { class: "card overlay" },
+      h("div", { class: "card-head" }, h("h2", { text: "Per stride: mean ± SD of the last 20" }), strideCount),
+      h("div", { class: "overlay-plots" }, bandTorque, bandFoot),
+      h("div", { class: "baseline-row" }, setBaselineBtn, clearBaselineBtn, baselineNote)) },
+    { id: "events", title: "Events", size: 1, el: card("events", "Events (newest first)", events.el) },
+    { id: "more-plots", title: "More plots", size: 2, el: card("more-plots", "Stride length, foot, shank, hip and knee", moreBox) },
+    { id: "annotation", title: "Annotation", size: 1, el: controls.cards.annotation },
+    { id: "recording", title: "Recording", size: 1, el: controls.cards.recording },
+    { id: "leg", title: "3D leg view", size: 1, el: legView({ session_id: sessionId }) },
+    { id: "imu", title: "IMU calibration", size: 1, el: controls.cards.imu },
+    { id: "gp", title: "GP-EKF learning", size: 3, el: gp.el },
+  ];
+  const layout = new PanelLayout(panels, actingUser());
+  const page = h("div", { class: "page live-page" },
+    h("div", { class: "page-head" }, title, pauseBtn, h("label", { class: "actor" }, "Acting as ", actorSelect((a) => layout.use(a))),
+      layout.menu, h("a", { class: "button", href: "#/", text: "← Sessions" })),
+    streamError, sessionEnd.el, layout.grid);
+  root.append(page);
   const bands = [
     { c: "torque_Nm", plot: bandPlot(bandTorque, "Torque command", "N·m", COLORS.orange, { line: "#e8a07f", band: "rgba(194,65,12,0.18)" }) },
     { c: "foot_angle_deg", plot: bandPlot(bandFoot, "Foot angle (measured)", "deg", COLORS.blue, { line: "#7fa6d1", band: "rgba(11,92,173,0.18)" }) },
   ];
 
   // --- stream ---------------------------------------------------------------------------------------
-  // device-to-browser latency: the device stamps sent_ns (wall clock, ns); one clock when on this machine
-  const recentLatency = [];
-  function noteLatency(states) {
-    const now = Date.now();
-    for (const s of states) if (s.sent_ns != null) recentLatency.push([now, now - s.sent_ns / 1e6]);
-    while (recentLatency.length && now - recentLatency[0][0] > 1000) recentLatency.shift();
-  }
-  function latencyText() {
-    if (!recentLatency.length) return "–";
-    const v = recentLatency.map((x) => x[1]).sort((a, b) => a - b);
-    const q = (p) => v[Math.min(v.length - 1, Math.floor(p * v.length))];
-    return `${fmt(q(0.5), 1)} / ${fmt(q(0.95), 1)} ms`;
-  }
-
   function onStates(states, estimators) {
-    noteLatency(states);
+    // the history the server sends on connecting (received before the hello): plotted, not live
+    const history = states.length > 0 && states[states.length - 1].recv_ns / 1e6 < helloWall - 50;
+    if (!history) healthBox.noteStates(states);
     const est = estimators || {};
     const phased = Object.keys(est).filter((n) => est[n].columns && est[n].columns.phase);
     if (phased.length && JSON.stringify(phased) !== JSON.stringify(stack.phased)) {
@@ -347,9 +355,9 @@ export function mountLive(root, sessionId) {
     if (sdreKnee) showSdre();
     for (let i = 0; i < states.length; i++) {
       const s = states[i];
-      if (s.t < lastT) {
+      if (s.t <= lastT) {
+        if (history || s.t === lastT) continue; // already shown: a reconnection's history overlaps what the page has
         ring.clear(); // the source restarted (a replay looping): keep time increasing in the window
-        lastT = -Infinity;
       }
       lastT = s.t;
       const row = stateRow(s);
@@ -362,10 +370,7 @@ export function mountLive(root, sessionId) {
       ring.push(row);
       if (overlay.push(s.t, row, s.heel_strike)) strideDirty = true;
     }
-    if (states.length) {
-      lastBatchAt = performance.now();
-      dataDirty = true;
-    }
+    if (states.length) dataDirty = true;
   }
 
   /** The intent estimator's last class (1 speeding up, -1 slowing down, 0 steady), desired speed and confidence. */
@@ -390,27 +395,7 @@ export function mountLive(root, sessionId) {
   }
 
   function onHealth(m) {
-    health.rate.textContent = `${fmt(m.rate_hz, 0)} Hz`;
-    health.latency.textContent = latencyText();
-    health.serverLatency.textContent = `${fmt(m.latency_ms_p50, 1)} / ${fmt(m.latency_ms_p95, 1)} ms`;
-    health.input.textContent = String(m.dropped_input);
-    health.client.textContent = String(m.dropped_client);
-    health.clients.textContent = String(m.clients);
-    health.samples.textContent = String(m.samples);
-    health.client.classList.toggle("warn", m.dropped_client > 0);
-    health.input.classList.toggle("warn", m.dropped_input > 0);
-    health.implausible.textContent = String(m.implausible ?? 0);
-    health.implausible.classList.toggle("warn", (m.implausible ?? 0) > 0);
-    health.faults.textContent = String(m.faults ?? 0);
-    health.faults.classList.toggle("warn", (m.faults ?? 0) > 0);
-    const disk = { ok: "ok", low: "space low: recording stops when it runs out", critical: "full: recording stopped" }[m.disk ?? "ok"];
-    health.disk.textContent = disk;
-    health.disk.classList.toggle("warn", (m.disk ?? "ok") !== "ok");
-    const tracking = { walking: "walking", standing: "standing still: phase held, torque 0", lost: `lost track, reset: ${m.tracking_note || ""}` }[m.tracking] || "–";
-    health.tracking.textContent = tracking;
-    health.tracking.classList.toggle("warn", m.tracking === "lost");
-    health.imu.textContent = { ok: "ok", fault: m.imu_note }[m.imu] || "–";
-    health.imu.classList.toggle("warn", m.imu === "fault");
+    healthBox.onHealth(m);
     if (m.estimators) {
       gp.setStack(m.estimators);
       stack.primary = m.primary ?? null;
@@ -419,15 +404,36 @@ export function mountLive(root, sessionId) {
     }
   }
 
-  const stream = openSessionStream(sessionId, {
+  /** The session is not running (anymore): what happened, and the way to start again. */
+  async function checkEnded() {
+    try {
+      const [s, evs] = await Promise.all([api("GET", `/api/sessions/${sessionId}`), api("GET", `/api/sessions/${sessionId}/events`)]);
+      if (!alive) return;
+      controls.setSession(s);
+      addEvents(...evs);
+      if (s.state === "stopped" || s.state === "failed") {
+        ended = true;
+        healthBox.ended = true;
+        sessionEnd.show(s, evs, serverLost);
+        healthBox.setConnection("not streaming: the session is not running", false);
+      }
+    } catch (err) {
+      if (alive) showError(streamError, err);
+    }
+  }
+
+  const handlers = {
     onMessage(msg) {
       switch (msg.type) {
         case "hello":
+          helloWall = Date.now();
+          serverLost = false;
           showError(streamError, null);
           subjectCode = msg.subject.code;
+          healthBox.declaredHz = msg.source_rate_hz;
           try {
             showBaseline(JSON.parse(localStorage.getItem(baselineKey()) || "null"));
-          } catch (err) {
+          } catch {
             showBaseline(null); // an unreadable stored baseline is dropped, not fatal
           }
           controls.setSession(msg.session);
@@ -446,6 +452,7 @@ export function mountLive(root, sessionId) {
           break;
         case "settings":
           controls.setSettings(msg.settings);
+          group.setContext({ max_torque_Nm: msg.settings.max_torque_Nm });
           if (msg.settings.primary && !stack.failed.has(msg.settings.primary)) {
             stack.primary = msg.settings.primary; // until the next health message says otherwise
             showStack();
@@ -456,15 +463,26 @@ export function mountLive(root, sessionId) {
       }
     },
     onStatus(status, info) {
-      if (status === "open") conn.textContent = "connected";
-      else if (status === "connecting") conn.textContent = "connecting…";
-      else if (status === "reconnecting") conn.textContent = `connection lost (code ${info.code}); retrying in ${(info.delayMs / 1000).toFixed(1)} s`;
-      else if (status === "closed") {
-        conn.textContent = "not streaming";
+      if (status === "open") healthBox.setConnection("connected", true);
+      else if (status === "connecting") healthBox.setConnection("connecting…", false);
+      else if (status === "reconnecting") {
+        if (info.code === 1006) serverLost = true; // the connection failed or dropped: the server may be gone
+        healthBox.setConnection(`connection lost (code ${info.code}); retrying in ${(info.delayMs / 1000).toFixed(1)} s`, false);
+      } else if (status === "closed") {
+        healthBox.setConnection("not streaming", false);
         showError(streamError, `No live data: ${info.reason || `the server closed the stream (code ${info.code})`}.`);
-        api("GET", `/api/sessions/${sessionId}`).then((s) => controls.setSession(s)).catch(() => {});
+        checkEnded().then(() => ended && showError(streamError, null));
       }
     },
+  };
+  let stream = openSessionStream(sessionId, handlers);
+  // The header's health check saw the server come back: reconnect now rather than at the next back-off.
+  const stopWatching = onServerChange((d) => {
+    if (d.state === "lost") serverLost = true;
+    if (d.state === "back" && alive && !ended && !healthBox.connected) {
+      stream.close();
+      stream = openSessionStream(sessionId, handlers);
+    }
   });
 
   // --- drawing: at most once per animation frame, whatever the message rate ---------------------------
@@ -482,16 +500,25 @@ export function mountLive(root, sessionId) {
     }
     if (now - lastText > 200) {
       lastText = now;
-      const stale = now - lastBatchAt > STALE_MS;
-      indicator.textContent = lastBatchAt === 0 ? "NO DATA" : stale ? "STALE" : "LIVE";
-      indicator.className = `indicator ${stale ? "stale" : "live"}`;
+      const verdict = healthBox.update(now, ring.last("t"));
+      controls.editor.clampSliders(now);
       // The stream stays open, silent, when another screen stops the session: ask for its state.
-      if (stale && now - lastStatePoll > 5000) {
+      if (!verdict.live && !ended && healthBox.connected && now - lastStatePoll > 5000) {
         lastStatePoll = now;
-        api("GET", `/api/sessions/${sessionId}`).then((s) => alive && controls.setSession(s)).catch(() => {});
+        api("GET", `/api/sessions/${sessionId}`).then((s) => {
+          if (!alive) return;
+          controls.setSession(s);
+          if (s.state !== "running" && s.state !== "created") checkEnded();
+        }).catch(() => {});
+      }
+      // what the key plots span and where each plot drew its markers, readable from the page (the e2e tests)
+      const shown = ring.window("t", [], WINDOW_S)[0];
+      keyBox.dataset.shownS = shown.length ? (shown[shown.length - 1] - shown[0]).toFixed(1) : "0";
+      for (const p of [...plots, { div: intentDiv, plot: intentPlot }]) {
+        const marks = JSON.stringify(p.plot.drawnMarkers.map((m) => [m.label, Math.round(m.x), m.row]));
+        if (p.div.dataset.markers !== marks) p.div.dataset.markers = marks;
       }
       phaseV.textContent = fmt(ring.last("phase_pct"), 1);
-      health.t.textContent = `${fmt(ring.last("t"), 1)} s`;
       const st = overlay.lastStride; // the last complete stride, else the newest sample
       // a stance-phase primary's rate is the stance's, not the stride's: the cadence is then the stride's duration
       const rate = STANCE_PHASE.has(stack.primary) ? (st ? 1 / st.duration : NaN) : st ? st.mean.phase_rate : ring.last("phase_rate");
@@ -512,6 +539,7 @@ export function mountLive(root, sessionId) {
     unmount() {
       alive = false;
       cancelAnimationFrame(raf);
+      stopWatching();
       stream.close();
       for (const p of plots) p.plot.destroy();
       intentPlot.destroy();

@@ -1,5 +1,7 @@
 // The clinician-adjustable settings: bounds, and an editor (number box + slider per setting) used by
-// the live view's "Apply" and the review view's "Re-run with settings".
+// the live view's "Apply" and the review view's "Re-run with settings". In the live view (`rateLimited`)
+// each row shows the value applied now beside the one being edited, and its slider reaches only what the
+// rate limit allows now: ± rate × the seconds since the field last changed, at most ± rate.
 
 import { SETTING_LIMITS as WIRE_LIMITS } from "./wire.js";
 import { fmt, h, ValidationError } from "./ui.js";
@@ -28,9 +30,11 @@ const _EPS = 1e-9;
 
 /** One editor row per setting; `prefix` names ids and test ids (e.g. "setting" -> "setting-torque_gain"). */
 export class SettingsEditor {
-  constructor(prefix) {
+  constructor(prefix, { rateLimited = false } = {}) {
     this.prefix = prefix;
+    this.rateLimited = rateLimited;
     this.baseline = {};
+    this.changedAt = {}; // performance.now() of each field's last change seen (the rate limit counts from it)
     this.rows = {};
     this.el = h("div", { class: "settings-editor" });
     for (const key of SETTING_KEYS) this._addRow(key);
@@ -48,6 +52,7 @@ export class SettingsEditor {
       "aria-label": `${lim.label} slider`,
     });
     const note = h("span", { class: "note", "data-testid": `${id}-note` });
+    const applied = h("span", { class: "applied", "data-testid": `${id}-applied`, hidden: !this.rateLimited });
     const hint = h("span", {
       class: "hint", id: `${id}-hint`,
       text: `${lim.min}–${lim.max} ${lim.unit}; at most ±${lim.rate} per second`,
@@ -62,8 +67,8 @@ export class SettingsEditor {
     });
     const row = h("div", { class: "setting-row" },
       h("label", { for: id, class: "caption", text: `${lim.label} (${lim.unit})` }),
-      h("div", { class: "setting-inputs" }, number, slider), hint, note);
-    this.rows[key] = { number, slider, note, row, dirty: false };
+      h("div", { class: "setting-inputs" }, number, slider, applied), hint, note);
+    this.rows[key] = { number, slider, note, applied, row, dirty: false };
     this.el.append(row);
   }
 
@@ -83,7 +88,9 @@ export class SettingsEditor {
       const v = settings[key];
       const r = this.rows[key];
       const changed = this.baseline[key] !== undefined && Math.abs(v - this.baseline[key]) > _EPS;
+      if (changed) this.changedAt[key] = performance.now();
       this.baseline[key] = v;
+      r.applied.textContent = `applied now: ${fmt(v, SETTING_LIMITS[key].digits)}`;
       if (!r.dirty) {
         r.number.value = String(v);
         r.slider.value = String(v);
@@ -92,6 +99,41 @@ export class SettingsEditor {
         r.note.textContent = changed ? `server now ${fmt(v, SETTING_LIMITS[key].digits)}` : r.note.textContent;
       }
       this._markDirty(key);
+    }
+    this.clampSliders();
+  }
+
+  /**
+   * The largest step each field may take now: its rate limit, times the seconds since it last changed
+   * (at most one second's worth), as the server counts it.
+   * @returns {Record<string, number>}
+   */
+  reachable(now = performance.now()) {
+    const out = {};
+    for (const key of SETTING_KEYS) {
+      const { rate } = SETTING_LIMITS[key];
+      const since = this.changedAt[key] === undefined ? Infinity : (now - this.changedAt[key]) / 1000;
+      out[key] = rate * Math.min(1, since);
+    }
+    return out;
+  }
+
+  /** Live view: each slider's range set to what the rate limit lets it reach now (call a few times a second). */
+  clampSliders(now = performance.now()) {
+    if (!this.rateLimited) return;
+    const reach = this.reachable(now);
+    for (const key of SETTING_KEYS) {
+      const base = this.baseline[key];
+      if (base === undefined) continue;
+      const lim = SETTING_LIMITS[key];
+      const r = this.rows[key];
+      const steps = Math.floor(reach[key] / lim.step + 1e-9) * lim.step; // on the slider's grid about the value
+      const lo = Math.max(lim.min, base - steps);
+      const hi = Math.min(lim.max, base + steps);
+      const [a, b] = [String(+lo.toFixed(6)), String(+hi.toFixed(6))];
+      if (r.slider.min !== a) r.slider.min = a;
+      if (r.slider.max !== b) r.slider.max = b;
+      r.slider.title = `The slider reaches ${a}–${b} now (at most ±${lim.rate} per second)`;
     }
   }
 

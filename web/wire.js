@@ -551,7 +551,7 @@
  */
 
 /**
- * One array of a GP model set (``estimators.gp_ekf.GPModelSet.to_arrays``): its shape and its values in
+ * One array of a GP model set (``estimators.gp_models.GPModelSet.to_arrays``): its shape and its values in
  * C order (JSON numbers read back to the same float64).
  * @typedef {object} GPArray
  * @property {Array<number>} shape
@@ -617,6 +617,7 @@
  * @property {boolean} rollback the waiting version is a rollback
  * @property {boolean} frozen learning is frozen: no fit, no install but a rollback
  * @property {GPPendingFit | null} pending
+ * @property {number | null} [queued_s=null] a training window is ready and has waited this long (s) for the fitting worker, which the server's learning sessions share within its duty budget (null: none waiting)
  * @property {Array<GPModelInfo>} versions the versions kept, by version (rollback targets)
  * @property {string} last the last learning event's text ('' none yet)
  * @property {Array<number>} phase stance phase of the band's points, 0..1
@@ -633,6 +634,128 @@
  * @property {number | null} [version=null] rollback: the kept version (0..9223372036854775807)
  * @property {string} [actor="clinician"]
  * @property {string} [reason=""]
+ */
+
+/**
+ * What a stopped session gives: ``GET /api/sessions/{id}/summary``.
+ * @typedef {object} SessionSummary
+ * @property {number} session_id
+ * @property {number} subject_id
+ * @property {string} subject_code
+ * @property {"created" | "running" | "stopped" | "failed"} state
+ * @property {string} source in words: simulated walker, replay of a trial, live device, upload
+ * @property {string | null} started_utc
+ * @property {string | null} stopped_utc
+ * @property {number} duration_s from start to stop (recorded time when those are unknown)
+ * @property {Array<Trial>} trials
+ * @property {number} strides
+ * @property {number | null} mean_speed_m_s
+ * @property {number | null} mean_stride_length_m
+ * @property {number | null} mean_cadence_spm strides per minute
+ * @property {Array<StrideProfilePoint>} profile
+ * @property {SessionSettings | null} settings_start in force when the first trial started
+ * @property {SessionSettings} settings_end
+ * @property {Array<SettingChangeRow>} settings_history
+ * @property {Array<StrideCondition>} conditions
+ * @property {DataHealthFigures} health
+ * @property {Array<Event>} events
+ */
+
+/**
+ * ``POST /api/sessions/{id}/exports``: a PDF report or a CSV of the estimates.
+ * @typedef {object} ExportCreate
+ * @property {"pdf" | "csv"} kind
+ */
+
+/**
+ * An export being made (``GET /api/exports/{id}``); its file is ``GET /api/exports/{id}/file`` once done.
+ * @typedef {object} ExportJob
+ * @property {string} id
+ * @property {number} session_id
+ * @property {"pdf" | "csv"} kind
+ * @property {"running" | "done" | "failed"} state
+ * @property {number} progress (0..1)
+ * @property {string} step what it is doing, in words
+ * @property {string} filename
+ * @property {string} [error=""]
+ */
+
+/**
+ * Two or more re-runs of one trial compared (``POST /api/trials/{id}/compare``); the first is the reference.
+ * @typedef {object} CompareRequest
+ * @property {Array<ComparedRunSpec>} runs
+ */
+
+/**
+ * The answer of ``POST /api/trials/{id}/compare``.
+ * @typedef {object} Comparison
+ * @property {Array<number>} t session time (s) of the rows, decimated keeping every series' extremes
+ * @property {Array<number>} stride_pct 0-100 % of the stride, the x of the runs' mean strides
+ * @property {string | null} ground_truth where the truth the errors are against comes from; null: none known
+ * @property {Array<ComparedRun>} runs
+ */
+
+/**
+ * A note added in review at a time, or over a span, of a trial (``POST /api/trials/{id}/annotations``).
+ * @typedef {object} ReviewAnnotationCreate
+ * @property {number} t session time (s) it is at (or starts at) (0..1e+09)
+ * @property {number | null} [t_end=null] end of its span (s); null: a single time (0..1e+09)
+ * @property {string} text
+ * @property {string} [actor="clinician"]
+ */
+
+/**
+ * @typedef {object} ReviewAnnotation
+ * @property {number} t session time (s) it is at (or starts at) (0..1e+09)
+ * @property {number | null} [t_end=null] end of its span (s); null: a single time (0..1e+09)
+ * @property {string} text
+ * @property {string} [actor="clinician"]
+ * @property {number} id
+ * @property {number} trial_id
+ * @property {string} created_utc
+ */
+
+/**
+ * Undo the session's last applied settings change (``POST /api/sessions/{id}/settings/undo``): its fields go
+ * back to their values before it, within the same bounds and rate limits as any change, logged as a change.
+ * @typedef {object} SettingsUndo
+ * @property {string} [actor="clinician"]
+ */
+
+/**
+ * One re-run's figures, its time series (on the comparison's ``t``) and its mean stride.
+ * @typedef {object} ComparedRun
+ * @property {string} name
+ * @property {RunFigures} figures
+ * @property {Array<number | null>} torque_Nm torque command, row for row with the comparison's t
+ * @property {Array<number | null>} phase_pct phase (% of the gait cycle), row for row with t
+ * @property {Array<number | null>} torque_diff_Nm this run's torque minus the first run's
+ * @property {Array<number | null>} phase_diff_pct this run's phase minus the first run's, wrapped to ±50 %
+ * @property {Array<number | null>} stride_torque_mean_Nm mean torque per % of the stride (stride_pct)
+ * @property {Array<number | null>} stride_torque_sd_Nm its standard deviation across strides
+ */
+
+/**
+ * One re-run of an A/B comparison: its name (the user's) and how it runs (as :class:`RerunRequest`).
+ * @typedef {object} ComparedRunSpec
+ * @property {string} name the name the user gives it ('A', 'gain 1.3')
+ * @property {SessionSettings | null} [settings=null] null: the recorded settings and their changes (what ran); else held over the trial
+ * @property {Array<string> | null} [estimators=null] null: the recorded stack
+ */
+
+/**
+ * How good the session's data is, over every recorded trial.
+ * @typedef {object} DataHealthFigures
+ * @property {number} samples
+ * @property {number} recorded_s
+ * @property {number | null} rate_hz median sample rate; null without samples
+ * @property {number} gaps breaks in the data longer than three sample periods
+ * @property {number} longest_gap_s
+ * @property {number} missing_percent samples without a measured thigh, shank or foot angle, in %
+ * @property {number} faults samples at which the filters were reset or the torque forced to 0
+ * @property {number} backup_resets
+ * @property {number} trials_recovered
+ * @property {number} trials_damaged
  */
 
 /**
@@ -691,6 +814,27 @@
  */
 
 /**
+ * Figures of one re-run over the compared window; errors only when the trial's ground truth is known.
+ * @typedef {object} RunFigures
+ * @property {number} strides complete strides (heel strike to heel strike, 0.3-4 s)
+ * @property {number | null} peak_torque_Nm mean over the strides of each stride's peak torque command
+ * @property {number | null} mean_phase_rate_1_s mean estimated phase rate (strides per second)
+ * @property {number | null} mean_stride_length_m mean estimated stride length
+ * @property {number | null} [phase_rmse_pct=null] RMS phase error against the truth (% of a cycle)
+ * @property {number | null} [phase_rate_rmse_1_s=null] RMS phase-rate error against the truth
+ * @property {number | null} [stride_length_rmse_m=null] RMS stride-length error against the truth
+ * @property {number | null} [incline_rmse_deg=null] RMS incline error against the truth
+ */
+
+/**
+ * One setting change, in words a clinician reads.
+ * @typedef {object} SettingChangeRow
+ * @property {number} t
+ * @property {string} wall_utc
+ * @property {string} text e.g. "Torque gain 1.00 -> 1.30, by clinician"
+ */
+
+/**
  * A virtual-cohort subject walking a protocol through simulated sensors, in real time.
  * @typedef {object} SimulatedSource
  * @property {"simulated"} [kind="simulated"]
@@ -699,6 +843,31 @@
  * @property {number} [cohort_subject=0] (0..9)
  * @property {boolean} [loop=true]
  * @property {number} [seed=7] (>= 0)
+ */
+
+/**
+ * The strides walked at one condition (speed and incline, binned), as curves over the stride (0-100 %).
+ *
+ * ``mean`` and every row of ``strides`` have one value per point of ``percent`` (None where the signal was
+ * missing); ``strides`` keeps at most :data:`SUMMARY_MAX_OVERLAY` of them (evenly spread).
+ * @typedef {object} StrideCondition
+ * @property {string} label
+ * @property {number} speed_m_s
+ * @property {number} incline_deg
+ * @property {number} strides
+ * @property {Array<number>} percent
+ * @property {Object<string, Array<number | null>>} signals signal -> mean curve
+ * @property {Object<string, Array<Array<number | null>>>} overlays signal -> a few single strides' curves
+ */
+
+/**
+ * One stride of a session: when it started, its speed and incline (the speed and incline profile).
+ * @typedef {object} StrideProfilePoint
+ * @property {number} trial_id
+ * @property {number} t session time (s) of the heel strike that starts it
+ * @property {number} duration_s
+ * @property {number} speed_m_s estimated stride length over the stride's duration
+ * @property {number} incline_deg mean estimated incline over the stride
  */
 
 /**
@@ -1064,6 +1233,22 @@ export const FIELD_LIMITS = deepFreeze({
     actor: { minLength: 1, maxLength: 64 },
     reason: { maxLength: 500 },
   },
+  ExportJob: { progress: { min: 0.0, max: 1.0 } },
+  CompareRequest: { runs: { minItems: 2, maxItems: 4 } },
+  ReviewAnnotationCreate: {
+    t: { min: 0.0, max: 1000000000.0 },
+    t_end: { min: 0.0, max: 1000000000.0 },
+    text: { minLength: 1, maxLength: 500 },
+    actor: { minLength: 1, maxLength: 64 },
+  },
+  ReviewAnnotation: {
+    t: { min: 0.0, max: 1000000000.0 },
+    t_end: { min: 0.0, max: 1000000000.0 },
+    text: { minLength: 1, maxLength: 500 },
+    actor: { minLength: 1, maxLength: 64 },
+  },
+  SettingsUndo: { actor: { minLength: 1, maxLength: 64 } },
+  ComparedRunSpec: { name: { minLength: 1, maxLength: 40 }, estimators: { maxItems: 16 } },
   DeviceSource: { rate_hz: { min: 1.0, max: 2000.0 }, channels: { maxItems: 256 } },
   ImuSensorCalibration: {
     segment: { pattern: "^[a-z_]{1,32}$" },

@@ -1,5 +1,9 @@
 """Websockets: live streams to browsers and the live-device ingest. Protocol in ``docs/api.md``.
 
+A browser's stream opens with the session's recent history (:class:`~sessions.live.subscribers.SessionHistory`,
+the last 30 s, as ordinary state batches right after the hello), so its plots are never empty. The live view's
+one REST action that belongs with its stream, undoing the last settings change, is here too.
+
 Every message sent is a class of :mod:`sessions.schema` (``BrowserMessage`` to browsers,
 ``DeviceMessage`` to devices), serialised by :func:`_dump`, so that ``GET /api/schema`` and the
 browser's ``web/wire.js`` describe each one.
@@ -17,10 +21,14 @@ from typing import TYPE_CHECKING, Any
 from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
 
+from server.routes.common import Ctx
 from sessions import schema
 from sessions.estimation import FrameRefused
+from sessions.live.manager import SessionStateError
 from sessions.live.runtime import SessionRuntime, Subscriber
 from sessions.live.sources import LiveDevice
+from sessions.live.subscribers import SessionHistory, attach_history
+from sessions.live.undo import undo_last_change
 from sessions.store import NotFound
 
 if TYPE_CHECKING:
@@ -37,6 +45,11 @@ MAX_BAD_FRAMES = 50
 #: What a session stream sends a browser, and what the ingest sends a device.
 BrowserMessage = schema.Hello | schema.StreamBatch | schema.Health | schema.EventMessage | schema.SettingsMessage
 DeviceMessage = schema.TorqueCommand | schema.DeviceNotice
+
+
+def _clients(runtime: SessionRuntime) -> int:
+    """Browsers streaming the session (its history is no client)."""
+    return sum(1 for s in runtime.subscribers if not isinstance(s, SessionHistory))
 
 
 def _dump(message: BrowserMessage | DeviceMessage) -> str:
@@ -70,10 +83,15 @@ async def session_stream(
     runtime = await _runtime(ws, session_id)
     if runtime is None:
         return
+    history = attach_history(runtime)
     sub = runtime.subscribe(max_rate_hz)
+    history.seam(sub)
+    recent = history.batches(session_id)  # with the subscription, before any await: no sample in both, none lost
     try:
         hello = schema.Hello(session=runtime.session, subject=runtime.subject, source_rate_hz=runtime.source.rate_hz)
         await ws.send_text(_dump(hello))
+        for batch in recent:
+            await ws.send_text(_dump(batch))
         tasks = {asyncio.create_task(_pump(ws, runtime, sub, batch_ms / 1000.0)), asyncio.create_task(_drain(ws))}
         _, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
         for task in pending:
@@ -123,6 +141,8 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
             while sub.messages:
                 message = sub.messages.popleft()
                 assert isinstance(message, BrowserMessage), f"not a browser message: {type(message).__name__}"
+                if isinstance(message, schema.Health):
+                    message = message.model_copy(update={"clients": _clients(runtime)})
                 await send(message)
             if sub.pending:
                 await send(sub.batch(runtime.session.id))  # the states, and every estimator's outputs
@@ -140,6 +160,16 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
         runtime.unsubscribe(sub)
         with contextlib.suppress(Exception):
             await asyncio.wait_for(ws.close(code=TRY_AGAIN, reason=str(e)[:120]), timeout=1.0)
+
+
+@router.post("/api/sessions/{session_id}/settings/undo")
+async def undo_settings(session_id: int, body: schema.SettingsUndo, c: Ctx) -> schema.Session:
+    """Undo the session's last applied settings change (409 with the reason when it cannot be, now)."""
+    runtime = c.manager.get(session_id)
+    if runtime is None:
+        c.store.get_session(session_id)  # 404 for an unknown session
+        raise SessionStateError(f"session {session_id} is not running; settings change only while it runs")
+    return undo_last_change(runtime, c.store.list_events(session_id), body.actor)
 
 
 @router.websocket("/ws/devices/{session_id}")

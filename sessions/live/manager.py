@@ -16,6 +16,7 @@ from sessions.formats.models import default_model_path, load_model
 from sessions.live.gp_learning import GPTrainer
 from sessions.live.runtime import DiskState, SessionRuntime
 from sessions.live.sources import FrameSource, LiveDevice, ReplayDevice, SimulatedDevice
+from sessions.live.subscribers import attach_history
 from sessions.store import Store
 
 log = logging.getLogger("gaitscope")
@@ -150,6 +151,7 @@ class SessionManager:
             self.store.set_session_state(session_id, "failed")
             raise SessionStateError(f"session {session_id} cannot start: {e}") from e
         session = runtime.session = self.store.set_session_state(session_id, "running")
+        attach_history(runtime)  # the last 30 s for a browser that opens the session later, from the first sample
         try:
             runtime.start()
         except Exception as e:

@@ -3,15 +3,21 @@
 from __future__ import annotations
 
 import asyncio
+import math
+import weakref
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from sessions import schema
 from sessions.schema import GaitState
+
+if TYPE_CHECKING:
+    from sessions.live.runtime import SessionRuntime
 
 #: Samples a subscriber may have waiting before its oldest are dropped (about 5 s at 200 Hz).
 SUBSCRIBER_CAPACITY = 1000
@@ -107,3 +113,95 @@ class Subscriber:
     def notify(self, message: schema.BaseModel) -> None:
         self.messages.append(message)
         self.wake.set()
+
+
+#: Seconds of a session's recent states a newly connected browser gets first, so its plots open full.
+HISTORY_S = 30.0
+#: The rate the history keeps (Hz): what the live view asks for; a faster source is decimated to it.
+HISTORY_RATE_HZ = 60.0
+#: States sent per history batch (a 30 s history at 60 Hz is four batches).
+HISTORY_BATCH = 500
+
+
+@dataclass(eq=False)
+class SessionHistory(Subscriber):
+    """The last :data:`HISTORY_S` seconds (of session time) of a session's states and estimator outputs.
+
+    Fed like a browser's subscriber (every ``decimation``-th sample, heel strikes carried), but never
+    sent anything, never counted as a client and never dropping for being slow: the oldest samples leave
+    as time passes. Bounded twice: by session time and by ``capacity`` samples.
+    """
+
+    seconds: float = HISTORY_S
+    capacity: int = int(HISTORY_S * HISTORY_RATE_HZ) + 64
+
+    def __post_init__(self) -> None:
+        self.pending = deque(maxlen=self.capacity)
+        self.pending_outputs = deque(maxlen=self.capacity)
+
+    def offer(self, state: GaitState, outputs: Sequence[NDArray[np.float64] | None] = ()) -> None:
+        """Keeps the sample (every ``decimation``-th) and forgets those older than :attr:`seconds`."""
+        if self.pending and state.t < self.pending[-1].t:  # the source restarted (a replay looping)
+            self.pending.clear()
+            self.pending_outputs.clear()
+        self._count += 1
+        if (self._count - 1) % self.decimation:
+            self._carry_hs = self._carry_hs or state.heel_strike
+            return
+        if self._carry_hs and not state.heel_strike:
+            state = state.model_copy(update={"heel_strike": True})
+        self._carry_hs = False
+        self.pending.append(state)
+        self.pending_outputs.append(outputs)
+        oldest = state.t - self.seconds
+        while self.pending[0].t < oldest:
+            self.pending.popleft()
+            self.pending_outputs.popleft()
+
+    def notify(self, message: schema.BaseModel) -> None:
+        """Health and events are not kept: the events come from the store, the health is the present."""
+
+    def close(self) -> None:
+        self.closed = True
+
+    def seam(self, sub: Subscriber) -> None:
+        """Sets a new subscriber's sample count so that its first sample follows the history's last one by
+        its own decimation (no gap, no overlap), with a heel strike skipped meanwhile carried over."""
+        since_kept = (self._count - 1) % self.decimation if self._count else 0
+        sub._count = (since_kept + 1) % sub.decimation if self._count else 0
+        sub._carry_hs = self._carry_hs
+
+    def batches(self, session_id: int, batch: int = HISTORY_BATCH) -> list[schema.StreamBatch]:
+        """The kept samples, oldest first, as stream batches of at most ``batch`` states (kept, not emptied)."""
+        states = list(self.pending)
+        rows = list(self.pending_outputs)
+        out = []
+        for i in range(0, len(states), batch):
+            chunk = Subscriber(decimation=self.decimation, layout=self.layout)
+            chunk.pending.extend(states[i : i + batch])
+            chunk.pending_outputs.extend(rows[i : i + batch])
+            out.append(chunk.batch(session_id))
+        return out
+
+
+#: Each running session's history, attached the first time it is asked for (weakly: it goes with its runtime).
+_HISTORIES: weakref.WeakKeyDictionary[SessionRuntime, SessionHistory] = weakref.WeakKeyDictionary()
+
+
+def attach_history(runtime: SessionRuntime) -> SessionHistory:
+    """The session's history, attached to its runtime (fed every sample from now on) if it has none yet.
+
+    The browser stream calls it on connecting; called when a session starts, its history covers the session
+    from its first sample.
+    """
+    history = _HISTORIES.get(runtime)
+    if history is None:
+        rate = runtime.source.rate_hz or HISTORY_RATE_HZ
+        stack = runtime.estimator.stack
+        history = SessionHistory(
+            decimation=max(1, math.ceil(rate / HISTORY_RATE_HZ)),
+            layout=list(zip(stack.names, stack.outputs, strict=True)),
+        )
+        runtime.subscribers.add(history)
+        _HISTORIES[runtime] = history
+    return history

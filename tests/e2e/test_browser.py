@@ -252,7 +252,7 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(gain).to_have_value("1")
     gain.fill("1.3")
     page.get_by_test_id("settings-apply").click()
-    expect(page.get_by_test_id("settings-ok")).to_have_text("Applied: torque_gain.")
+    expect(page.get_by_test_id("settings-ok")).to_have_text("Applied: Torque gain.")
     gain.fill("1.8")  # a step of 0.5 is allowed, but only 1 s after the last change of the field
     page.get_by_test_id("settings-apply").click()
     expect(page.get_by_test_id("settings-error")).to_contain_text("Refused: torque_gain changed")
@@ -263,16 +263,14 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(gain).to_have_value("1.3")
     setting_row = page.get_by_test_id("event-row").and_(page.locator("[data-kind=setting]"))
     expect(setting_row).to_have_count(1)
-    expect(setting_row.get_by_test_id("event-change")).to_have_text("torque_gain: 1.00 → 1.30")
-    expect(setting_row.get_by_test_id("event-actor")).to_have_text("by clinician")
+    expect(setting_row.get_by_test_id("event-text")).to_have_text("Torque gain 1.00 → 1.30, by clinician")
 
     # --- another screen changes the maximum torque: the controls and the events follow ---------------
     _patch(f"{server}/api/sessions/{session_id}/settings", {"max_torque_Nm": 35.0, "actor": "experimenter"})
     expect(page.get_by_test_id("setting-max_torque_Nm")).to_have_value("35")
     expect(page.get_by_test_id("setting-max_torque_Nm-note")).to_have_text("changed elsewhere to 35.0")
     expect(setting_row).to_have_count(2)
-    expect(setting_row.first.get_by_test_id("event-change")).to_have_text("max_torque_Nm: 30.0 → 35.0")
-    expect(setting_row.first.get_by_test_id("event-actor")).to_have_text("by experimenter")
+    expect(setting_row.first.get_by_test_id("event-text")).to_have_text("Maximum torque 30.0 → 35.0, by experimenter")
 
     # --- every estimator's phase overlaid, the primary named; switching it is a logged setting -----------
     expect(page.get_by_test_id("health-primary")).to_have_text("phase_ekf")
@@ -284,7 +282,9 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(page.get_by_test_id("health-primary")).to_have_text("tbe", timeout=5_000)
     expect(page.get_by_test_id("plot-phase")).to_contain_text("tbe (primary: drives the torque)")
     expect(setting_row).to_have_count(3)
-    expect(setting_row.first.get_by_test_id("event-change")).to_have_text("primary: phase_ekf → tbe")
+    expect(setting_row.first.get_by_test_id("event-text")).to_have_text(
+        re.compile(r"^Torque follows .+ → .+, by clinician$")
+    )
 
     # --- an annotation ---------------------------------------------------------------------------------
     page.get_by_test_id("annotation-add").click()
@@ -331,7 +331,7 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
     page.get_by_test_id("rerun-torque_gain").fill("1.5")
     page.get_by_test_id("rerun-submit").click()
-    expect(page.get_by_test_id("rerun-ok")).to_contain_text("Overlaid: torque_gain 1.5", timeout=60_000)
+    expect(page.get_by_test_id("rerun-ok")).to_contain_text("Overlaid: Torque gain 1.50", timeout=60_000)
     expect(page.get_by_test_id("viewer-error")).to_be_hidden()
     expect(page.get_by_test_id("download-link")).to_have_attribute("href", re.compile(r"/api/trials/\d+/download$"))
 

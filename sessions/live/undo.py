@@ -1,0 +1,61 @@
+"""Undo a running session's last applied settings change, as a change of its own (bounded, rate-limited, logged)."""
+
+from __future__ import annotations
+
+from sessions import schema
+from sessions.live.runtime import SessionRuntime, SettingRejected
+
+#: The fields a settings change may set (and so an undo may set back).
+UNDOABLE = (*schema.SETTING_LIMITS, "primary")
+
+
+def last_change(events: list[schema.Event]) -> list[schema.Event]:
+    """The events of the newest settings change (one per field it changed), oldest first; [] if none.
+
+    One change is the run of setting events stored together (``Store.change_settings`` writes them in one
+    transaction): consecutive ids, the same session time and the same actor (their wall-clock stamps may
+    differ by a millisecond). ``events`` oldest first, as ``Store.list_events`` returns them.
+    """
+    changes = [e for e in events if e.kind == "setting" and e.field in UNDOABLE]
+    if not changes:
+        return []
+    group = [changes[-1]]
+    for e in reversed(changes[:-1]):
+        first = group[0]
+        if (e.id, e.t, e.actor) != (first.id - 1, first.t, first.actor):
+            break
+        group.insert(0, e)
+    return group
+
+
+def undo_last_change(runtime: SessionRuntime, events: list[schema.Event], actor: str) -> schema.Session:
+    """Set the fields of the newest settings change back to their values before it.
+
+    The undo is a settings change like any other (``SessionRuntime.change_settings``): the same bounds and
+    rate limits, and one setting event per field, its text saying which change it undid.
+
+    Raises:
+        SettingRejected: nothing to undo, a field has changed since by other means (the primary after a
+            failure), or a rate limit (the message says how long to wait); nothing changed.
+    """
+    group = last_change(events)
+    if not group:
+        raise SettingRejected("nothing to undo: no setting has been changed in this session")
+    current = runtime.session.settings
+    for e in group:
+        assert e.field is not None
+        now = getattr(current, e.field)
+        if now != e.after:
+            raise SettingRejected(
+                f"the last change cannot be undone: {e.field} is now {now}, not the {e.after} it set "
+                "(it has changed since)"
+            )
+    undone = ", ".join(f"{e.field} {e.before} -> {e.after}" for e in group)
+    change = schema.SettingsChange.model_validate(
+        {
+            **{e.field: e.before for e in group if e.field},
+            "actor": actor,
+            "reason": f"undo of {undone} by {group[0].actor}"[:500],
+        }
+    )
+    return runtime.change_settings(change)

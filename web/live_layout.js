@@ -1,0 +1,134 @@
+// The live page's panels: which are shown, their order and width, remembered per acting user (localStorage,
+// keyed by the name chosen in "Acting as"), with a menu to change them and a reset. On a phone (one column)
+// the data health and the session's stop control always come first (live.css).
+
+import { h } from "./ui.js";
+
+/** Widths a panel may take, in columns of the page's grid (three on a wide screen, two on a tablet). */
+export const SIZES = { 1: "narrow", 2: "wide", 3: "full width" };
+
+const _KEY = "gaitscope.live.layout.";
+
+/**
+ * A stored layout made to fit the panels there are: unknown ids dropped, missing ones added in their default
+ * place, sizes checked; null for what cannot be read.
+ * @param {unknown} stored @param {{id: string, size: number}[]} panels defaults, in order
+ * @returns {{order: string[], size: Record<string, number>, hidden: string[]}}
+ */
+export function normalizeLayout(stored, panels) {
+  const ids = panels.map((p) => p.id);
+  const base = { order: ids, size: Object.fromEntries(panels.map((p) => [p.id, p.size])), hidden: [] };
+  if (!stored || typeof stored !== "object" || !Array.isArray(stored.order)) return base;
+  const order = stored.order.filter((id, i) => ids.includes(id) && stored.order.indexOf(id) === i);
+  for (const id of ids) {
+    if (!order.includes(id)) order.splice(Math.min(ids.indexOf(id), order.length), 0, id);
+  }
+  const size = { ...base.size };
+  for (const [id, n] of Object.entries(stored.size || {})) if (ids.includes(id) && SIZES[n]) size[id] = Number(n);
+  const hidden = Array.isArray(stored.hidden) ? stored.hidden.filter((id) => ids.includes(id)) : [];
+  return { order, size, hidden };
+}
+
+/**
+ * The panel grid. `panels`: [{id, title, size (1-3), el}] in their default order.
+ * `actor()` names whose layout is shown; `use(actor)` switches to another's.
+ */
+export class PanelLayout {
+  constructor(panels, actor) {
+    this.panels = panels;
+    this.actor = actor;
+    this.grid = h("div", { class: "live-panels", "data-testid": "live-panels" });
+    this.wraps = {};
+    for (const p of panels) {
+      p.el.classList.add("panel");
+      p.el.dataset.panel = p.id;
+      p.el.dataset.testid = p.el.dataset.testid || `panel-${p.id}`;
+      this.wraps[p.id] = p.el;
+      this.grid.append(p.el);
+    }
+    this.menuBody = h("div", { class: "layout-rows" });
+    const reset = h("button", { type: "button", "data-testid": "layout-reset", text: "Back to the standard layout" });
+    reset.addEventListener("click", () => {
+      localStorage.removeItem(this._key());
+      this.load();
+    });
+    this.menu = h("details", { class: "layout-menu", "data-testid": "layout-menu" },
+      h("summary", { text: "Panels" }),
+      h("div", { class: "layout-pop" }, h("p", { class: "hint", "data-testid": "layout-owner" }), this.menuBody, reset));
+    this.load();
+  }
+
+  _key() {
+    return _KEY + this.actor;
+  }
+
+  /** Shows the acting user's layout (or the standard one). */
+  load() {
+    let stored = null;
+    try {
+      stored = JSON.parse(localStorage.getItem(this._key()) || "null");
+    } catch {
+      stored = null; // unreadable: the standard layout
+    }
+    this.layout = normalizeLayout(stored, this.panels);
+    this._apply();
+  }
+
+  /** Another user acts: their layout. */
+  use(actor) {
+    this.actor = actor;
+    this.load();
+  }
+
+  _save() {
+    localStorage.setItem(this._key(), JSON.stringify(this.layout));
+    this._apply();
+  }
+
+  move(id, by) {
+    const order = this.layout.order;
+    const i = order.indexOf(id);
+    const j = i + by;
+    if (i < 0 || j < 0 || j >= order.length) return;
+    [order[i], order[j]] = [order[j], order[i]];
+    this._save();
+  }
+
+  resize(id, n) {
+    this.layout.size[id] = n;
+    this._save();
+  }
+
+  show(id, shown) {
+    this.layout.hidden = this.layout.hidden.filter((x) => x !== id);
+    if (!shown) this.layout.hidden.push(id);
+    this._save();
+  }
+
+  _apply() {
+    const { order, size, hidden } = this.layout;
+    order.forEach((id, i) => {
+      const el = this.wraps[id];
+      el.style.order = String(i);
+      el.dataset.size = String(size[id]);
+      el.classList.toggle("panel-hidden", hidden.includes(id));
+    });
+    this.menu.querySelector("[data-testid=layout-owner]").textContent =
+      `The layout of ${this.actor} (kept in this browser for whoever is acting).`;
+    const title = Object.fromEntries(this.panels.map((p) => [p.id, p.title]));
+    this.menuBody.replaceChildren(...order.map((id, i) => {
+      const shown = h("input", { type: "checkbox", "data-testid": `layout-show-${id}`, "aria-label": `Show ${title[id]}` });
+      shown.checked = !hidden.includes(id);
+      shown.addEventListener("change", () => this.show(id, shown.checked));
+      const up = h("button", { type: "button", "data-testid": `layout-up-${id}`, "aria-label": `Move ${title[id]} earlier`, text: "↑", disabled: i === 0 });
+      const down = h("button", { type: "button", "data-testid": `layout-down-${id}`, "aria-label": `Move ${title[id]} later`, text: "↓", disabled: i === order.length - 1 });
+      up.addEventListener("click", () => this.move(id, -1));
+      down.addEventListener("click", () => this.move(id, 1));
+      const width = h("select", { "data-testid": `layout-size-${id}`, "aria-label": `Width of ${title[id]}` },
+        ...Object.entries(SIZES).map(([n, label]) => h("option", { value: n, text: label })));
+      width.value = String(size[id]);
+      width.addEventListener("change", () => this.resize(id, Number(width.value)));
+      return h("div", { class: "layout-row" }, h("label", {}, shown, ` ${title[id]}`), up, down, width);
+    }));
+  }
+}
