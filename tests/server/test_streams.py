@@ -72,7 +72,11 @@ def test_health_and_settings_reach_every_client(client: TestClient) -> None:
         json.loads(a.receive_text()), json.loads(b.receive_text())
         assert client.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.3}).status_code == 200
         for ws in (a, b):
-            _, other = _states(ws, 40, timeout=5)
+            other: list[dict] = []
+            deadline = time.monotonic() + 10
+            # the stream opens with the session's recent history (states): read on until the messages come
+            while not {"settings", "event", "health"} <= {m["type"] for m in other} and time.monotonic() < deadline:
+                other += _states(ws, 40, timeout=5)[1]
             types = {m["type"] for m in other}
             assert {"settings", "event", "health"} <= types
             health = next(m for m in other if m["type"] == "health")
