@@ -70,15 +70,24 @@ class Subscriber:
     _count: int = 0
     _carry_hs: bool = False
 
-    def offer(self, state: GaitState, outputs: Sequence[NDArray[np.float64] | None] = ()) -> None:
-        """A sample (and every estimator's outputs at it, in :attr:`layout` order)."""
+    def _kept(self, state: GaitState) -> GaitState | None:
+        """``state`` if it is an ``decimation``-th sample (with a heel strike of the samples skipped since the
+        last kept one carried onto it), else None."""
         self._count += 1
         if (self._count - 1) % self.decimation:
             self._carry_hs = self._carry_hs or state.heel_strike
-            return
+            return None
         if self._carry_hs and not state.heel_strike:
             state = state.model_copy(update={"heel_strike": True})
         self._carry_hs = False
+        return state
+
+    def offer(self, state: GaitState, outputs: Sequence[NDArray[np.float64] | None] = ()) -> None:
+        """A sample (and every estimator's outputs at it, in :attr:`layout` order)."""
+        kept = self._kept(state)
+        if kept is None:
+            return
+        state = kept
         if len(self.pending) == self.pending.maxlen:
             self.dropped += 1
         self.pending.append(state)
@@ -144,13 +153,10 @@ class SessionHistory(Subscriber):
         if self.pending and state.t < self.pending[-1].t:  # the source restarted (a replay looping)
             self.pending.clear()
             self.pending_outputs.clear()
-        self._count += 1
-        if (self._count - 1) % self.decimation:
-            self._carry_hs = self._carry_hs or state.heel_strike
+        kept = self._kept(state)
+        if kept is None:
             return
-        if self._carry_hs and not state.heel_strike:
-            state = state.model_copy(update={"heel_strike": True})
-        self._carry_hs = False
+        state = kept
         self.pending.append(state)
         self.pending_outputs.append(outputs)
         oldest = state.t - self.seconds
