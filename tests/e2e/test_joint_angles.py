@@ -68,6 +68,7 @@ class Device(StreamingDevice):
     def stream(self, ws: Connection) -> None:
         frames, _ = _walk()
         seq = 0
+        start = time.monotonic()
         while not self.stop.is_set():
             for k, frame in enumerate(frames):
                 if self.stop.is_set():
@@ -76,7 +77,10 @@ class Device(StreamingDevice):
                 ws.send(json.dumps({**frame, "t": lap * self.period + k / RATE, "seq": seq}))
                 ws.recv(timeout=5)
                 seq += 1
-                time.sleep(1.0 / RATE)
+                # paced by the clock, not by a sleep after each answer: the declared rate is kept whatever the
+                # round trip takes (a rate short by 10 % turns the health box amber)
+                if (wait := start + seq / RATE - time.monotonic()) > 0:
+                    time.sleep(wait)
 
     def truth(self, angle: str, t: float) -> float:
         """The simulated ``thigh`` or ``knee`` angle (deg) at session time ``t``."""
