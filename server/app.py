@@ -8,6 +8,7 @@ creates a demo subject with a simulated session, so ``gaitscope serve`` shows a 
 from __future__ import annotations
 
 import asyncio
+import functools
 import gc
 import logging
 import time
@@ -19,11 +20,14 @@ from pathlib import Path
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
+from server.audit_middleware import AuditMiddleware
 from server.leg_view import LegView
 from server.origin import AllowedHostsMiddleware, SameOriginMiddleware
 from server.routes import ROUTERS, Uploads, install_error_handlers
 from server.settings import Settings
 from sessions import schema
+from sessions.accounts import Accounts
+from sessions.audit import AuditLog
 from sessions.formats.models import gaitscope_version
 from sessions.live.disk import DiskGuard
 from sessions.live.gp_learning import GPTrainer
@@ -46,6 +50,8 @@ class AppContext:
     models: ModelStore
     manager: SessionManager
     uploads: Uploads
+    accounts: Accounts
+    audit: AuditLog
     leg_view: LegView | None = None
     focus: int | None = None
     _last_view: float = 0.0
@@ -58,6 +64,19 @@ class AppContext:
         if now - self._last_view >= 1.0 / LEG_VIEW_HZ:
             self._last_view = now
             self.leg_view.show(state, leg_length, session_id)
+
+
+def _cookie_logged_in(accounts: Accounts, cookie_header: str) -> bool:
+    """Whether a ``Cookie`` header holds an open login (the leg view's own server asks)."""
+    from http.cookies import CookieError, SimpleCookie
+
+    from server.auth import COOKIE
+
+    try:
+        morsel = SimpleCookie(cookie_header).get(COOKIE)
+    except CookieError:
+        return False
+    return morsel is not None and accounts.identify(morsel.value) is not None
 
 
 def _demo(ctx: AppContext) -> None:
@@ -92,13 +111,23 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             disk_check=disk.check,
             gp_trainer=GPTrainer(duty=settings.gp_fit_duty),
         )
-        ctx = AppContext(settings=settings, store=store, models=models, manager=manager, uploads=Uploads(settings))
+        accounts = Accounts(
+            store, lockout_after=settings.lockout_after, lockout_minutes=settings.lockout_minutes,
+            login_hours=settings.login_hours,
+        )  # fmt: skip
+        ctx = AppContext(
+            settings=settings, store=store, models=models, manager=manager, uploads=Uploads(settings),
+            accounts=accounts, audit=AuditLog(store),
+        )  # fmt: skip
         ctx.uploads.clear_leftovers()  # uploads live in memory: a restart ends them
         for trial in ctx.manager.recover_after_crash():
             log.warning("recording of trial %d was unfinished and has been recovered", trial.id)
         if settings.leg_view:
             model = models.get("default")[0]
-            ctx.leg_view = LegView(settings.host, settings.viser_port, model, allowed_hosts=settings.allowed_hosts)
+            logged_in = functools.partial(_cookie_logged_in, accounts) if settings.auth else None
+            ctx.leg_view = LegView(
+                settings.host, settings.viser_port, model, allowed_hosts=settings.allowed_hosts, logged_in=logged_in
+            )
         app.state.ctx = ctx
         await asyncio.to_thread(warm_up, models.get("default")[0])  # compile the kernels before answering
         # What start-up made (numpy, scipy, numba, pandas, the model: millions of objects) lives as long as
@@ -126,6 +155,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
     )
     app.add_middleware(SameOriginMiddleware)
+    app.add_middleware(AuditMiddleware)  # inside the host check: records the same-origin rule's 403s too
     app.add_middleware(AllowedHostsMiddleware, allowed_hosts=settings.allowed_hosts)  # outermost: runs first
     install_error_handlers(app)
     for router in ROUTERS:

@@ -307,14 +307,18 @@ def cmd_serve(a: argparse.Namespace) -> int:
         settings = Settings(**overrides)
     except ValueError as e:
         raise DataFormatError(str(e), file="settings") from None
-    if not settings.is_loopback:
+    if not settings.auth:
         print(
-            f"gaitscope: WARNING: listening on {settings.host}, reachable from other machines. gaitscope has no "
-            "login yet: anyone who can reach this port can change assistance settings.",
+            f"gaitscope: accounts are OFF: no login, and anyone who can reach {settings.host}:{settings.port} on this "
+            "machine acts as 'local' with every right (loopback only). For a network: GAITSCOPE_AUTH=true, TLS, "
+            "and `gaitscope user add --role admin NAME` (docs/deployment.md).",
             file=sys.stderr,
         )
-    print(f"gaitscope: data in {settings.data_dir.resolve()}, database {settings.database_url}")
-    print(f"gaitscope: serving on http://{settings.host}:{settings.port}/  (API docs at /docs)", flush=True)
+    elif not _has_users(settings):
+        print("gaitscope: accounts are on, with no user yet: `gaitscope user add --role admin NAME`", file=sys.stderr)
+    scheme = "https" if settings.tls_cert is not None else "http"
+    print(f"gaitscope: data in {settings.data_dir.resolve()}, database {_safe_url(settings.database_url)}")
+    print(f"gaitscope: serving on {scheme}://{settings.host}:{settings.port}/  (API docs at /docs)", flush=True)
     # No permessage-deflate: compressing every torque command and 30 stream batches a second per browser
     # cost the server more (about 8 % of its time with 25 devices) than their bytes cost loopback or a
     # clinic's network (a browser gets about 100 KB/s uncompressed).
@@ -325,8 +329,32 @@ def cmd_serve(a: argparse.Namespace) -> int:
         log_level=a.log_level,
         ws="websockets-sansio",
         ws_per_message_deflate=False,
+        ssl_certfile=settings.tls_cert,
+        ssl_keyfile=settings.tls_key,
+        proxy_headers=settings.behind_tls_proxy,
+        forwarded_allow_ips="*" if settings.behind_tls_proxy else None,
     )
     return 0
+
+
+def _safe_url(url: str) -> str:
+    """A database URL without its password, fit to print."""
+    from sqlalchemy import make_url
+
+    return make_url(url).render_as_string(hide_password=True)
+
+
+def _has_users(settings: object) -> bool:
+    from server.settings import Settings
+    from sessions.accounts import Accounts
+    from sessions.store import Store
+
+    assert isinstance(settings, Settings)
+    store = Store(settings.database_url)
+    try:
+        return Accounts(store).count_users() > 0
+    finally:
+        store.close()
 
 
 def cmd_loadbench(a: argparse.Namespace) -> int:
@@ -459,6 +487,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", type=Path, help="file to write (e.g. web/wire.js); default: standard output")
     p.set_defaults(func=cmd_wire)
+
+    from server.users_cli import register as register_users
+
+    register_users(sub)
+    from sessions.migrations.cli import register as register_db
+
+    register_db(sub)
+    from sessions.audit.cli import register as register_audit
+
+    register_audit(sub)
     return parser
 
 

@@ -51,13 +51,16 @@ import contextlib
 import functools
 import math
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from http import HTTPStatus
 from typing import Any, Final
 
 import numpy as np
 import viser
 import websockets.asyncio.server
 from scipy.interpolate import CubicSpline
+from websockets.asyncio.server import ServerConnection
+from websockets.http11 import Request
 
 from estimators.gait_model import OUT_FOOT, OUT_SHANK, evaluate
 from estimators.pipeline import TrainedModel
@@ -228,9 +231,13 @@ _serve_lock = threading.Lock()  # one guarded start at a time: the wrapper is pr
 
 
 @contextlib.contextmanager
-def _guarded_serve(allowed_hosts: Iterable[str]) -> Iterator[list[int]]:
+def _guarded_serve(
+    allowed_hosts: Iterable[str], logged_in: Callable[[str], bool] | None = None
+) -> Iterator[list[int]]:
     """While open, ``websockets.asyncio.server.serve`` runs :func:`server.origin.websockets_guard`
-    before the caller's own ``process_request``.
+    before the caller's own ``process_request``; with ``logged_in`` (accounts on), a websocket whose
+    ``Cookie`` header carries no open login is refused too (401): the dashboard's login cookie is sent to
+    the leg view's port as well, cookies being per host, not per port.
 
     Yields a list that gets an entry per guarded ``serve`` call, to check that the guard is in place.
     """
@@ -240,7 +247,8 @@ def _guarded_serve(allowed_hosts: Iterable[str]) -> Iterator[list[int]]:
 
     def serve(*args: Any, process_request: ProcessRequest | None = None, **kwargs: Any) -> Any:
         installed.append(1)
-        return original(*args, process_request=websockets_guard(allowed, then=process_request), **kwargs)
+        then = process_request if logged_in is None else _login_guard(logged_in, process_request)
+        return original(*args, process_request=websockets_guard(allowed, then=then), **kwargs)
 
     with _serve_lock:
         websockets.asyncio.server.serve = serve  # type: ignore[misc, assignment]
@@ -248,6 +256,16 @@ def _guarded_serve(allowed_hosts: Iterable[str]) -> Iterator[list[int]]:
             yield installed
         finally:
             websockets.asyncio.server.serve = original  # type: ignore[misc]
+
+
+def _login_guard(logged_in: Callable[[str], bool], then: ProcessRequest | None) -> ProcessRequest:
+    def process_request(connection: ServerConnection, request: Request) -> Any:
+        upgrade = any("websocket" in u.lower() for u in request.headers.get_all("Upgrade"))
+        if upgrade and not logged_in("; ".join(request.headers.get_all("Cookie"))):
+            return connection.respond(HTTPStatus.UNAUTHORIZED, "log in to the dashboard first\n")
+        return None if then is None else then(connection, request)
+
+    return process_request
 
 
 class LegView:
@@ -260,6 +278,8 @@ class LegView:
         model: the gait model that poses the ghost; None uses the states' ``*_pred_deg``.
         allowed_hosts: the names the view may be reached at (``Settings.allowed_hosts``); default
             the loopback names and ``host``.
+        logged_in: with accounts on, tells whether a request's ``Cookie`` header holds an open login;
+            the view's websocket is refused without one. None: accounts off.
 
     Raises:
         RuntimeError: viser started without the host guard (a viser version that serves otherwise).
@@ -271,6 +291,7 @@ class LegView:
         port: int = 8081,
         model: TrainedModel | None = None,
         allowed_hosts: Iterable[str] | None = None,
+        logged_in: Callable[[str], bool] | None = None,
     ) -> None:
         self._host = host
         self._model = model
@@ -278,7 +299,7 @@ class LegView:
         self._closed = False
         self._leg_length = _DEFAULT_LEG_LENGTH
         self.allowed_hosts = allowed_hosts_for(host, LOOPBACK_HOSTS if allowed_hosts is None else allowed_hosts)
-        with _guarded_serve(self.allowed_hosts) as installed:
+        with _guarded_serve(self.allowed_hosts, logged_in) as installed:
             self.server = viser.ViserServer(host=host, port=port, label="gaitscope leg", verbose=False)
         try:
             if not installed:

@@ -17,8 +17,8 @@ class Settings(BaseSettings):
     """Ports, folders and the database; defaults run everything on this machine with no services.
 
     Attributes:
-        host: address to bind; loopback by default. Anything else is refused in production until
-            login arrives, and announced loudly in development.
+        host: address to bind; loopback by default. Anything else needs accounts on and TLS (the server's
+            own, or a proxy's).
         port: HTTP port of the dashboard and API.
         viser_port: port of the 3D leg view (viser runs its own server; it may move to a free port).
         data_dir: recordings, uploads and models live here; created if missing.
@@ -43,6 +43,14 @@ class Settings(BaseSettings):
             without ports; the environment gives them comma-separated
             (``GAITSCOPE_ALLOWED_HOSTS=127.0.0.1,localhost,::1,gaitlab.local``). Default the loopback
             names; ``host`` is always added unless it is a wildcard (``0.0.0.0``, ``::``).
+        auth: accounts on: every request needs a login (or, for a device, its session's token), roles are
+            checked and the audit trail names the user. Off (the default, loopback only): nobody logs in and
+            every caller is ``local`` with an admin's rights, announced at start-up.
+        tls_cert, tls_key: PEM files; with both, the server speaks HTTPS itself.
+        behind_tls_proxy: a TLS-terminating proxy (nginx, caddy, the hospital's) is in front: the login cookie
+            is marked Secure and the server trusts the proxy's forwarded scheme and client address.
+        login_hours: a login lasts this long (a clinic's day).
+        lockout_after, lockout_minutes: this many failed logins in a row lock an account for that long.
         gp_fit_duty: the fraction of its time the GP-EKF's shared fitting worker may spend fitting
             (:class:`~sessions.live.gp_learning.GPTrainer`): with many learning sessions on few cores,
             each retrains less often than seed 003's every 5 steps, so that the fits leave the cores to
@@ -68,6 +76,13 @@ class Settings(BaseSettings):
     disk_warn_mb: int = Field(default=512, ge=1)
     disk_stop_mb: int = Field(default=128, ge=1)
     gp_fit_duty: float = Field(default=DUTY, gt=0.0, le=1.0)
+    auth: bool = False
+    tls_cert: Path | None = None
+    tls_key: Path | None = None
+    behind_tls_proxy: bool = False
+    login_hours: float = Field(default=12.0, gt=0.0, le=24.0 * 30)
+    lockout_after: int = Field(default=5, ge=1, le=100)
+    lockout_minutes: float = Field(default=15.0, gt=0.0, le=24.0 * 60)
     allowed_hosts: Annotated[list[str], NoDecode] = Field(default_factory=lambda: list(LOOPBACK_HOSTS))
 
     @field_validator("allowed_hosts", mode="before")
@@ -86,12 +101,21 @@ class Settings(BaseSettings):
         if not self.database_url:
             self.database_url = f"sqlite:///{(self.data_dir / 'gaitscope.db').as_posix()}"
         self.allowed_hosts = allowed_hosts_for(self.host, self.allowed_hosts)
-        if self.environment == "production" and not self.is_loopback:
-            raise ValueError(
-                f"refusing to listen on {self.host} in production: gaitscope has no login yet; "
-                "bind 127.0.0.1 and put an authenticating proxy in front"
-            )
+        if (self.tls_cert is None) != (self.tls_key is None):
+            raise ValueError("tls_cert and tls_key go together: give both (PEM files) or neither")
+        if not self.is_loopback:
+            missing = [
+                *([] if self.auth else ["accounts (GAITSCOPE_AUTH=true)"]),
+                *([] if self.tls else ["TLS (GAITSCOPE_TLS_CERT and _KEY, or GAITSCOPE_BEHIND_TLS_PROXY=true)"]),
+            ]
+            if missing:
+                raise ValueError(f"refusing to listen on {self.host} without {' and '.join(missing)}: bind 127.0.0.1")
         return self
+
+    @property
+    def tls(self) -> bool:
+        """The browser reaches the server over TLS (its own, or a proxy's)."""
+        return self.behind_tls_proxy or self.tls_cert is not None
 
     @model_validator(mode="after")
     def _disk_thresholds(self) -> Settings:

@@ -153,6 +153,11 @@ class ModelProvenance(BaseModel):
 # =================================================================================================
 
 _CODE = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$"
+#: Who made a request: the server sets it to the caller (the logged-in user; ``local`` with accounts off)
+#: whatever the body says, so that the event log's "who" never comes from the request.
+_ACTOR = Field(
+    default="local", min_length=1, max_length=64, description="set by the server to the logged-in user; ignored if sent"
+)
 
 
 class _Strict(BaseModel):
@@ -247,7 +252,7 @@ class SettingsChange(_Strict):
         description=f"switched at most every {PRIMARY_SWITCH_INTERVAL_S:g} s; the torque blends over "
         f"{PRIMARY_BLEND_S:g} s",
     )
-    actor: str = Field(default="clinician", max_length=64)
+    actor: str = _ACTOR
     reason: str = Field(default="", max_length=500)
 
 
@@ -374,7 +379,7 @@ EventKind = Literal["setting", "annotation", "system", "recording", "intent"]
 
 class AnnotationCreate(_Strict):
     text: str = Field(min_length=1, max_length=500)
-    actor: str = Field(default="clinician", max_length=64)
+    actor: str = _ACTOR
 
 
 class Event(BaseModel):
@@ -453,7 +458,6 @@ class RerunRequest(_Strict):
 MAX_FINGERPRINT: Final = 16
 FingerprintValue = Annotated[float, Field(ge=-1000.0, le=1000.0, allow_inf_nan=False)]
 PersonalizationState = Literal["candidate", "active", "retired"]
-_ACTOR = Field(default="clinician", min_length=1, max_length=64)
 
 
 class CalibrationRequest(_Strict):
@@ -1405,7 +1409,7 @@ class ReviewAnnotationCreate(_Strict):
         default=None, ge=0.0, le=1e9, allow_inf_nan=False, description="end of its span (s); null: a single time"
     )
     text: str = Field(min_length=1, max_length=500)
-    actor: str = Field(default="clinician", min_length=1, max_length=64)
+    actor: str = _ACTOR
 
     @field_validator("text", "actor")
     @classmethod
@@ -1438,6 +1442,186 @@ class SettingsUndo(_Strict):
     actor: str = _ACTOR
 
 
+# --- accounts, roles, device credentials (issue #13) ---------------------------------------------------
+
+#: What a role may do (``server/auth``'s ``PERMISSIONS`` says which role holds which).
+Role = Literal["admin", "clinician", "experimenter", "viewer"]
+ROLES: Final[tuple[Role, ...]] = ("admin", "clinician", "experimenter", "viewer")
+Permission = Literal[
+    "read", "run", "annotate", "upload", "assist", "assist_within_limits", "promote", "set_limits", "admin"
+]
+#: A user name: lower case, starts with a letter, 2-32 characters of letters, digits, ``_ . -``.
+USER_NAME = r"^[a-z][a-z0-9_.-]{1,31}$"
+#: Passwords: at least this long (NIST SP 800-63B asks for 8 at least; a clinic's shared tablets get 10).
+PASSWORD_MIN: Final = 10
+PASSWORD_MAX: Final = 256
+
+
+class User(BaseModel):
+    """An account (never its password hash)."""
+
+    id: int
+    name: str
+    role: Role
+    disabled: bool = False
+    created_utc: str
+    created_by: str
+    last_login_utc: str | None = None
+    failed_logins: int = Field(default=0, description="failed logins in a row since the last good one")
+    locked_until_utc: str | None = Field(default=None, description="locked out until then after failed logins")
+
+
+class UserCreate(_Strict):
+    name: str = Field(pattern=USER_NAME)
+    role: Role
+    password: str = Field(min_length=PASSWORD_MIN, max_length=PASSWORD_MAX)
+
+
+class UserChange(_Strict):
+    """An admin's change of an account; fields left out keep their value."""
+
+    role: Role | None = None
+    disabled: bool | None = None
+    unlock: bool = Field(default=False, description="end a lockout now and reset the failed-login count")
+    password: str | None = Field(
+        default=None, min_length=PASSWORD_MIN, max_length=PASSWORD_MAX, description="set a new password (a reset)"
+    )
+
+
+class LoginRequest(_Strict):
+    name: str = Field(min_length=1, max_length=64)
+    password: str = Field(min_length=1, max_length=PASSWORD_MAX)
+
+
+class PasswordChange(_Strict):
+    current: str = Field(min_length=1, max_length=PASSWORD_MAX)
+    new: str = Field(min_length=PASSWORD_MIN, max_length=PASSWORD_MAX)
+
+
+class Me(BaseModel):
+    """Who the server takes the caller to be (``GET /api/auth/me``)."""
+
+    name: str
+    role: Role
+    accounts: bool = Field(description="accounts are on: a login is needed; off: loopback only, everyone is 'local'")
+    permissions: list[Permission]
+    csrf_token: str | None = Field(
+        default=None, description="send it as the X-CSRF-Token header with every state-changing request"
+    )
+
+
+class DeviceToken(BaseModel):
+    """A device's credential for one session's ``/ws/devices/{id}``; ``token`` is shown once, when issued."""
+
+    id: int
+    session_id: int
+    prefix: str = Field(description="its first characters, to tell tokens apart (the token itself is never stored)")
+    created_utc: str
+    created_by: str
+    revoked_utc: str | None = None
+    revoked_by: str | None = None
+    token: str | None = Field(default=None, description="the token: present only in the answer that issued it")
+
+
+class AssistanceLimits(_Strict):
+    """The most assistance an experimenter may set for a subject, set by a clinician. An experimenter may
+    change torque gain, torque bound and intent boost only up to these (and lower them freely); noise scales
+    are estimator tuning, not assistance, and are theirs to change."""
+
+    torque_gain: float = _setting("torque_gain", 1.0)
+    max_torque_Nm: float = _setting("max_torque_Nm", 30.0)
+    intent_gain_boost: float = _setting("intent_gain_boost", 0.0)
+
+
+class SubjectLimits(AssistanceLimits):
+    subject_id: int
+    set_by: str
+    set_utc: str
+
+
+# --- audit trail (issue #13) -------------------------------------------------------------------------------
+
+#: How a recorded action ended: ``requested`` (written before the change takes effect), ``done``, ``failed`` (a
+#: failed login, a change that raised) or ``refused`` (401/403/409/422 on a state-changing request).
+AuditOutcome = Literal["requested", "done", "failed", "refused"]
+AUDIT_OUTCOMES: Final[tuple[AuditOutcome, ...]] = ("requested", "done", "failed", "refused")
+#: The hash before the first entry's: 64 zeros.
+AUDIT_GENESIS: Final = "0" * 64
+AUDIT_PAGE_MAX: Final = 1000
+
+
+def _audit_time(v: str | None) -> str | None:
+    """An ISO-8601 time (a date alone is its midnight; no zone is UTC) as the audit table stores times."""
+    import datetime as dt
+
+    if v is None:
+        return None
+    try:
+        t = dt.datetime.fromisoformat(v.strip().replace("Z", "+00:00"))
+    except ValueError:
+        raise ValueError(f"not an ISO-8601 date or time: {v!r}") from None
+    t = t.replace(tzinfo=dt.UTC) if t.tzinfo is None else t.astimezone(dt.UTC)
+    return t.isoformat(timespec="milliseconds")
+
+
+class AuditEntry(BaseModel):
+    """One entry of the audit trail (``sessions.audit``): who did what to what, when, and how it ended.
+
+    ``before`` and ``after`` are JSON text exactly as hashed (null: nothing). ``hash`` is the SHA-256 of the
+    entry's canonical JSON including ``prev_hash``, the previous entry's ``hash`` (``sessions/audit/log.py``
+    says how, so that anyone can re-check the chain with other tools)."""
+
+    id: int
+    seq: int = Field(ge=1, description="1, 2, 3... without gaps: a missing number is a deleted entry")
+    time_utc: str = Field(description="ISO-8601 UTC, to the millisecond")
+    user: str
+    role: str = Field(description="the user's role then; 'none' for a caller nobody knows")
+    action: str = Field(description="what was asked, dotted ('session.start', 'settings.change', 'login')")
+    target: str = Field(description="what it was done to ('session 7', a path)")
+    before: str | None = Field(default=None, description="JSON text: the state before the change")
+    after: str | None = Field(default=None, description="JSON text: the state asked for")
+    outcome: AuditOutcome
+    detail: str = ""
+    prev_hash: str = Field(pattern=r"^[0-9a-f]{64}$")
+    hash: str = Field(pattern=r"^[0-9a-f]{64}$")
+
+
+class AuditQuery(_Strict):
+    """Filters of ``GET /api/audit`` and its CSV: all given ones must hold; newest entries first."""
+
+    user: str | None = Field(default=None, min_length=1, max_length=64, description="exactly this user")
+    action: str | None = Field(default=None, min_length=1, max_length=128, description="actions starting so")
+    outcome: AuditOutcome | None = None
+    target: str | None = Field(default=None, min_length=1, max_length=256, description="targets starting so")
+    since: str | None = Field(default=None, max_length=40, description="from this time on (ISO-8601, UTC if no zone)")
+    until: str | None = Field(default=None, max_length=40, description="before this time (exclusive)")
+    limit: int = Field(default=100, ge=1, le=AUDIT_PAGE_MAX)
+    offset: int = Field(default=0, ge=0, le=INT64_MAX)
+
+    @field_validator("since", "until")
+    @classmethod
+    def _time(cls, v: str | None) -> str | None:
+        return _audit_time(v)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> AuditQuery:
+        if self.since is not None and self.until is not None and self.since >= self.until:
+            raise ValueError(f"since ({self.since}) must be before until ({self.until})")
+        return self
+
+
+class AuditVerification(BaseModel):
+    """What ``gaitscope audit verify`` (and ``GET /api/audit/verify``) found."""
+
+    ok: bool
+    entries: int = Field(description="entries checked (all of them when ok)")
+    first_bad_seq: int | None = Field(default=None, description="where the chain first breaks")
+    problem: str | None = Field(default=None, description="why, in words ('hash mismatch at seq 17 ...')")
+    last_hash: str | None = Field(
+        default=None, description="the newest entry's hash: note it elsewhere to detect a cut-off tail later"
+    )
+
+
 #: Every class that crosses a socket or a file, as ``GET /api/schema`` serves them and ``web/wire.js``
 #: types them (the classes they refer to come along in their JSON schemas' ``$defs``).
 WIRE: Final[tuple[type[BaseModel], ...]] = (
@@ -1448,5 +1632,6 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     Personalization, CohortPoint, Fingerprints, PersonalizationExport, IntentSeries, ImuCalibrationRequest,
     ImuCalibration, ImuCalibrationStatus, GPArray, GPModelRecord, GPModelInfo, GPBand, GPPendingFit,
     GPLearningState, GPLearningControl, SessionSummary, ExportCreate, ExportJob, CompareRequest, Comparison,
-    ReviewAnnotationCreate, ReviewAnnotation, SettingsUndo,
+    ReviewAnnotationCreate, ReviewAnnotation, SettingsUndo, User, UserCreate, UserChange, LoginRequest,
+    PasswordChange, Me, DeviceToken, AssistanceLimits, SubjectLimits, AuditEntry, AuditQuery, AuditVerification,
 )  # fmt: skip

@@ -21,18 +21,24 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
+import importlib
+import importlib.util
 import json
 import threading
+import weakref
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Final, TypeVar
+from typing import Any, ClassVar, Final, TypeVar
 
 from pydantic import TypeAdapter
 from sqlalchemy import (
+    BigInteger,
     Connection,
     Engine,
     ForeignKey,
     Index,
+    Integer,
+    MetaData,
     String,
     Text,
     create_engine,
@@ -42,7 +48,7 @@ from sqlalchemy import (
     select,
 )
 from sqlalchemy.engine import URL
-from sqlalchemy.exc import IntegrityError
+from sqlalchemy.exc import DataError, IntegrityError
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.pool import StaticPool
 from sqlalchemy.sql import ColumnElement
@@ -68,7 +74,29 @@ class Conflict(ValueError):
 
 
 class _Base(DeclarativeBase):
-    pass
+    # Every ``Mapped[int]`` (ids, counts) is BIGINT on PostgreSQL, which is what the API admits
+    # (schema.INT64_MAX); INTEGER on SQLite, which is 64-bit there already and where only
+    # ``INTEGER PRIMARY KEY`` is the rowid that numbers new rows by itself.
+    type_annotation_map: ClassVar[dict[Any, Any]] = {int: BigInteger().with_variant(Integer(), "sqlite")}
+
+
+#: The declarative base of every table; ``sessions.accounts`` and ``sessions.audit`` declare theirs on it.
+Base = _Base
+
+#: The modules besides this one that declare tables on :data:`Base` (each imported if it exists).
+_TABLE_MODULES: Final = ("sessions.accounts.tables", "sessions.audit.tables")
+
+
+def all_metadata() -> MetaData:
+    """Every table of the database: this module's and those of :data:`_TABLE_MODULES`, imported here.
+
+    What the migrations (``sessions/migrations``) are compared with: a table is in the metadata only
+    once the module that declares it has been imported, and nothing else need import it first.
+    """
+    for name in _TABLE_MODULES:
+        if importlib.util.find_spec(name.rpartition(".")[0]) and importlib.util.find_spec(name):
+            importlib.import_module(name)
+    return _Base.metadata
 
 
 class _SubjectRow(_Base):
@@ -293,30 +321,67 @@ def _on_sqlite_begin(connection: Connection) -> None:
     connection.exec_driver_sql("BEGIN IMMEDIATE" if write else "BEGIN")
 
 
+# --- any database --------------------------------------------------------------------------------
+
+
+def make_engine(url: str | URL) -> Engine:
+    """The engine :class:`Store` uses for ``url`` (SQLite set up as the module says; for a file, its
+    folder created). Also what ``gaitscope db`` migrates with."""
+    parsed = make_url(url)
+    if parsed.get_backend_name() == "sqlite":
+        return _sqlite_engine(parsed)
+    return create_engine(parsed, pool_pre_ping=True)  # a database server's restart drops pooled connections
+
+
+def _lock_writes(connection: Connection) -> None:
+    """PostgreSQL: wait for the write lock (held until this transaction ends). SQLite's is BEGIN IMMEDIATE."""
+    if connection.dialect.name == "postgresql":
+        from sessions.migrations import LOCK_KEY
+
+        connection.exec_driver_sql(f"SELECT pg_advisory_xact_lock({LOCK_KEY})")
+
+
+@contextlib.contextmanager
+def write_transaction(engine: Engine) -> Iterator[Connection]:
+    """One write transaction on a connection of ``engine``, holding the database's write lock (SQLite
+    ``BEGIN IMMEDIATE``, PostgreSQL an advisory lock); committed when the block ends without error."""
+    with engine.connect() as connection:
+        connection.execution_options(**{_WRITE: True})
+        with connection.begin():
+            _lock_writes(connection)
+            yield connection
+
+
 # --- the store -----------------------------------------------------------------------------------
 
 
 class Store:
-    """Subjects, sessions, trials and events in the database at ``url``.
+    """Subjects, sessions, trials and events in the database at ``url``: SQLite or PostgreSQL
+    (``postgresql+psycopg://user:password@host/database``).
 
-    Creates the tables if they are missing (and, for a SQLite file, its folder). An in-memory SQLite
-    database (``sqlite://``) is one connection shared by all threads, one call at a time.
+    Brings the database to the newest migration when it opens it (:func:`sessions.migrations.migrate`:
+    creates a new one, upgrades an old one in place; for a SQLite file it creates the folder too). An
+    in-memory SQLite database (``sqlite://``) is one connection shared by all threads, one call at a time.
+
+    On PostgreSQL a write transaction first takes one advisory lock (``pg_advisory_xact_lock``), so
+    that writes are serialised as on SQLite (``BEGIN IMMEDIATE``) and the methods' read-then-write
+    steps (a personalization's next version, the one active personalization) hold across processes.
     """
 
     def __init__(self, url: str) -> None:
         parsed = make_url(url)
         self._lock: contextlib.AbstractContextManager[Any] = contextlib.nullcontext()
-        if parsed.get_backend_name() == "sqlite":
-            self._engine = _sqlite_engine(parsed)
-            if parsed.database in (None, "", ":memory:"):
-                self._lock = threading.Lock()
-        else:
-            self._engine = create_engine(parsed)
+        if parsed.get_backend_name() == "sqlite" and parsed.database in (None, "", ":memory:"):
+            self._lock = threading.Lock()
+        self._engine = make_engine(parsed)
         self._factory = orm.sessionmaker(self._engine, expire_on_commit=False)
-        with self._lock, self._engine.connect() as connection:
-            connection.execution_options(**{_WRITE: True})
-            with connection.begin():  # BEGIN IMMEDIATE: two processes opening a new file do not race
-                _Base.metadata.create_all(connection)
+        from sessions import migrations  # here: the migrations import this module
+
+        # The write lock first: two processes opening one new database do not both create it.
+        with self._lock, write_transaction(self._engine) as connection:
+            migrations.migrate(connection)
+        # A store dropped without close() still closes its connections (psycopg warns about open ones).
+        weakref.finalize(self, self._engine.dispose)
 
     def close(self) -> None:
         """Close every pooled connection (a SQLite WAL file is checkpointed and removed)."""
@@ -331,9 +396,21 @@ class Store:
 
     @contextlib.contextmanager
     def _write(self) -> Iterator[orm.Session]:
-        with self._lock, self._factory.begin() as session:  # commits on success, else rolls back
-            session.connection(execution_options={_WRITE: True})
-            yield session
+        try:
+            with self._lock, self._factory.begin() as session:  # commits on success, else rolls back
+                _lock_writes(session.connection(execution_options={_WRITE: True}))
+                yield session
+        except DataError as exc:  # PostgreSQL: a string longer than its column, a NUL character, ...
+            detail = str(exc.orig).splitlines()[0] if exc.orig is not None else type(exc).__name__
+            raise Conflict(f"the database refused a value: {detail}") from exc
+
+    def reading(self) -> contextlib.AbstractContextManager[orm.Session]:
+        """A read transaction, for the modules whose tables share this database (``sessions.accounts``)."""
+        return self._read()
+
+    def writing(self) -> contextlib.AbstractContextManager[orm.Session]:
+        """A write transaction (``BEGIN IMMEDIATE`` on SQLite), committed when the block ends without error."""
+        return self._write()
 
     @staticmethod
     def _get(session: orm.Session, cls: type[_Row], row_id: int, *, for_update: bool = False) -> _Row:
@@ -350,6 +427,10 @@ class Store:
         """A new subject; :class:`Conflict` if its code exists."""
         try:
             with self._write() as session:
+                # Checked first, under the write lock, rather than left to the unique index: a failed insert
+                # would use up an id on PostgreSQL (its sequences do not roll back).
+                if session.scalar(select(_SubjectRow.id).where(_SubjectRow.code == body.code)) is not None:
+                    raise Conflict(f"subject code {body.code!r} exists")
                 row = _SubjectRow(**body.model_dump(), created_utc=_stamp())
                 session.add(row)
                 session.flush()

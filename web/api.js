@@ -13,6 +13,8 @@ export class ApiError extends Error {
 
 const _STATUS_WORDS = {
   400: "The request was not understood",
+  401: "Not logged in",
+  403: "Not allowed",
   404: "Not found",
   409: "Refused",
   413: "Too large",
@@ -46,6 +48,54 @@ export function errorText(err) {
   return String((err && err.message) || err);
 }
 
+// --- the login: CSRF token and "log in first" ---------------------------------------------------------------
+// The server wants the login's CSRF token (Me.csrf_token, from auth.js) back in `X-CSRF-Token` with every
+// request that is not GET/HEAD/OPTIONS, and answers 401 when nobody is logged in (accounts on). Both rules live
+// here, below every fetch of the dashboard, so that no view can forget them.
+
+let _csrfToken = null;
+const _SAFE_METHODS = new Set(["GET", "HEAD", "OPTIONS"]);
+// Paths whose 401 is an answer for the page to show, not "go and log in": a wrong password, a login check.
+const _NO_LOGIN_REDIRECT = new Set(["/api/auth/login", "/api/auth/me"]);
+
+/** Remembers the login's CSRF token (null: accounts off, or logged out). */
+export function setCsrfToken(token) {
+  _csrfToken = token || null;
+}
+
+/** The headers a request with `method` needs besides its own: the CSRF token on state-changing ones. */
+export function authHeaders(method) {
+  return _csrfToken && !_SAFE_METHODS.has(String(method).toUpperCase()) ? { "X-CSRF-Token": _csrfToken } : {};
+}
+
+/** The login page's address, remembering where the user was (to come back there after logging in). */
+export function loginHash(from = location.hash) {
+  const here = from && !from.startsWith("#/login") ? from : "";
+  return here && here !== "#/" ? `#/login?next=${encodeURIComponent(here)}` : "#/login";
+}
+
+let _loggedOut = () => {};
+/** What to do when the server says the login ended (auth.js forgets the user). */
+export function whenLoggedOut(fn) {
+  _loggedOut = fn;
+}
+
+/** A 401 from the server: the login ended (or never was); off to the login page, coming back here after. */
+export function onUnauthorized(path) {
+  if (_NO_LOGIN_REDIRECT.has(path.split("?")[0])) return;
+  setCsrfToken(null);
+  _loggedOut();
+  if (!location.hash.startsWith("#/login")) location.hash = loginHash();
+}
+
+/** `fetch` with the login's rules: the CSRF header on state-changing requests, a 401 sends to the login page. */
+export async function authFetch(path, init = {}) {
+  const method = init.method || "GET";
+  const resp = await fetch(path, { ...init, headers: { ...(init.headers || {}), ...authHeaders(method) } });
+  if (resp.status === 401) onUnauthorized(path);
+  return resp;
+}
+
 async function _raise(resp) {
   let detail = null;
   try {
@@ -71,7 +121,7 @@ export async function api(method, path, body) {
     init.headers["Content-Type"] = "application/json";
     init.body = JSON.stringify(body);
   }
-  const resp = await fetch(path, init);
+  const resp = await authFetch(path, init);
   if (!resp.ok) await _raise(resp);
   if (resp.status === 204) return null;
   return resp.json();
@@ -79,7 +129,7 @@ export async function api(method, path, body) {
 
 /** `PUT /api/uploads/{id}?offset=N` with raw bytes; returns the `Upload`. */
 export async function putChunk(uploadId, offset, blob) {
-  const resp = await fetch(`/api/uploads/${encodeURIComponent(uploadId)}?offset=${offset}`, {
+  const resp = await authFetch(`/api/uploads/${encodeURIComponent(uploadId)}?offset=${offset}`, {
     method: "PUT",
     headers: { "Content-Type": "application/octet-stream", Accept: "application/json" },
     body: blob,

@@ -1,32 +1,17 @@
 // The live view's control panels: settings (apply / revert / undo the last change), recording, annotations,
 // session start/stop. Raising the maximum torque asks for a confirmation first. Every request's refusal is
-// shown in plain words next to its control.
+// shown in plain words next to its control. Roles (issue #13): a card whose actions the user's role may not
+// take is fenced off with the reason (auth.js); an experimenter sees the subject's assistance limits next to
+// the settings, and a change beyond them is refused here, before it is sent.
 
 import { api } from "./api.js";
+import { limitsText, loadLimits, overLimits } from "./assistance_limits.js";
+import { fence, may } from "./auth.js";
 import { describeEvent } from "./events.js";
 import { imuCalibrationCard } from "./imu_calibration.js";
 import { SETTING_LIMITS, SettingsEditor } from "./settings.js";
 import { armedButton, errorBox, h, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
-
-const ACTOR_KEY = "gaitscope.actor";
-
-/** Who is acting (written into every event as its actor); remembered on this tablet. */
-export function actorSelect(onChange = () => {}) {
-  const sel = h("select", { id: "actor", "data-testid": "actor", "aria-label": "Acting as" },
-    h("option", { value: "clinician", text: "clinician" }), h("option", { value: "experimenter", text: "experimenter" }));
-  sel.value = localStorage.getItem(ACTOR_KEY) || "clinician";
-  sel.addEventListener("change", () => {
-    localStorage.setItem(ACTOR_KEY, sel.value);
-    onChange(sel.value);
-  });
-  return sel;
-}
-
-/** Who is acting now (the "Acting as" choice on this tablet). */
-export function actingUser() {
-  return localStorage.getItem(ACTOR_KEY) || "clinician";
-}
 
 /**
  * @param {number} sessionId
@@ -51,8 +36,27 @@ export function mountControls(sessionId, hooks) {
     "data-testid": "confirm-raise-box", hidden: true }, confirmText, h("div", { class: "buttons" }, confirmBtn, cancelBtn));
   let pending = null; // the changes waiting for the confirmation
   const label = (k) => SETTING_LIMITS[k].label.split(":")[0];
+  // an experimenter: assistance only within the subject's limits (loaded with the first session seen)
+  const bounded = !may("assist") && may("assist_within_limits");
+  const limitsLine = h("p", { class: "hint limits-line", "data-testid": "settings-limits", hidden: !bounded });
+  const limits = { subjectId: null, value: null, loaded: false };
+  async function loadSubjectLimits(subjectId) {
+    if (!bounded || limits.subjectId === subjectId) return;
+    limits.subjectId = subjectId;
+    try {
+      limits.value = await loadLimits(subjectId);
+      limits.loaded = true;
+      limitsLine.textContent = `Your limits for this subject (set by a clinician): ${limitsText(limits.value)}.`;
+    } catch (err) {
+      limitsLine.textContent = `The subject's assistance limits could not be loaded (${err.message}); the server still checks them.`;
+    }
+  }
   async function apply(changes) {
-    const session = await api("PATCH", `${base}/settings`, { ...changes, actor: actingUser() });
+    if (bounded && limits.loaded) {
+      const over = overLimits(changes, limits.value);
+      if (over) throw new ValidationError(over);
+    }
+    const session = await api("PATCH", `${base}/settings`, changes);
     editor.setBaseline(session.settings);
     settingsOk.textContent = `Applied: ${Object.keys(changes).map(label).join(", ")}.`;
     hooks.onSession(session);
@@ -95,7 +99,7 @@ export function mountControls(sessionId, hooks) {
   undoBtn.addEventListener("click", () => {
     settingsOk.textContent = "";
     runAction(undoBtn, settingsError, async () => {
-      const session = await api("POST", `${base}/settings/undo`, { actor: actingUser() });
+      const session = await api("POST", `${base}/settings/undo`, {});
       editor.setBaseline(session.settings);
       settingsOk.textContent = "Undone: the settings are back to what they were before the last change.";
       hooks.onSession(session);
@@ -111,7 +115,7 @@ export function mountControls(sessionId, hooks) {
     undoBtn.disabled = !ev || !rec.running;
   }
   const settingsCard = h("section", { class: "card", "data-testid": "settings-card" },
-    h("h2", { text: "Assistance and estimator" }), editor.el,
+    h("h2", { text: "Assistance and estimator" }), limitsLine, editor.el,
     h("div", { class: "buttons" }, applyBtn, revertBtn, undoBtn), undoWhat, confirmBox, settingsError, settingsOk);
 
   // --- recording ---------------------------------------------------------------------------------
@@ -175,7 +179,7 @@ export function mountControls(sessionId, hooks) {
       const text = annText.value.trim();
       if (!text) throw new ValidationError("Write the annotation first.");
       if (text.length > 500) throw new ValidationError("An annotation may have at most 500 characters.");
-      const event = await api("POST", `${base}/annotations`, { text, actor: actingUser() });
+      const event = await api("POST", `${base}/annotations`, { text });
       annText.value = "";
       hooks.onEvent(event);
     });
@@ -190,6 +194,10 @@ export function mountControls(sessionId, hooks) {
   sessStartBtn.addEventListener("click", () => runAction(sessStartBtn, sessError, async () => setSession(await api("POST", `${base}/start`))));
   const sessionCard = h("section", { class: "card", "data-testid": "session-card" }, h("h2", { text: "Session" }),
     h("p", {}, "State: ", sessState), h("div", { class: "buttons" }, sessStartBtn, sessStopBtn), sessError);
+  fence(settingsCard, "assist_within_limits");
+  fence(recordingCard, "run");
+  fence(annForm, "annotate");
+  fence(sessionCard, "run");
 
   function setSession(session) {
     sessState.textContent = session.state;
@@ -203,12 +211,13 @@ export function mountControls(sessionId, hooks) {
     if (!running) rec.recording = false; // stopping a session finishes its recording
     renderRecording();
     editor.setBaseline(session.settings);
+    loadSubjectLimits(session.subject_id);
     imu.refresh();
     hooks.onSession(session);
   }
 
   // --- IMU calibration (sessions whose stack has IMU front ends) ---------------------------------
-  const imu = imuCalibrationCard(sessionId, actingUser);
+  const imu = imuCalibrationCard(sessionId);
 
   refreshRecording();
   return {

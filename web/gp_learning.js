@@ -5,10 +5,11 @@
 // waiting for the next heel strike or being fitted, the kept versions with their training window and
 // held-out RMSE, and the clinician's controls: freeze / unfreeze learning, roll back to a kept version.
 // State: `GET /api/sessions/{id}/gp-learning` (GPLearningState), polled every 2 s while the session runs and
-// at once on a `gp_ekf` event; controls: `POST` the same (GPLearningControl), logged with the actor.
+// at once on a `gp_ekf` event; controls: `POST` the same (GPLearningControl), logged with the logged-in user.
 // Hidden for a session without `gp_ekf` (it is opt-in: the session's settings must name it).
 
 import { api, ApiError, errorText } from "./api.js";
+import { fence } from "./auth.js";
 import { COLORS, Plot, Ring } from "./plots.js";
 import { errorBox, field, fmt, h, runAction } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
@@ -63,9 +64,8 @@ function jointSeries(joint, current, compare) {
 
 /**
  * @param {number} sessionId
- * @param {() => string} actor who is acting
  */
-export function gpLearningCard(sessionId, actor) {
+export function gpLearningCard(sessionId) {
   const url = `/api/sessions/${sessionId}/gp-learning`;
   const badges = h("div", { class: "gp-badges", "data-testid": "gp-status", "aria-live": "polite" });
   const last = h("p", { class: "hint", "data-testid": "gp-last" });
@@ -94,7 +94,7 @@ export function gpLearningCard(sessionId, actor) {
     badges, last, note, h("div", { class: "gp-bands" }, ...bandDivs),
     h("div", { class: "gp-lower" }, stanceDiv,
       h("div", {}, versionsTable,
-        h("div", { class: "inline gp-controls" }, freezeBtn, field("Compare with / roll back to", rollbackSel), rollbackBtn, reason),
+        fence(h("div", { class: "inline gp-controls" }, freezeBtn, field("Compare with / roll back to", rollbackSel), rollbackBtn, reason), "run"),
         error, ok)));
 
   let has = false; // the stack runs gp_ekf
@@ -251,7 +251,7 @@ export function gpLearningCard(sessionId, actor) {
 
   /** POST a control; the answer (the new state) is shown at once, newer than any poll under way. */
   async function control(body, done) {
-    const state = await api("POST", url, { ...body, actor: actor(), reason: reason.value.trim() });
+    const state = await api("POST", url, { ...body, reason: reason.value.trim() });
     shownSeq = ++seq;
     reason.value = "";
     render(state);

@@ -3,6 +3,7 @@
 // each front end took, or the refusal with each sensor's reason. Hidden when the session has no IMU front end.
 
 import { api } from "./api.js";
+import { fence } from "./auth.js";
 import { errorBox, field, fmt, h, runAction, showError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
 
@@ -20,10 +21,9 @@ function sensorLines(cal) {
 
 /**
  * @param {number} sessionId
- * @param {() => string} actor who is acting
  * @returns {{el: HTMLElement, refresh: () => Promise<void>}}
  */
-export function imuCalibrationCard(sessionId, actor) {
+export function imuCalibrationCard(sessionId) {
   const url = `/api/sessions/${sessionId}/imu-calibration`;
   const duration = h("select", { id: "imu-duration", "data-testid": "imu-duration" },
     ...DURATIONS_S.map((s) => h("option", { value: String(s), text: `${s} s` })));
@@ -37,6 +37,7 @@ export function imuCalibrationCard(sessionId, actor) {
   const el = h("section", { class: "card", "data-testid": "imu-card", hidden: true }, h("h2", { text: "IMU calibration" }),
     h("p", { class: "hint", text: "The subject stands upright and still; each sensor's mounting offset and gyro bias are then applied." }),
     h("div", { class: "inline" }, field("Standing period", duration), startBtn), bar, status, error);
+  fence(el, "run");
   let timer = 0;
 
   function render(st) {
@@ -75,7 +76,7 @@ export function imuCalibrationCard(sessionId, actor) {
   }
 
   startBtn.addEventListener("click", () => runAction(startBtn, error, async () => {
-    render(await api("POST", url, { duration_s: Number(duration.value), actor: actor() }));
+    render(await api("POST", url, { duration_s: Number(duration.value) }));
   }));
   return { el, refresh };
 }

@@ -7,7 +7,7 @@
 // with the GP-EKF (`gp_ekf`, seed 003) gets its card (`gp_learning.js`): its phase is the STANCE phase, plotted
 // there and kept out of the gait-phase plot.
 //
-// Layout (issue #12): panels in a grid (`live_layout.js`: which, their order and width, remembered per acting
+// Layout (issue #12): panels in a grid (`live_layout.js`: which, their order and width, remembered per logged-in
 // user), the key plots (phase, torque, phase rate, incline) first, in view without scrolling at 1440x900; on
 // a phone the data health and the stop control come first. The time plots are one `PlotGroup`: pause and
 // resume (data keeps arriving), zoom and pan a paused view, linked cursors with hover values, the setting
@@ -16,7 +16,9 @@
 // reconnects by itself, at once when the server is back, and says what happened to a session that ended.
 
 import { api, openSessionStream } from "./api.js";
-import { actingUser, actorSelect, mountControls } from "./controls.js";
+import { currentUser, fence } from "./auth.js";
+import { mountControls } from "./controls.js";
+import { deviceCredentialsCard } from "./device_credentials.js";
 import { describeEvent, EVENT_COLORS, EventList, isSettingChange } from "./events.js";
 import { GP_EKF, gpLearningCard } from "./gp_learning.js";
 import { legView } from "./leg_view.js";
@@ -167,11 +169,12 @@ export function mountLive(root, sessionId) {
   const primaryBtn = h("button", { type: "button", "data-testid": "primary-apply", text: "Switch" });
   const primaryError = errorBox("primary-error");
   primaryBtn.addEventListener("click", () => runAction(primaryBtn, primaryError, async () => {
-    const session = await api("PATCH", `/api/sessions/${sessionId}/settings`, { primary: primarySelect.value, actor: actingUser() });
+    const session = await api("PATCH", `/api/sessions/${sessionId}/settings`, { primary: primarySelect.value });
     controls.setSession(session);
   }));
-  healthBox.el.append(h("div", { class: "inline", "data-testid": "primary-switch" },
-    h("label", { for: "primary-select", text: "Torque follows " }), primarySelect, primaryBtn), primaryError);
+  healthBox.el.append(fence(h("div", { class: "inline", "data-testid": "primary-switch" },
+    h("label", { for: "primary-select", text: "Torque follows " }), primarySelect, primaryBtn), "assist",
+  "Only a clinician or an admin switches the estimator driving the torque."), primaryError);
 
   // --- plots: one group (shared zoom, cursor, markers, pause) ----------------------------------------
   const follow = (u, min, max) => (max == null ? [0, WINDOW_S] : [max - WINDOW_S, max]);
@@ -288,12 +291,14 @@ export function mountLive(root, sessionId) {
   // --- controls, events, leg view, panels ------------------------------------------------------------
   let subjectCode = "";
   const sessionEnd = sessionEndBanner();
-  const gp = gpLearningCard(sessionId, actingUser);
+  const gp = gpLearningCard(sessionId);
+  const credentials = deviceCredentialsCard(sessionId);
   const controls = mountControls(sessionId, {
     onEvent: (ev) => addEvents(ev),
     onSession: (s) => {
       title.textContent = `Session ${sessionId} · ${subjectCode || `subject ${s.subject_id}`} · ${s.source.kind} · ${s.state}`;
       gp.setSession(s);
+      credentials.setSession(s);
       group.setContext({ max_torque_Nm: s.settings.max_torque_Nm });
       if (s.state === "running") sessionEnd.hide();
     },
@@ -317,11 +322,11 @@ export function mountLive(root, sessionId) {
     { id: "leg", title: "3D leg view", size: 1, el: legView({ session_id: sessionId }) },
     { id: "imu", title: "IMU calibration", size: 1, el: controls.cards.imu },
     { id: "gp", title: "GP-EKF learning", size: 3, el: gp.el },
+    { id: "credentials", title: "Device credentials", size: 1, el: credentials.el },
   ];
-  const layout = new PanelLayout(panels, actingUser());
+  const layout = new PanelLayout(panels, currentUser().name);
   const page = h("div", { class: "page live-page" },
-    h("div", { class: "page-head" }, title, pauseBtn, h("label", { class: "actor" }, "Acting as ", actorSelect((a) => layout.use(a))),
-      layout.menu, h("a", { class: "button", href: "#/", text: "← Sessions" })),
+    h("div", { class: "page-head" }, title, pauseBtn, layout.menu, h("a", { class: "button", href: "#/", text: "← Sessions" })),
     streamError, sessionEnd.el, layout.grid);
   root.append(page);
   const bands = [

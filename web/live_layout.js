@@ -31,12 +31,12 @@ export function normalizeLayout(stored, panels) {
 
 /**
  * The panel grid. `panels`: [{id, title, size (1-3), el}] in their default order.
- * `actor()` names whose layout is shown; `use(actor)` switches to another's.
+ * `user` names whose layout is shown (the logged-in user's); `use(user)` switches to another's.
  */
 export class PanelLayout {
-  constructor(panels, actor) {
+  constructor(panels, user) {
     this.panels = panels;
-    this.actor = actor;
+    this.actor = user;
     this.grid = h("div", { class: "live-panels", "data-testid": "live-panels" });
     this.wraps = {};
     for (const p of panels) {
@@ -75,8 +75,8 @@ export class PanelLayout {
   }
 
   /** Another user acts: their layout. */
-  use(actor) {
-    this.actor = actor;
+  use(user) {
+    this.actor = user;
     this.load();
   }
 
@@ -114,7 +114,7 @@ export class PanelLayout {
       el.classList.toggle("panel-hidden", hidden.includes(id));
     });
     this.menu.querySelector("[data-testid=layout-owner]").textContent =
-      `The layout of ${this.actor} (kept in this browser for whoever is acting).`;
+      `The layout of ${this.actor} (kept in this browser for this user).`;
     const title = Object.fromEntries(this.panels.map((p) => [p.id, p.title]));
     this.menuBody.replaceChildren(...order.map((id, i) => {
       const shown = h("input", { type: "checkbox", "data-testid": `layout-show-${id}`, "aria-label": `Show ${title[id]}` });

@@ -1,7 +1,7 @@
 // "Record a calibration walk now" on the subject page (subject.js): a new trial of a running session of the subject,
 // stopped after the chosen duration and handed to the Fit flow. Split out of subject.js (one concept per module).
 
-import { api, ApiError, errorText, query } from "./api.js";
+import { api, ApiError, authHeaders, errorText, query } from "./api.js";
 import { field, fmt, h, showError, ValidationError } from "./ui.js";
 
 const WALK_DURATIONS_S = [20, 30, 60]; // "record a calibration walk now": 20 s is ~18 strides at 1 m/s, 8 are needed
@@ -107,7 +107,8 @@ export function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
   // Closing or reloading the tab unmounts nothing: one blind stop that outlives the page (`keepalive`).
   function onPageHide() {
     if (w && w.trial && !w.ending) {
-      fetch(`/api/sessions/${w.sid}/recording`, { method: "POST", keepalive: true, headers: { "Content-Type": "application/json" },
+      fetch(`/api/sessions/${w.sid}/recording`, { method: "POST", keepalive: true,
+        headers: { "Content-Type": "application/json", ...authHeaders("POST") },
         body: JSON.stringify({ action: "stop" }) }).catch(() => {});
     }
   }

@@ -11,6 +11,7 @@
 // named re-runs (review_ab.js); a trial still recording opens with a link to its live session.
 
 import { api, errorText, query } from "./api.js";
+import { fence } from "./auth.js";
 import { EstimatorPicker, estimatorLabel, estimatorOverlay, listText, overlayLegend, rerunEstimators } from "./estimators.js";
 import { EventList } from "./events.js";
 import { legView } from "./leg_view.js";
@@ -152,6 +153,7 @@ export function mountReview(root, trialId) {
     picker.el,
     h("fieldset", { class: "choices" }, h("legend", { text: "Settings" }), modeRecorded, modeWhatIf), modeNote,
     editor.el, h("div", { class: "buttons" }, rerunBtn, rerunClear), rerunError, rerunOk, rerunLegend);
+  fence(rerunCard, "run");
   const radio = (label) => label.querySelector("input");
   const whatIf = () => radio(modeWhatIf).checked;
   let rerunning = false;

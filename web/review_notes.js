@@ -2,12 +2,14 @@
 // (`/api/trials/{id}/annotations`), listed by time, deletable by whoever wrote it, and drawn on the plots
 // as labelled markers (review_markers.js).
 
-import { api, query } from "./api.js";
+import { api } from "./api.js";
+import { currentUser, fence, may } from "./auth.js";
 import { errorBox, fmt, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
 
-/** Who is acting: the name chosen on this tablet (the live view's "Acting as"). */
+/** Who is acting: the logged-in user (the server writes their name into the note, whatever the body says). */
 export function currentActor() {
-  return localStorage.getItem("gaitscope.actor") || "clinician";
+  const me = currentUser();
+  return me ? me.name : "";
 }
 
 /**
@@ -39,6 +41,7 @@ export function notesCard(trialId, hooks) {
       h("label", { class: "choice" }, spanBox, h("span", { text: "over a span, to" })),
       h("label", {}, to, " s"), useCursor),
     h("div", { class: "buttons" }, add), error, list);
+  fence(el, "annotate");
 
   spanBox.addEventListener("change", () => {
     to.disabled = !spanBox.checked;
@@ -56,12 +59,12 @@ export function notesCard(trialId, hooks) {
       const go = h("button", { type: "button", class: "link", "data-testid": "note-go", text: when,
         title: "Move the cursor here" });
       go.addEventListener("click", () => hooks.onSelect(n.t));
-      const mine = n.actor === currentActor();
+      const mine = n.actor === currentActor() && may("annotate");
       const del = h("button", { type: "button", class: "small", "data-testid": "note-delete", text: "Delete",
         disabled: !mine, title: mine ? "Delete this note" : `Only ${n.actor} may delete it` });
       const delError = errorBox("note-delete-error");
       del.addEventListener("click", () => runAction(del, delError, async () => {
-        await api("DELETE", `/api/trials/${trialId}/annotations/${n.id}${query({ actor: currentActor() })}`);
+        await api("DELETE", `/api/trials/${trialId}/annotations/${n.id}`);
         st.notes = st.notes.filter((x) => x.id !== n.id);
         changed();
       }));
@@ -85,7 +88,7 @@ export function notesCard(trialId, hooks) {
     const lo = +range[0].toFixed(2) - 0.01;
     const hi = +range[1].toFixed(2) + 0.01;
     const t = readNumber(from, { label: "The note's time", min: lo, max: hi });
-    const body = { t: Math.max(t, 0), text: words, actor: currentActor() };
+    const body = { t: Math.max(t, 0), text: words };
     if (spanBox.checked) {
       const tEnd = readNumber(to, { label: "The span's end", min: lo, max: hi });
       if (tEnd <= t) throw new ValidationError("The span must end after it starts.");

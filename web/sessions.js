@@ -1,6 +1,7 @@
 // Sessions page (`#/`): sessions and trials, new subject, new session, and the upload form.
 
 import { api } from "./api.js";
+import { fence } from "./auth.js";
 import { mountUpload } from "./upload.js";
 import { errorBox, field, fmt, fmtUtc, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
@@ -152,6 +153,8 @@ export function mountSessions(root) {
     field("Subject", sessSubject),
     h("fieldset", { class: "choices" }, h("legend", { text: "Source" }), ...kindRadios),
     simBox, replayBox, deviceBox, sessionSubmit, sessionError);
+  fence(subjectForm, "run");
+  fence(sessionForm, "run");
   sessionForm.addEventListener("change", (ev) => {
     if (ev.target.name !== "source-kind") return;
     for (const box of [simBox, replayBox, deviceBox]) box.hidden = box.dataset.kind !== ev.target.value;

@@ -6,7 +6,8 @@
 // "record a calibration walk now" flow is people_calibration_walk.js.
 
 import { api, ApiError, errorText, openSessionStream, query } from "./api.js";
-import { actorSelect } from "./controls.js";
+import { limitsCard } from "./assistance_limits.js";
+import { currentUser, fence, may, refusalReason } from "./auth.js";
 import { fingerprintScatter, gText } from "./fingerprint_plot.js";
 import { calibrationWalk } from "./people_calibration_walk.js";
 import { COLORS, Plot } from "./plots.js";
@@ -16,7 +17,6 @@ import { FIELD_LIMITS } from "./wire.js";
 // CalibrationRequest.note and PersonalizationChange.reason (sessions/schema.py), from the generated wire.js.
 const TEXT_MAX = FIELD_LIMITS.CalibrationRequest.note.maxLength;
 const REASON_MAX = FIELD_LIMITS.PersonalizationChange.reason.maxLength;
-const ACTOR_KEY = "gaitscope.actor"; // controls.js's: who is acting, remembered on this tablet
 const POLL_MS = 5000; // sessions, trials and versions refreshed (another screen may record or promote)
 const LIVE_RATE_HZ = 5; // the online fingerprint moves slowly: a few samples a second are plenty
 const RERUN_POINTS = 2000;
@@ -30,7 +30,6 @@ const COMPARE = [
   { key: "thigh", title: "Thigh angle: measured and each model's prediction", yLabel: "deg", out: "thigh_pred_deg", measured: "thigh_angle_deg" },
 ];
 
-const actor = () => localStorage.getItem(ACTOR_KEY) || "clinician";
 const trialLabel = (t) => `Trial ${t.id}${t.name ? ` · ${t.name}` : ""} · ${fmt(t.duration_s, 1)} s · ${fmtUtc(t.started_utc)}`;
 const excludedText = (v) => Object.entries(v.excluded).map(([why, n]) => `${n} ${why}`).join("; ");
 const rmseText = (v) => `${fmt(v.fit_rmse_avg_deg, 2)} → ${fmt(v.fit_rmse_personal_deg, 2)}`;
@@ -73,7 +72,7 @@ export function mountSubject(root, subjectId) {
     h("div", { class: "card-head" }, h("h2", { text: "Personalized models" }), rollbackBtn),
     modelNote, activeLine, h("div", { class: "table-scroll" }, versionsTable), confirmBox, changeError, status,
     h("details", { class: "import" }, h("summary", { text: "Import a version exported from another gaitscope" }),
-      h("div", { class: "inline" }, field("Personalization file (.json)", importFile), importBtn), importError));
+      fence(h("div", {}, h("div", { class: "inline" }, field("Personalization file (.json)", importFile), importBtn), importError), "upload")));
 
   // --- calibrate ------------------------------------------------------------------------------------
   const calTrial = h("select", { id: "calibrate-trial", "data-testid": "calibrate-trial" });
@@ -98,6 +97,7 @@ export function mountSubject(root, subjectId) {
     h("p", { class: "hint", text: "A steady walk of at least 8 strides (about 10 s) with a thigh sensor. The fit is stored as a "
       + "candidate: nothing runs it until it is promoted." }),
     field("Calibration walk", calTrial), field("Note (optional)", calNote), h("div", { class: "buttons" }, calBtn), walk.el, calBusy, calError, calOk);
+  fence(calCard, "run");
 
   // --- where the subject sits -----------------------------------------------------------------------
   const scatterBox = h("div", { class: "fp-scatter" });
@@ -122,12 +122,13 @@ export function mountSubject(root, subjectId) {
       + "(fp_ls) with the version's fingerprint, overlaid. Nothing changes for the subject until a version is promoted." }),
     h("div", { class: "compare-controls" }, field("Version", cmpVersion), field("Walk to re-run", cmpTrial), cmpBtn),
     cmpError, cmpOk, cmpFigures, cmpPlots);
+  fence(cmpCard, "run"); // a comparison re-runs the walk
 
   root.append(h("div", { class: "page subject-page" },
-    h("div", { class: "page-head" }, title, h("label", { class: "actor" }, "Acting as ", actorSelect()),
+    h("div", { class: "page-head" }, title,
       h("a", { class: "button", href: "#/subjects", "data-testid": "back-to-subjects", text: "← All subjects" }),
       h("a", { class: "button", href: "#/", text: "← Sessions" })),
-    body, pageError, modelsCard, h("div", { class: "subject-grid" }, calCard, sitsCard), cmpCard));
+    body, pageError, modelsCard, limitsCard(subjectId), h("div", { class: "subject-grid" }, calCard, sitsCard), cmpCard));
 
   // --- rendering --------------------------------------------------------------------------------------
   /** One version's row; every cell names its column (`data-label`), which a narrow screen shows as a caption. */
@@ -149,7 +150,8 @@ export function mountSubject(root, subjectId) {
       cell(5, {}, fmtUtc(v.created_utc), h("div", { class: "hint", text: `by ${v.created_by}` }),
         v.promoted_utc ? h("div", { class: "hint", text: `promoted ${fmtUtc(v.promoted_utc)} by ${v.promoted_by}` }) : null),
       cell(6, {}, h("div", { class: "row-actions" }, compareBtn,
-        v.state === "active" ? null : h("button", { type: "button", "data-testid": "promote", text: "Promote…", onclick: () => ask({ kind: "promote", v }) }),
+        v.state === "active" ? null : h("button", { type: "button", "data-testid": "promote", text: "Promote…", onclick: () => ask({ kind: "promote", v }),
+          disabled: !may("promote"), title: may("promote") ? null : refusalReason("promote") }),
         h("a", { class: "button", "data-testid": "export", href: `${base}/${v.id}/export`, download: `${code()}-fingerprint-v${v.version}.json`,
           text: "Export" }))));
   }
@@ -167,7 +169,8 @@ export function mountSubject(root, subjectId) {
         + `on ${fmtUtc(a.promoted_utc)}: ${gText(a.fingerprint)}.`)
       : h("span", {}, h("span", { class: "badge badge-average", text: "AVERAGE MODEL" }),
         " No personalized model is active: the average model is in use."));
-    rollbackBtn.disabled = !a;
+    rollbackBtn.disabled = !a || !may("promote");
+    rollbackBtn.title = may("promote") ? "" : refusalReason("promote");
     syncCalibrate();
     versionsBody.replaceChildren(...(fps.versions.length ? fps.versions.map(versionRow)
       : [h("tr", {}, h("td", { colspan: COLUMNS.length, class: "empty", text: "No personalized model yet: calibrate one from a walk below." }))]));
@@ -303,7 +306,7 @@ export function mountSubject(root, subjectId) {
     syncCalibrate();
     await runAction(calBtn, calError, async () => {
       if (!trialId) throw new ValidationError("Choose the walk to calibrate from.");
-      const p = await api("POST", base, { trial_id: trialId, model: st.fps ? st.fps.model : "default", actor: actor(), note: calNote.value.trim() });
+      const p = await api("POST", base, { trial_id: trialId, model: st.fps ? st.fps.model : "default", note: calNote.value.trim() });
       if (!st.alive) return;
       calNote.value = "";
       const left = p.strides_excluded ? ` (${excludedText(p)})` : "";
@@ -437,7 +440,7 @@ export function mountSubject(root, subjectId) {
     const why = reason.value.trim();
     const said = why ? ` (${why})` : "";
     runAction(confirmBtn, changeError, async () => {
-      const body = { actor: actor(), reason: why };
+      const body = { reason: why };
       if (what.kind === "promote") {
         const p = await api("POST", `${base}/${what.v.id}/promote`, body);
         status.textContent = `v${p.version} promoted by ${p.promoted_by}${said}: it is ${code()}'s model now.`;
@@ -445,7 +448,7 @@ export function mountSubject(root, subjectId) {
         const old = st.fps.active;
         if (!old) throw new ValidationError("Nothing to roll back: no personalized model is active (changed on another screen?).");
         const fps = await api("POST", `${base}/rollback${query({ model: st.fps.model })}`, body);
-        status.textContent = `v${old.version} rolled back by ${body.actor}${said}: `
+        status.textContent = `v${old.version} rolled back by ${currentUser().name}${said}: `
           + `${fps.active ? `v${fps.active.version} is in use again` : "the average model is in use again"}.`;
       }
       closeConfirm();

@@ -2,7 +2,8 @@
 // A refusal is shown in the user's terms (which file, row and column, what is wrong); a recording that was never
 // finished (cut off by a crash) is refused as recoverable, and a button sends it again to be recovered.
 
-import { api, ApiError, describeDetail, putChunk } from "./api.js";
+import { api, ApiError, authFetch, describeDetail, putChunk } from "./api.js";
+import { fence } from "./auth.js";
 import { errorBox, field, h, runAction, showError, ValidationError } from "./ui.js";
 
 const NAME_RE = /^[^/\\]+\.(mcap|csv|parquet)$/; // UploadCreate.filename
@@ -38,7 +39,7 @@ export function refusalText(detail) {
 
 /** `POST /api/uploads/{id}/finish`: the Trial, or an ApiError with `recoverable` set from the server's header. */
 async function _finish(id, recover) {
-  const resp = await fetch(`/api/uploads/${encodeURIComponent(id)}/finish${recover ? "?recover=true" : ""}`,
+  const resp = await authFetch(`/api/uploads/${encodeURIComponent(id)}/finish${recover ? "?recover=true" : ""}`,
     { method: "POST", headers: { Accept: "application/json" } });
   if (resp.ok) return resp.json();
   let detail = resp.statusText;
@@ -74,6 +75,7 @@ export function mountUpload(subjectSelect) {
     field("Subject", subjectSelect),
     h("div", { class: "progress-row" }, progress, progressText),
     h("div", { class: "buttons" }, submit, cancel), error, recoverBox);
+  fence(form, "upload");
 
   cancel.addEventListener("click", () => {
     cancelled = true;

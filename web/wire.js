@@ -69,7 +69,7 @@
  * @property {number | null} [process_noise_scale=null] (0.1..10)
  * @property {number | null} [intent_gain_boost=null] (0..0.3)
  * @property {string | null} [primary=null] switched at most every 2 s; the torque blends over 0.5 s
- * @property {string} [actor="clinician"]
+ * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
  * @property {string} [reason=""]
  */
 
@@ -105,7 +105,7 @@
 /**
  * @typedef {object} AnnotationCreate
  * @property {string} text
- * @property {string} [actor="clinician"]
+ * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
  */
 
 /**
@@ -426,14 +426,14 @@
  * @typedef {object} CalibrationRequest
  * @property {number} trial_id (1..9223372036854775807)
  * @property {string} [model="default"]
- * @property {string} [actor="clinician"]
+ * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
  * @property {string} [note=""]
  */
 
 /**
  * Promote a personalization or roll back to the one before (``.../promote``, ``.../rollback``).
  * @typedef {object} PersonalizationChange
- * @property {string} [actor="clinician"]
+ * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
  * @property {string} [reason=""]
  */
 
@@ -517,7 +517,7 @@
  * the subject stands still, upright, for ``duration_s`` of session time.
  * @typedef {object} ImuCalibrationRequest
  * @property {number} [duration_s=5.0] (2..30)
- * @property {string} [actor="clinician"]
+ * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
  * @property {string} [note=""] the posture, or anything worth keeping with it
  */
 
@@ -632,7 +632,7 @@
  * @typedef {object} GPLearningControl
  * @property {"freeze" | "unfreeze" | "rollback"} action
  * @property {number | null} [version=null] rollback: the kept version (0..9223372036854775807)
- * @property {string} [actor="clinician"]
+ * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
  * @property {string} [reason=""]
  */
 
@@ -701,7 +701,7 @@
  * @property {number} t session time (s) it is at (or starts at) (0..1e+09)
  * @property {number | null} [t_end=null] end of its span (s); null: a single time (0..1e+09)
  * @property {string} text
- * @property {string} [actor="clinician"]
+ * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
  */
 
 /**
@@ -709,7 +709,7 @@
  * @property {number} t session time (s) it is at (or starts at) (0..1e+09)
  * @property {number | null} [t_end=null] end of its span (s); null: a single time (0..1e+09)
  * @property {string} text
- * @property {string} [actor="clinician"]
+ * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
  * @property {number} id
  * @property {number} trial_id
  * @property {string} created_utc
@@ -719,7 +719,137 @@
  * Undo the session's last applied settings change (``POST /api/sessions/{id}/settings/undo``): its fields go
  * back to their values before it, within the same bounds and rate limits as any change, logged as a change.
  * @typedef {object} SettingsUndo
- * @property {string} [actor="clinician"]
+ * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
+ */
+
+/**
+ * An account (never its password hash).
+ * @typedef {object} User
+ * @property {number} id
+ * @property {string} name
+ * @property {"admin" | "clinician" | "experimenter" | "viewer"} role
+ * @property {boolean} [disabled=false]
+ * @property {string} created_utc
+ * @property {string} created_by
+ * @property {string | null} [last_login_utc=null]
+ * @property {number} [failed_logins=0] failed logins in a row since the last good one
+ * @property {string | null} [locked_until_utc=null] locked out until then after failed logins
+ */
+
+/**
+ * @typedef {object} UserCreate
+ * @property {string} name
+ * @property {"admin" | "clinician" | "experimenter" | "viewer"} role
+ * @property {string} password
+ */
+
+/**
+ * An admin's change of an account; fields left out keep their value.
+ * @typedef {object} UserChange
+ * @property {"admin" | "clinician" | "experimenter" | "viewer" | null} [role=null]
+ * @property {boolean | null} [disabled=null]
+ * @property {boolean} [unlock=false] end a lockout now and reset the failed-login count
+ * @property {string | null} [password=null] set a new password (a reset)
+ */
+
+/**
+ * @typedef {object} LoginRequest
+ * @property {string} name
+ * @property {string} password
+ */
+
+/**
+ * @typedef {object} PasswordChange
+ * @property {string} current
+ * @property {string} new
+ */
+
+/**
+ * Who the server takes the caller to be (``GET /api/auth/me``).
+ * @typedef {object} Me
+ * @property {string} name
+ * @property {"admin" | "clinician" | "experimenter" | "viewer"} role
+ * @property {boolean} accounts accounts are on: a login is needed; off: loopback only, everyone is 'local'
+ * @property {Array<"read" | "run" | "annotate" | "upload" | "assist" | "assist_within_limits" | "promote" | "set_limits" | "admin">} permissions
+ * @property {string | null} [csrf_token=null] send it as the X-CSRF-Token header with every state-changing request
+ */
+
+/**
+ * A device's credential for one session's ``/ws/devices/{id}``; ``token`` is shown once, when issued.
+ * @typedef {object} DeviceToken
+ * @property {number} id
+ * @property {number} session_id
+ * @property {string} prefix its first characters, to tell tokens apart (the token itself is never stored)
+ * @property {string} created_utc
+ * @property {string} created_by
+ * @property {string | null} [revoked_utc=null]
+ * @property {string | null} [revoked_by=null]
+ * @property {string | null} [token=null] the token: present only in the answer that issued it
+ */
+
+/**
+ * The most assistance an experimenter may set for a subject, set by a clinician. An experimenter may
+ * change torque gain, torque bound and intent boost only up to these (and lower them freely); noise scales
+ * are estimator tuning, not assistance, and are theirs to change.
+ * @typedef {object} AssistanceLimits
+ * @property {number} [torque_gain=1.0] (0..3)
+ * @property {number} [max_torque_Nm=30.0] (0..80)
+ * @property {number} [intent_gain_boost=0.0] (0..0.3)
+ */
+
+/**
+ * @typedef {object} SubjectLimits
+ * @property {number} [torque_gain=1.0] (0..3)
+ * @property {number} [max_torque_Nm=30.0] (0..80)
+ * @property {number} [intent_gain_boost=0.0] (0..0.3)
+ * @property {number} subject_id
+ * @property {string} set_by
+ * @property {string} set_utc
+ */
+
+/**
+ * One entry of the audit trail (``sessions.audit``): who did what to what, when, and how it ended.
+ *
+ * ``before`` and ``after`` are JSON text exactly as hashed (null: nothing). ``hash`` is the SHA-256 of the
+ * entry's canonical JSON including ``prev_hash``, the previous entry's ``hash`` (``sessions/audit/log.py``
+ * says how, so that anyone can re-check the chain with other tools).
+ * @typedef {object} AuditEntry
+ * @property {number} id
+ * @property {number} seq 1, 2, 3... without gaps: a missing number is a deleted entry (>= 1)
+ * @property {string} time_utc ISO-8601 UTC, to the millisecond
+ * @property {string} user
+ * @property {string} role the user's role then; 'none' for a caller nobody knows
+ * @property {string} action what was asked, dotted ('session.start', 'settings.change', 'login')
+ * @property {string} target what it was done to ('session 7', a path)
+ * @property {string | null} [before=null] JSON text: the state before the change
+ * @property {string | null} [after=null] JSON text: the state asked for
+ * @property {"requested" | "done" | "failed" | "refused"} outcome
+ * @property {string} [detail=""]
+ * @property {string} prev_hash
+ * @property {string} hash
+ */
+
+/**
+ * Filters of ``GET /api/audit`` and its CSV: all given ones must hold; newest entries first.
+ * @typedef {object} AuditQuery
+ * @property {string | null} [user=null] exactly this user
+ * @property {string | null} [action=null] actions starting so
+ * @property {"requested" | "done" | "failed" | "refused" | null} [outcome=null]
+ * @property {string | null} [target=null] targets starting so
+ * @property {string | null} [since=null] from this time on (ISO-8601, UTC if no zone)
+ * @property {string | null} [until=null] before this time (exclusive)
+ * @property {number} [limit=100] (1..1000)
+ * @property {number} [offset=0] (0..9223372036854775807)
+ */
+
+/**
+ * What ``gaitscope audit verify`` (and ``GET /api/audit/verify``) found.
+ * @typedef {object} AuditVerification
+ * @property {boolean} ok
+ * @property {number} entries entries checked (all of them when ok)
+ * @property {number | null} [first_bad_seq=null] where the chain first breaks
+ * @property {string | null} [problem=null] why, in words ('hash mismatch at seq 17 ...')
+ * @property {string | null} [last_hash=null] the newest entry's hash: note it elsewhere to detect a cut-off tail later
  */
 
 /**
@@ -1163,10 +1293,10 @@ export const FIELD_LIMITS = deepFreeze({
     process_noise_scale: { min: 0.1, max: 10.0 },
     intent_gain_boost: { min: 0.0, max: 0.3 },
     primary: { pattern: "^[a-z][a-z0-9_]{0,31}$" },
-    actor: { maxLength: 64 },
+    actor: { minLength: 1, maxLength: 64 },
     reason: { maxLength: 500 },
   },
-  AnnotationCreate: { text: { minLength: 1, maxLength: 500 }, actor: { maxLength: 64 } },
+  AnnotationCreate: { text: { minLength: 1, maxLength: 500 }, actor: { minLength: 1, maxLength: 64 } },
   RecordingControl: { name: { maxLength: 100 } },
   UploadCreate: {
     filename: {
@@ -1248,6 +1378,30 @@ export const FIELD_LIMITS = deepFreeze({
     actor: { minLength: 1, maxLength: 64 },
   },
   SettingsUndo: { actor: { minLength: 1, maxLength: 64 } },
+  UserCreate: { name: { pattern: "^[a-z][a-z0-9_.-]{1,31}$" }, password: { minLength: 10, maxLength: 256 } },
+  UserChange: { password: { minLength: 10, maxLength: 256 } },
+  LoginRequest: { name: { minLength: 1, maxLength: 64 }, password: { minLength: 1, maxLength: 256 } },
+  PasswordChange: { current: { minLength: 1, maxLength: 256 }, new: { minLength: 10, maxLength: 256 } },
+  AssistanceLimits: {
+    torque_gain: { min: 0.0, max: 3.0 },
+    max_torque_Nm: { min: 0.0, max: 80.0 },
+    intent_gain_boost: { min: 0.0, max: 0.3 },
+  },
+  SubjectLimits: {
+    torque_gain: { min: 0.0, max: 3.0 },
+    max_torque_Nm: { min: 0.0, max: 80.0 },
+    intent_gain_boost: { min: 0.0, max: 0.3 },
+  },
+  AuditEntry: { seq: { min: 1 }, prev_hash: { pattern: "^[0-9a-f]{64}$" }, hash: { pattern: "^[0-9a-f]{64}$" } },
+  AuditQuery: {
+    user: { minLength: 1, maxLength: 64 },
+    action: { minLength: 1, maxLength: 128 },
+    target: { minLength: 1, maxLength: 256 },
+    since: { maxLength: 40 },
+    until: { maxLength: 40 },
+    limit: { min: 1, max: 1000 },
+    offset: { min: 0, max: 9223372036854775807 },
+  },
   ComparedRunSpec: { name: { minLength: 1, maxLength: 40 }, estimators: { maxItems: 16 } },
   DeviceSource: { rate_hz: { min: 1.0, max: 2000.0 }, channels: { maxItems: 256 } },
   ImuSensorCalibration: {

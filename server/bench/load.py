@@ -72,11 +72,13 @@ def _proc_mem_mb(pid: int) -> tuple[float, float]:
     return int(status["VmRSS"].split()[0]) / 1024, int(status["VmHWM"].split()[0]) / 1024
 
 
-async def _device(ws_base: str, session_id: int, frames: list[dict[str, object]], rate: float, stop_wall: float) -> int:
+async def _device(
+    ws_base: str, session_id: int, token: str, frames: list[dict[str, object]], rate: float, stop_wall: float
+) -> int:
     import websockets
 
     sent = 0
-    async with websockets.connect(f"{ws_base}/ws/devices/{session_id}", max_queue=None) as ws:
+    async with websockets.connect(f"{ws_base}/ws/devices/{session_id}?token={token}", max_queue=None) as ws:
 
         async def replies() -> None:
             async for _ in ws:
@@ -139,6 +141,7 @@ class _Job:
     warmup_wall: float
     stop_wall: float
     frames: list[dict[str, object]] = field(default_factory=list)
+    tokens: dict[int, str] = field(default_factory=dict)  # the devices' tokens, by session id
 
 
 def _worker(job: _Job) -> tuple[list[int] | list[Stream], float]:
@@ -150,7 +153,9 @@ def _worker(job: _Job) -> tuple[list[int] | list[Stream], float]:
 
     async def devices() -> list[int]:
         return list(
-            await asyncio.gather(*(_device(job.ws_base, i, job.frames, job.rate, job.stop_wall) for i in job.ids))
+            await asyncio.gather(
+                *(_device(job.ws_base, i, job.tokens[i], job.frames, job.rate, job.stop_wall) for i in job.ids)
+            )
         )
 
     async def browsers() -> list[Stream]:
@@ -187,11 +192,13 @@ def _run(
         stack = [e.name for e in resolve(None, signals, built)]
         body["settings"] = {"estimators": [*stack, "gp_ekf"]}
     ids = [int(_post(base, "/api/sessions", body)["id"]) for _ in range(sessions)]  # type: ignore[call-overload]
+    # each device with its session's token, as a real one connects
+    tokens = {i: str(_post(base, f"/api/sessions/{i}/device-tokens", {})["token"]) for i in ids}
     now = time.time()
     browser_ids = [i for i in ids for _ in range(clients)]
     shares = [browser_ids[k::2] for k in range(2)] if len(browser_ids) > 1 else [browser_ids]
     jobs = [_Job("browsers", ws_base, share, rate, batch_ms, now + 3.0, now + 3.0 + seconds) for share in shares]
-    jobs.append(_Job("devices", ws_base, ids, rate, batch_ms, now + 3.0, now + 3.0 + seconds, frames))
+    jobs.append(_Job("devices", ws_base, ids, rate, batch_ms, now + 3.0, now + 3.0 + seconds, frames, tokens))
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=len(jobs), mp_context=ctx) as pool:
         t0 = time.monotonic()

@@ -106,6 +106,7 @@ def _walk_frames(rate: float) -> list[dict[str, object]]:
 
 async def _device(
     ws_base: str,
+    token: str,
     report: DeviceReport,
     frames: list[dict[str, object]],
     rate: float,
@@ -122,7 +123,8 @@ async def _device(
     rebooted = reboot_at_s is None
     while loop.time() - start < seconds and not report.closed:
         try:
-            async with websockets.connect(f"{ws_base}/ws/devices/{report.session_id}", max_queue=None) as ws:
+            url = f"{ws_base}/ws/devices/{report.session_id}?token={token}"
+            async with websockets.connect(url, max_queue=None) as ws:
 
                 async def replies(ws: websockets.ClientConnection = ws) -> None:
                     async for text in ws:
@@ -174,13 +176,13 @@ async def _device(
             report.closed = f"refused: {e}"
 
 
-async def _flood(ws_base: str, session_id: int, start_s: float, seconds: float) -> dict[str, int]:
+async def _flood(ws_base: str, session_id: int, token: str, start_s: float, seconds: float) -> dict[str, int]:
     """Send as fast as the socket takes frames for ``seconds``, after ``start_s``."""
     import websockets
 
     counts = {"sent": 0, "torques": 0, "notices": 0}
     await asyncio.sleep(start_s + 2.0)  # the other process's clients take about 2 s to start
-    async with websockets.connect(f"{ws_base}/ws/devices/{session_id}", max_queue=None) as ws:
+    async with websockets.connect(f"{ws_base}/ws/devices/{session_id}?token={token}", max_queue=None) as ws:
 
         async def replies() -> None:
             async for text in ws:
@@ -201,7 +203,9 @@ async def _flood(ws_base: str, session_id: int, start_s: float, seconds: float) 
     return counts
 
 
-def _worker(ws_base: str, ids: list[int], rate: float, seconds: float, fault_every_s: float) -> list[DeviceReport]:
+def _worker(
+    ws_base: str, ids: list[int], tokens: dict[int, str], rate: float, seconds: float, fault_every_s: float
+) -> list[DeviceReport]:
     """The steady devices, in a process of their own (uvloop), so the generator is not the bottleneck."""
     import uvloop
 
@@ -211,7 +215,16 @@ def _worker(ws_base: str, ids: list[int], rate: float, seconds: float, fault_eve
     async def main() -> None:
         await asyncio.gather(
             *(
-                _device(ws_base, r, frames, rate, seconds, fault_every_s, seconds / 2 if n == 0 else None)
+                _device(
+                    ws_base,
+                    tokens[r.session_id],
+                    r,
+                    frames,
+                    rate,
+                    seconds,
+                    fault_every_s,
+                    seconds / 2 if n == 0 else None,
+                )
                 for n, r in enumerate(reports)
             )
         )
@@ -220,11 +233,11 @@ def _worker(ws_base: str, ids: list[int], rate: float, seconds: float, fault_eve
     return reports
 
 
-def _flood_worker(ws_base: str, flood_id: int, seconds: float) -> dict[str, int]:
+def _flood_worker(ws_base: str, flood_id: int, token: str, seconds: float) -> dict[str, int]:
     """The flooding device, in another process, so that it does not slow the steady ones' clients."""
     import uvloop
 
-    return uvloop.run(_flood(ws_base, flood_id, 0.3 * seconds, 0.2 * seconds))
+    return uvloop.run(_flood(ws_base, flood_id, token, 0.3 * seconds, 0.2 * seconds))
 
 
 def run_soak(devices: int = 4, rate: float = 200.0, seconds: float = 60.0, fault_every_s: float = 2.0) -> dict:
@@ -253,10 +266,11 @@ def run_soak(devices: int = 4, rate: float = 200.0, seconds: float = 60.0, fault
             source = {"kind": "device", "rate_hz": rate}
             body = {"subject_id": sid, "source": source, "settings": {"max_torque_Nm": MAX_TORQUE}}
             ids = [_api(base, "POST", "/api/sessions", body)[1]["id"] for _ in range(devices + 1)]
+            tokens = {i: _api(base, "POST", f"/api/sessions/{i}/device-tokens")[1]["token"] for i in ids}
             ws_base = base.replace("http://", "ws://")
             with ProcessPoolExecutor(max_workers=2, mp_context=get_context("spawn")) as pool:
-                steady = pool.submit(_worker, ws_base, ids[:-1], rate, seconds, fault_every_s)
-                flooding = pool.submit(_flood_worker, ws_base, ids[-1], seconds)
+                steady = pool.submit(_worker, ws_base, ids[:-1], tokens, rate, seconds, fault_every_s)
+                flooding = pool.submit(_flood_worker, ws_base, ids[-1], tokens[ids[-1]], seconds)
                 reports, flood = steady.result(), flooding.result()
             for i in ids:
                 _api(base, "POST", f"/api/sessions/{i}/stop")

@@ -8,6 +8,9 @@ HTTP statuses (``common.ERROR_STATUS``).
 from fastapi import APIRouter
 
 from server.routes import (
+    audit,
+    auth,
+    devices,
     fingerprints,
     gp_learning,
     imu_calibration,
@@ -19,6 +22,7 @@ from server.routes import (
     subjects,
     trials,
     uploads,
+    users,
     viewer,
 )
 from server.routes.common import install_error_handlers
@@ -26,6 +30,9 @@ from server.routes.uploads import Uploads
 
 ROUTERS: tuple[APIRouter, ...] = (
     meta.router,
+    auth.router,
+    users.router,
+    devices.router,
     subjects.router,
     fingerprints.router,
     sessions.router,
@@ -37,6 +44,7 @@ ROUTERS: tuple[APIRouter, ...] = (
     viewer.router,
     uploads.router,
     streams.router,
+    audit.router,
 )
 
 __all__ = ["ROUTERS", "Uploads", "install_error_handlers"]

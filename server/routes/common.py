@@ -3,13 +3,14 @@ HTTP statuses, and the two lookups that turn a missing model or an unreadable tr
 
 from __future__ import annotations
 
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any, Final, TypeVar
 
 from fastapi import Depends, FastAPI, HTTPException, Query, Request, status
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from pydantic import BaseModel
 
 from estimators.pipeline import TrainedModel
 from sessions import schema
@@ -21,8 +22,20 @@ from sessions.store import Conflict, NotFound
 
 if TYPE_CHECKING:
     from server.app import AppContext
+    from server.auth import Who
 
-__all__ = ["ERROR_STATUS", "Ctx", "OptionalId", "ctx", "install_error_handlers", "reviewable_trial", "trained_model"]
+__all__ = [
+    "ERROR_STATUS",
+    "LIMITED_SETTINGS",
+    "Ctx",
+    "OptionalId",
+    "by",
+    "check_assistance",
+    "ctx",
+    "install_error_handlers",
+    "reviewable_trial",
+    "trained_model",
+]
 
 
 def ctx(request: Request) -> AppContext:
@@ -93,3 +106,51 @@ def reviewable_trial(c: AppContext, trial_id: int) -> tuple[schema.Trial, Path]:
     if trial.status == "damaged":
         raise HTTPException(409, f"trial {trial_id}'s recording is damaged beyond repair (see its session's events)")
     return trial, c.settings.data_dir / trial.path
+
+
+#: Settings that are assistance: an experimenter sets them only within the subject's limits (the noise scales
+#: are estimator tuning, theirs to change).
+LIMITED_SETTINGS: Final = ("torque_gain", "max_torque_Nm", "intent_gain_boost")
+
+
+def check_assistance(c: AppContext, who: Who, subject_id: int, values: Mapping[str, Any]) -> None:
+    """Refuse (403) assistance an experimenter may not set for this subject: over the limits a clinician set, any
+    at all while none are set, or a switch of the estimator driving the torque. Those who may ``assist`` pass."""
+    if who.may("assist"):
+        return
+    if values.get("primary") is not None:
+        raise HTTPException(
+            403, f"{who.role} {who.name!r} may not switch the estimator driving the torque: ask a clinician"
+        )
+    requested = {k: float(v) for k in LIMITED_SETTINGS if (v := values.get(k)) is not None}
+    if not requested:
+        return
+    limits = c.accounts.limits(subject_id)
+    if limits is None:
+        raise HTTPException(
+            403, f"subject {subject_id} has no assistance limits: a clinician sets them before an experimenter may "
+            "change assistance",
+        )  # fmt: skip
+    over = [
+        f"{k} {v:g} over the limit of {getattr(limits, k):g}" for k, v in requested.items() if v > getattr(limits, k)
+    ]
+    if over:
+        raise HTTPException(403, f"over the clinician's limits for subject {subject_id}: {', '.join(over)}")
+
+
+_B = TypeVar("_B", bound=BaseModel)
+
+
+def by(body: _B, who: Who) -> _B:
+    """The request body with its ``actor`` set to the caller: who did it is the login's, never the body's."""
+    return body.model_copy(update={"actor": who.name})
+
+
+def audit(
+    c: AppContext, who: Who, action: str, target: str, *, before: Any = None, after: Any = None, detail: str = ""
+) -> None:
+    """Write a change to the audit trail before it takes effect (``sessions.audit``); a failure to write it
+    refuses the change (the exception propagates: 500), so that nothing happens unaudited."""
+    c.audit.record(
+        user=who.name, role=who.role, action=action, target=target, before=before, after=after, detail=detail
+    )

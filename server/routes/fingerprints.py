@@ -11,7 +11,8 @@ from fastapi import APIRouter, HTTPException
 from fastapi.responses import JSONResponse
 
 from estimators.fingerprint import FingerprintMap
-from server.routes.common import Ctx, reviewable_trial
+from server.auth import Promoter, Reader, Runner, Uploader, allow
+from server.routes.common import Ctx, audit, reviewable_trial
 from sessions import schema
 from sessions.errors import DataFormatError
 from sessions.personalization.calibration import CalibrationRefused, calibrate, read_walk
@@ -53,7 +54,7 @@ def _listing(c: Ctx, subject_id: int, model: str) -> schema.Fingerprints:
     )
 
 
-@router.get("/subjects/{subject_id}/fingerprints")
+@router.get("/subjects/{subject_id}/fingerprints", dependencies=[allow("read")])
 def list_fingerprints(subject_id: int, c: Ctx, model: str = "default") -> schema.Fingerprints:
     """The subject's personalizations of ``model``, newest first, the active one, and the training
     subjects' fingerprints (where this subject sits among them)."""
@@ -62,7 +63,9 @@ def list_fingerprints(subject_id: int, c: Ctx, model: str = "default") -> schema
 
 
 @router.post("/subjects/{subject_id}/fingerprints", status_code=201)
-async def calibrate_fingerprint(subject_id: int, body: schema.CalibrationRequest, c: Ctx) -> schema.Personalization:
+async def calibrate_fingerprint(
+    subject_id: int, body: schema.CalibrationRequest, c: Ctx, who: Runner
+) -> schema.Personalization:
     """Fit a fingerprint from one of the subject's trials, in a worker thread (live streams go on); stored
     as a ``candidate``: nothing runs it until it is promoted. 422 with the reason when the walk cannot serve."""
     c.store.get_subject(subject_id)
@@ -89,7 +92,7 @@ async def calibrate_fingerprint(subject_id: int, body: schema.CalibrationRequest
             stride_length_source=cal.stride_length_source,
             state="candidate",
             created_utc="",
-            created_by=body.actor,
+            created_by=who.name,
             note=body.note,
         )
 
@@ -111,33 +114,40 @@ def _announce(c: Ctx, subject_id: int, text: str, actor: str) -> None:
 
 @router.post("/subjects/{subject_id}/fingerprints/{personalization_id}/promote")
 def promote_fingerprint(
-    subject_id: int, personalization_id: int, body: schema.PersonalizationChange, c: Ctx
+    subject_id: int, personalization_id: int, body: schema.PersonalizationChange, c: Ctx, who: Promoter
 ) -> schema.Personalization:
     """Make it the subject's active personalization; running sessions take it at their next heel strike."""
     p = c.store.get_personalization(personalization_id)
     if p.subject_id != subject_id:
         raise HTTPException(404, f"personalization {personalization_id} is not of subject {subject_id}")
     _map(c, p.model)  # the model must still have its map
-    done = c.store.promote_personalization(personalization_id, body.actor)
+    active = c.store.active_personalization(subject_id, p.model)
+    target = f"subject {subject_id} model {p.model}"
+    before, after = None if active is None else f"v{active.version}", f"v{p.version}"
+    audit(c, who, "fingerprint.promote", target, before=before, after=after, detail=body.reason)
+    done = c.store.promote_personalization(personalization_id, who.name)
     why = f" ({body.reason})" if body.reason else ""
-    _announce(c, subject_id, f"personalized model v{done.version} promoted by {body.actor}{why}", body.actor)
+    _announce(c, subject_id, f"personalized model v{done.version} promoted by {who.name}{why}", who.name)
     return done
 
 
 @router.post("/subjects/{subject_id}/fingerprints/rollback")
 def rollback_fingerprint(
-    subject_id: int, body: schema.PersonalizationChange, c: Ctx, model: str = "default"
+    subject_id: int, body: schema.PersonalizationChange, c: Ctx, who: Promoter, model: str = "default"
 ) -> schema.Fingerprints:
     """Retire the active personalization; the one it replaced is active again (none: the average model)."""
-    old, now = c.store.rollback_personalization(subject_id, model, body.actor)
+    active = c.store.active_personalization(subject_id, model)
+    before = None if active is None else f"v{active.version}"
+    audit(c, who, "fingerprint.rollback", f"subject {subject_id} model {model}", before=before, detail=body.reason)
+    old, now = c.store.rollback_personalization(subject_id, model, who.name)
     to = "the average model" if now is None else f"v{now.version}"
     why = f" ({body.reason})" if body.reason else ""
-    _announce(c, subject_id, f"personalized model v{old.version} rolled back to {to} by {body.actor}{why}", body.actor)
+    _announce(c, subject_id, f"personalized model v{old.version} rolled back to {to} by {who.name}{why}", who.name)
     return _listing(c, subject_id, model)
 
 
 @router.get("/subjects/{subject_id}/fingerprints/{personalization_id}/export")
-def export_fingerprint(subject_id: int, personalization_id: int, c: Ctx) -> JSONResponse:
+def export_fingerprint(subject_id: int, personalization_id: int, c: Ctx, who: Reader) -> JSONResponse:
     """The personalization as a file another gaitscope can import (with the same model)."""
     p = c.store.get_personalization(personalization_id)
     if p.subject_id != subject_id:
@@ -157,11 +167,14 @@ def export_fingerprint(subject_id: int, personalization_id: int, c: Ctx) -> JSON
         note=p.note,
     )
     name = f"{subject.code}-fingerprint-v{p.version}.json"
+    audit(c, who, "fingerprint.export", f"subject {subject_id} personalization {personalization_id}")
     return JSONResponse(out.model_dump(), headers={"Content-Disposition": f'attachment; filename="{name}"'})
 
 
 @router.post("/subjects/{subject_id}/fingerprints/import", status_code=201)
-def import_fingerprint(subject_id: int, body: schema.PersonalizationExport, c: Ctx) -> schema.Personalization:
+def import_fingerprint(
+    subject_id: int, body: schema.PersonalizationExport, c: Ctx, who: Uploader
+) -> schema.Personalization:
     """A personalization exported elsewhere, as a new ``candidate``; refused (422) when its model's map is
     not this machine's (another training-data hash, or another number of components)."""
     c.store.get_subject(subject_id)

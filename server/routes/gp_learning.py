@@ -9,7 +9,8 @@ from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query
 
-from server.routes.common import Ctx
+from server.auth import Runner, allow
+from server.routes.common import Ctx, audit, by
 from sessions import schema
 from sessions.gp_models import GP_EKF
 from sessions.live.gp_learning import GPLearning
@@ -30,7 +31,7 @@ def _running(c: Ctx, session_id: int) -> tuple[SessionRuntime, GPLearning]:
     return runtime, runtime.gp_learning
 
 
-@router.get("/sessions/{session_id}/gp-learning")
+@router.get("/sessions/{session_id}/gp-learning", dependencies=[allow("read")])
 async def gp_learning(
     session_id: int, c: Ctx, version: Annotated[int | None, Query(ge=0, le=schema.INT64_MAX)] = None
 ) -> schema.GPLearningState:
@@ -43,7 +44,9 @@ async def gp_learning(
 
 
 @router.post("/sessions/{session_id}/gp-learning")
-async def control_gp_learning(session_id: int, body: schema.GPLearningControl, c: Ctx) -> schema.GPLearningState:
+async def control_gp_learning(
+    session_id: int, body: schema.GPLearningControl, c: Ctx, who: Runner
+) -> schema.GPLearningState:
     """Freeze or unfreeze the learning, or roll back to a kept version (installed at the next heel strike);
     logged as an event with the actor and recorded. 409: not running, no GP-EKF, or it failed; 422: a bad
     body, or a version that is not kept."""
@@ -51,4 +54,5 @@ async def control_gp_learning(session_id: int, body: schema.GPLearningControl, c
     failed = runtime.estimator.stack.failed.get(GP_EKF)
     if failed is not None:
         raise HTTPException(409, f"session {session_id}'s GP-EKF has failed ({failed}); it learns no more")
-    return runtime.gp_control(body)
+    audit(c, who, "gp_learning.control", f"session {session_id}", after=body.model_dump(exclude={"actor"}))
+    return runtime.gp_control(by(body, who))

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException
 
-from server.routes.common import Ctx
+from server.auth import Runner, allow
+from server.routes.common import Ctx, audit, by
 from sessions import schema
 
 router = APIRouter(prefix="/api")
@@ -14,7 +15,7 @@ router = APIRouter(prefix="/api")
 
 @router.post("/sessions/{session_id}/imu-calibration", status_code=202)
 async def start_imu_calibration(
-    session_id: int, c: Ctx, body: schema.ImuCalibrationRequest | None = None
+    session_id: int, c: Ctx, who: Runner, body: schema.ImuCalibrationRequest | None = None
 ) -> schema.ImuCalibrationStatus:
     """Collect ``duration_s`` of the running session's raw IMU samples, then calibrate and, when every
     sensor was still, apply; follow it with the GET. 409: not running, no IMU front end, one collecting."""
@@ -30,10 +31,12 @@ async def start_imu_calibration(
         )
     if runtime.imu_collector is not None:
         raise HTTPException(409, f"session {session_id} is calibrating its IMUs already; wait for it to finish")
-    return runtime.calibrate_imus(body or schema.ImuCalibrationRequest())
+    request = by(body or schema.ImuCalibrationRequest(), who)
+    audit(c, who, "imu_calibration.start", f"session {session_id}", after=request.model_dump(exclude={"actor"}))
+    return runtime.calibrate_imus(request)
 
 
-@router.get("/sessions/{session_id}/imu-calibration")
+@router.get("/sessions/{session_id}/imu-calibration", dependencies=[allow("read")])
 def imu_calibration(session_id: int, c: Ctx) -> schema.ImuCalibrationStatus:
     """The running session's calibration: idle, collecting (progress), done or refused (each sensor's
     outcome), and what its front ends run; a session not running: idle, with its latest stored one."""
@@ -47,7 +50,7 @@ def imu_calibration(session_id: int, c: Ctx) -> schema.ImuCalibrationStatus:
     )
 
 
-@router.get("/subjects/{subject_id}/imu-calibrations")
+@router.get("/subjects/{subject_id}/imu-calibrations", dependencies=[allow("read")])
 def subject_imu_calibrations(subject_id: int, c: Ctx) -> list[schema.ImuCalibration]:
     """The subject's accepted calibrations, newest first: the first is their current one (their next
     session's front ends start with it)."""

@@ -7,6 +7,7 @@ from typing import Any, Final
 
 from fastapi import APIRouter, Response
 
+from server.auth import allow, public
 from sessions import schema
 from sessions.formats.models import gaitscope_version
 
@@ -18,7 +19,7 @@ INSTANCE: Final = uuid.uuid4().hex
 _VERSION: Final = gaitscope_version()  # read once: importlib.metadata scans the path on every call
 
 
-@router.get("/health")
+@router.get("/health", dependencies=[public()])
 async def health(response: Response) -> dict[str, str]:
     """``status`` (always ``"ok"`` when it answers), ``version`` and ``instance`` (see :data:`INSTANCE`).
 
@@ -28,7 +29,7 @@ async def health(response: Response) -> dict[str, str]:
     return {"status": "ok", "version": _VERSION, "instance": INSTANCE}
 
 
-@router.get("/schema")
+@router.get("/schema", dependencies=[allow("read")])
 def wire_schema() -> dict[str, Any]:
     """JSON schema of every message that crosses a socket or a file."""
     return {cls.__name__: cls.model_json_schema() for cls in schema.WIRE}

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
+from server.auth import allow
 from server.routes.common import Ctx
 from sessions import schema
 
 router = APIRouter(prefix="/api")
 
 
-@router.get("/models")
+@router.get("/models", dependencies=[allow("read")])
 def list_models(c: Ctx) -> list[schema.ModelInfo]:
     return [schema.ModelInfo(name=n, provenance=c.models.get(n)[1]) for n in c.models.names()]

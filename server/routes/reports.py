@@ -14,7 +14,8 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Path, Request
 from fastapi.responses import FileResponse
 
-from server.routes.common import Ctx
+from server.auth import Reader, allow
+from server.routes.common import Ctx, audit
 from sessions import schema
 from sessions.formats.models import gaitscope_version
 from sessions.reports.jobs import ExportJobs, ExportNotReady
@@ -37,7 +38,7 @@ def _exports(request: Request, c: Ctx) -> ExportJobs:
     return jobs
 
 
-@router.get("/sessions/{session_id}/summary")
+@router.get("/sessions/{session_id}/summary", dependencies=[allow("read")])
 async def summary(session_id: int, request: Request, c: Ctx) -> schema.SessionSummary:
     """Duration, strides, speed and incline profile, settings history, per-condition stride curves, data
     health and events of a session (its trials still recording are left out).
@@ -66,20 +67,22 @@ async def summary(session_id: int, request: Request, c: Ctx) -> schema.SessionSu
 
 
 @router.post("/sessions/{session_id}/exports", status_code=202)
-def start_export(session_id: int, body: schema.ExportCreate, request: Request, c: Ctx) -> schema.ExportJob:
+def start_export(session_id: int, body: schema.ExportCreate, request: Request, c: Ctx, who: Reader) -> schema.ExportJob:
+    audit(c, who, f"export.{body.kind}", f"session {session_id}")
     return _exports(request, c).start(session_id, body.kind)
 
 
-@router.get("/exports/{job_id}")
+@router.get("/exports/{job_id}", dependencies=[allow("read")])
 def get_export(job_id: _JobId, request: Request, c: Ctx) -> schema.ExportJob:
     return _exports(request, c).get(job_id)
 
 
 @router.get("/exports/{job_id}/file")
-def export_file(job_id: _JobId, request: Request, c: Ctx) -> FileResponse:
+def export_file(job_id: _JobId, request: Request, c: Ctx, who: Reader) -> FileResponse:
     try:
         job, path = _exports(request, c).file(job_id)
     except ExportNotReady as err:
         raise HTTPException(409, str(err)) from None
+    audit(c, who, "export.download", f"session {job.session_id}", detail=job.filename)
     filename = re.sub(r"[^A-Za-z0-9_.-]", "_", job.filename)
     return FileResponse(path, media_type=_MEDIA[job.kind], filename=filename)

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException
 
-from server.routes.common import Ctx, OptionalId, trained_model
+from server.auth import Annotator, Assistant, Runner, allow
+from server.routes.common import Ctx, OptionalId, audit, by, check_assistance, trained_model
 from sessions import schema
 from sessions.live.manager import SessionStateError
 from sessions.store import Conflict
@@ -13,14 +14,17 @@ from sessions.store import Conflict
 router = APIRouter(prefix="/api")
 
 
-@router.get("/sessions")
+@router.get("/sessions", dependencies=[allow("read")])
 def list_sessions(c: Ctx, subject_id: OptionalId = None) -> list[schema.Session]:
     return c.store.list_sessions(subject_id)
 
 
 @router.post("/sessions", status_code=201)
-async def create_session(body: schema.SessionCreate, c: Ctx) -> schema.Session:
+async def create_session(body: schema.SessionCreate, c: Ctx, who: Runner) -> schema.Session:
     trained_model(c, body.settings.model)
+    if isinstance(body.source, schema.DeviceSource):  # a person wears it: the settings are assistance
+        check_assistance(c, who, body.subject_id, body.settings.model_dump(exclude={"primary"}))
+    audit(c, who, "session.create", f"subject {body.subject_id}", after=body.model_dump(mode="json"))
     if isinstance(body.source, schema.ReplaySource):
         trial = c.store.get_trial(body.source.trial_id)
         if trial.status in ("recording", "damaged"):
@@ -30,47 +34,57 @@ async def create_session(body: schema.SessionCreate, c: Ctx) -> schema.Session:
     return c.manager.start(session.id) if body.start else session
 
 
-@router.get("/sessions/{session_id}")
+@router.get("/sessions/{session_id}", dependencies=[allow("read")])
 def get_session(session_id: int, c: Ctx) -> schema.Session:
     return c.store.get_session(session_id)
 
 
 @router.post("/sessions/{session_id}/start")
-async def start_session(session_id: int, c: Ctx) -> schema.Session:
+async def start_session(session_id: int, c: Ctx, who: Runner) -> schema.Session:
+    before = c.store.get_session(session_id)
+    audit(c, who, "session.start", f"session {session_id}", before=before.state, after="running")
     return c.manager.start(session_id)
 
 
 @router.post("/sessions/{session_id}/stop")
-async def stop_session(session_id: int, c: Ctx) -> schema.Session:
+async def stop_session(session_id: int, c: Ctx, who: Runner) -> schema.Session:
+    before = c.store.get_session(session_id)
+    audit(c, who, "session.stop", f"session {session_id}", before=before.state, after="stopped")
     return await c.manager.stop(session_id)
 
 
 @router.patch("/sessions/{session_id}/settings")
-async def change_settings(session_id: int, body: schema.SettingsChange, c: Ctx) -> schema.Session:
+async def change_settings(session_id: int, body: schema.SettingsChange, c: Ctx, who: Assistant) -> schema.Session:
     runtime = c.manager.get(session_id)
     if runtime is None:
         c.store.get_session(session_id)
         raise SessionStateError(f"session {session_id} is not running; settings change only while it runs")
-    return runtime.change_settings(body)
+    requested = body.model_dump(exclude={"actor", "reason"}, exclude_none=True)
+    check_assistance(c, who, runtime.session.subject_id, requested)
+    current = runtime.session.settings.model_dump()
+    before = {k: current[k] for k in requested}
+    audit(c, who, "settings.change", f"session {session_id}", before=before, after=requested, detail=body.reason)
+    return runtime.change_settings(by(body, who))
 
 
-@router.get("/sessions/{session_id}/events")
+@router.get("/sessions/{session_id}/events", dependencies=[allow("read")])
 def session_events(session_id: int, c: Ctx) -> list[schema.Event]:
     c.store.get_session(session_id)
     return c.store.list_events(session_id)
 
 
 @router.post("/sessions/{session_id}/annotations", status_code=201)
-async def annotate(session_id: int, body: schema.AnnotationCreate, c: Ctx) -> schema.Event:
+async def annotate(session_id: int, body: schema.AnnotationCreate, c: Ctx, who: Annotator) -> schema.Event:
     runtime = c.manager.get(session_id)
     if runtime is not None:
-        return runtime.annotate(body.text, body.actor)
+        return runtime.annotate(body.text, who.name)
     c.store.get_session(session_id)
-    return c.store.add_event(session_id, t=0.0, kind="annotation", text=body.text, actor=body.actor)
+    return c.store.add_event(session_id, t=0.0, kind="annotation", text=body.text, actor=who.name)
 
 
 @router.post("/sessions/{session_id}/recording")
-async def recording(session_id: int, body: schema.RecordingControl, c: Ctx) -> schema.Trial:
+async def recording(session_id: int, body: schema.RecordingControl, c: Ctx, who: Runner) -> schema.Trial:
+    audit(c, who, f"recording.{body.action}", f"session {session_id}", after=body.model_dump())
     runtime = c.manager.get(session_id)
     if runtime is None:
         raise HTTPException(409, f"session {session_id} is not running")

@@ -16,12 +16,13 @@ import contextlib
 import logging
 import math
 import time
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
 
-from server.routes.common import Ctx
+from server.auth import Assistant, allow, device
+from server.routes.common import Ctx, audit, check_assistance
 from sessions import schema
 from sessions.estimation import FrameRefused
 from sessions.live.manager import SessionStateError
@@ -71,7 +72,7 @@ async def _runtime(ws: WebSocket, session_id: int) -> SessionRuntime | None:
     return runtime
 
 
-@router.websocket("/ws/sessions/{session_id}")
+@router.websocket("/ws/sessions/{session_id}", dependencies=[allow("read")])
 async def session_stream(
     ws: WebSocket,
     session_id: int,
@@ -163,17 +164,26 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
 
 
 @router.post("/api/sessions/{session_id}/settings/undo")
-async def undo_settings(session_id: int, body: schema.SettingsUndo, c: Ctx) -> schema.Session:
+async def undo_settings(session_id: int, body: schema.SettingsUndo, c: Ctx, who: Assistant) -> schema.Session:
     """Undo the session's last applied settings change (409 with the reason when it cannot be, now)."""
     runtime = c.manager.get(session_id)
     if runtime is None:
         c.store.get_session(session_id)  # 404 for an unknown session
         raise SessionStateError(f"session {session_id} is not running; settings change only while it runs")
-    return undo_last_change(runtime, c.store.list_events(session_id), body.actor)
+    subject_id = runtime.session.subject_id
+
+    def check(change: schema.SettingsChange) -> None:
+        requested = change.model_dump(exclude={"actor", "reason"}, exclude_none=True)
+        check_assistance(c, who, subject_id, requested)
+        current = runtime.session.settings.model_dump()
+        before = {k: current[k] for k in requested}
+        audit(c, who, "settings.undo", f"session {session_id}", before=before, after=requested, detail=change.reason)
+
+    return undo_last_change(runtime, c.store.list_events(session_id), who.name, check=check)
 
 
 @router.websocket("/ws/devices/{session_id}")
-async def device_ingest(ws: WebSocket, session_id: int) -> None:
+async def device_ingest(ws: WebSocket, session_id: int, token_id: Annotated[int, device()]) -> None:
     """A live device: ``SensorFrame`` in, ``TorqueCommand`` out, one for one.
 
     A frame that is refused gets a :class:`~sessions.schema.DeviceNotice` instead of a torque:
@@ -207,6 +217,9 @@ async def device_ingest(ws: WebSocket, session_id: int) -> None:
                 return
             if source.closed or runtime.ended is not None:
                 await ws.close(code=1000, reason=f"session {session_id} {runtime.ended or 'stopped'}"[:120])
+                return
+            if token_id in source.revoked:
+                await ws.close(code=POLICY, reason=f"session {session_id}: this device's token was revoked")
                 return
             recv = time.time_ns()
             now = time.monotonic()

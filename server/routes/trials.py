@@ -13,7 +13,8 @@ from fastapi import Path as PathParam
 from fastapi.responses import FileResponse
 
 from estimators.pipeline import TrainedModel
-from server.routes.common import Ctx, OptionalId, reviewable_trial, trained_model
+from server.auth import Annotator, Reader, allow
+from server.routes.common import Ctx, OptionalId, audit, by, reviewable_trial, trained_model
 from sessions import schema
 from sessions.store import NotAllowed
 
@@ -30,23 +31,23 @@ _SeriesTime = Annotated[
 _MaxPoints = Annotated[int, Query(ge=10, le=20000)]
 
 
-@router.get("/trials")
+@router.get("/trials", dependencies=[allow("read")])
 def list_trials(c: Ctx, session_id: OptionalId = None) -> list[schema.Trial]:
     return c.store.list_trials(session_id)
 
 
-@router.get("/trials/{trial_id}")
+@router.get("/trials/{trial_id}", dependencies=[allow("read")])
 def get_trial(trial_id: int, c: Ctx) -> schema.Trial:
     return c.store.get_trial(trial_id)
 
 
-@router.get("/trials/{trial_id}/events")
+@router.get("/trials/{trial_id}/events", dependencies=[allow("read")])
 def trial_events(trial_id: int, c: Ctx) -> list[schema.Event]:
     c.store.get_trial(trial_id)
     return c.store.trial_events(trial_id)
 
 
-@router.get("/trials/{trial_id}/series")
+@router.get("/trials/{trial_id}/series", dependencies=[allow("read")])
 async def trial_series(
     trial_id: int, c: Ctx, t0: _SeriesTime = None, t1: _SeriesTime = None, max_points: _MaxPoints = 2000
 ) -> dict[str, list[Any]]:
@@ -56,7 +57,7 @@ async def trial_series(
     return await asyncio.to_thread(read_series, path, t0, t1, max_points)
 
 
-@router.get("/trials/{trial_id}/intent")
+@router.get("/trials/{trial_id}/intent", dependencies=[allow("read")])
 async def trial_intent(
     trial_id: int, c: Ctx, t0: _SeriesTime = None, t1: _SeriesTime = None, max_points: _MaxPoints = 2000
 ) -> schema.IntentSeries:
@@ -69,12 +70,13 @@ async def trial_intent(
 
 
 @router.get("/trials/{trial_id}/download")
-def download(trial_id: int, c: Ctx) -> FileResponse:
+def download(trial_id: int, c: Ctx, who: Reader) -> FileResponse:
     trial, path = reviewable_trial(c, trial_id)
+    audit(c, who, "trial.download", f"trial {trial_id}")
     return FileResponse(path, media_type="application/octet-stream", filename=f"gaitscope_trial{trial.id}.mcap")
 
 
-@router.get("/trials/{trial_id}/settings")
+@router.get("/trials/{trial_id}/settings", dependencies=[allow("read")])
 async def trial_settings(trial_id: int, c: Ctx) -> schema.SessionSettings:
     """The settings in force at the trial's first frame, as recorded (its changes are on ``/events``)."""
     from sessions.review.rerun import recorded_settings
@@ -83,7 +85,7 @@ async def trial_settings(trial_id: int, c: Ctx) -> schema.SessionSettings:
     return await asyncio.to_thread(recorded_settings, path)
 
 
-@router.get("/trials/{trial_id}/estimators")
+@router.get("/trials/{trial_id}/estimators", dependencies=[allow("read")])
 async def trial_estimators(trial_id: int, c: Ctx) -> schema.RerunChoices:
     """Which estimators a re-run of the trial can run: its recorded stack and those its channels feed."""
     from sessions.review.rerun import rerun_choices
@@ -92,7 +94,7 @@ async def trial_estimators(trial_id: int, c: Ctx) -> schema.RerunChoices:
     return await asyncio.to_thread(rerun_choices, path, _fingerprint(c, trial, path, None))
 
 
-@router.post("/trials/{trial_id}/rerun")
+@router.post("/trials/{trial_id}/rerun", dependencies=[allow("run")])
 async def rerun(
     trial_id: int,
     c: Ctx,
@@ -148,7 +150,7 @@ def _fingerprint(c: AppContext, trial: schema.Trial, path: Path, personalization
     return p.fingerprint
 
 
-@router.post("/trials/{trial_id}/compare")
+@router.post("/trials/{trial_id}/compare", dependencies=[allow("read")])
 async def compare(
     trial_id: int,
     c: Ctx,
@@ -185,17 +187,18 @@ async def compare(
 
 
 _AnnotationId = Annotated[int, PathParam(ge=1, le=schema.INT64_MAX)]
-_Actor = Annotated[str, Query(min_length=1, max_length=64, description="who deletes it: only its author may")]
 
 
-@router.get("/trials/{trial_id}/annotations")
+@router.get("/trials/{trial_id}/annotations", dependencies=[allow("read")])
 def list_annotations(trial_id: int, c: Ctx) -> list[schema.ReviewAnnotation]:
     """The notes added to the trial in review, by time."""
     return c.store.list_review_annotations(trial_id)
 
 
 @router.post("/trials/{trial_id}/annotations", status_code=201)
-async def add_annotation(trial_id: int, c: Ctx, body: schema.ReviewAnnotationCreate) -> schema.ReviewAnnotation:
+async def add_annotation(
+    trial_id: int, c: Ctx, body: schema.ReviewAnnotationCreate, who: Annotator
+) -> schema.ReviewAnnotation:
     """A note at a time (``t``) or over a span (``t`` to ``t_end``) of the trial, saved with it; 422 when it
     lies outside the recording."""
     from sessions.formats.mcap_io import read_series
@@ -211,14 +214,14 @@ async def add_annotation(trial_id: int, c: Ctx, body: schema.ReviewAnnotationCre
                 raise HTTPException(
                     422, f"the note's {where} ({value:g} s) is outside the trial ({lo:.2f} to {hi:.2f} s)"
                 )
-    return c.store.add_review_annotation(trial_id, body)
+    return c.store.add_review_annotation(trial_id, by(body, who))
 
 
 @router.delete("/trials/{trial_id}/annotations/{annotation_id}", status_code=204)
-def delete_annotation(trial_id: int, annotation_id: _AnnotationId, actor: _Actor, c: Ctx) -> Response:
+def delete_annotation(trial_id: int, annotation_id: _AnnotationId, c: Ctx, who: Annotator) -> Response:
     """Delete a note; only whoever wrote it may (403 for anyone else)."""
     try:
-        c.store.delete_review_annotation(trial_id, annotation_id, actor)
+        c.store.delete_review_annotation(trial_id, annotation_id, who.name)
     except NotAllowed as exc:
         raise HTTPException(403, str(exc)) from None
     return Response(status_code=204)

@@ -43,7 +43,8 @@ from typing import TYPE_CHECKING, Annotated, Final
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response
 
-from server.routes.common import Ctx
+from server.auth import Uploader, allow
+from server.routes.common import Ctx, audit
 from server.settings import Settings
 from sessions import schema
 from sessions.formats.imports import ImportJob, ImportRefused, ImportResult, run_import
@@ -346,23 +347,25 @@ def _safe_stem(filename: str) -> str:
 
 
 @router.post("/uploads", status_code=201)
-async def create_upload(body: schema.UploadCreate, c: Ctx) -> schema.Upload:
+async def create_upload(body: schema.UploadCreate, c: Ctx, who: Uploader) -> schema.Upload:
     c.store.get_subject(body.subject_id)
+    audit(c, who, "upload.create", f"subject {body.subject_id}", after=body.model_dump())
     return c.uploads.create(body)
 
 
-@router.put("/uploads/{upload_id}")
+@router.put("/uploads/{upload_id}", dependencies=[allow("upload")])
 async def upload_chunk(upload_id: str, request: Request, c: Ctx, offset: Annotated[int, Query(ge=0)]) -> schema.Upload:
     return await c.uploads.receive(upload_id, offset, request)
 
 
 @router.post("/uploads/{upload_id}/finish", status_code=201)
-async def finish_upload(upload_id: str, c: Ctx, recover: bool = False) -> schema.Trial:
+async def finish_upload(upload_id: str, c: Ctx, who: Uploader, recover: bool = False) -> schema.Trial:
     """Import the upload; ``recover=true`` first recovers an MCAP recording that was never finished."""
+    audit(c, who, "upload.finish", f"upload {upload_id[:64]}", after={"recover": recover})
     return await c.uploads.finish(upload_id, c, recover=recover)
 
 
-@router.delete("/uploads/{upload_id}", status_code=204)
+@router.delete("/uploads/{upload_id}", status_code=204, dependencies=[allow("upload")])
 async def cancel_upload(upload_id: str, c: Ctx) -> Response:
     c.uploads.cancel(upload_id)
     return Response(status_code=204)

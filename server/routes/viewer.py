@@ -7,25 +7,26 @@ import asyncio
 
 from fastapi import APIRouter, HTTPException
 
+from server.auth import allow
 from server.routes.common import Ctx, reviewable_trial
 from sessions import schema
 
 router = APIRouter(prefix="/api")
 
 
-@router.get("/viewer")
+@router.get("/viewer", dependencies=[allow("read")])
 def viewer(c: Ctx) -> dict[str, str | None]:
     view = c.leg_view
     return {"url": None if view is None else view.url}
 
 
-@router.post("/viewer/focus")
+@router.post("/viewer/focus", dependencies=[allow("read")])
 def viewer_focus(body: schema.ViewerFocus, c: Ctx) -> dict[str, int | None]:
     c.focus = body.session_id
     return {"session_id": c.focus}
 
 
-@router.post("/viewer/show")
+@router.post("/viewer/show", dependencies=[allow("read")])
 async def viewer_show(body: schema.ViewerShow, c: Ctx) -> dict[str, float]:
     """Pose the leg view at time ``t`` of a trial (the review page's cursor)."""
     from sessions.formats.mcap_io import read_series

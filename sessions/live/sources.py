@@ -213,6 +213,8 @@ class LiveDevice:
         rate_hz: the declared rate (Hz).
         dropped: frames dropped over the rate.
         connected: a device is connected now (one at a time).
+        revoked: ids of device tokens revoked while the session runs; a device connected with one of
+            them is disconnected at its next frame.
     """
 
     def __init__(
@@ -235,6 +237,7 @@ class LiveDevice:
         self._closed = asyncio.Event()
         self.dropped = 0
         self.connected = False
+        self.revoked: set[int] = set()
 
     def admit(self, now: float | None = None) -> bool:
         """Take one frame's token at monotonic time ``now``; False (and counted) when over the rate."""

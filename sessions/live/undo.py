@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from sessions import schema
 from sessions.live.runtime import SessionRuntime, SettingRejected
 
@@ -28,11 +30,17 @@ def last_change(events: list[schema.Event]) -> list[schema.Event]:
     return group
 
 
-def undo_last_change(runtime: SessionRuntime, events: list[schema.Event], actor: str) -> schema.Session:
+def undo_last_change(
+    runtime: SessionRuntime,
+    events: list[schema.Event],
+    actor: str,
+    check: Callable[[schema.SettingsChange], None] | None = None,
+) -> schema.Session:
     """Set the fields of the newest settings change back to their values before it.
 
     The undo is a settings change like any other (``SessionRuntime.change_settings``): the same bounds and
-    rate limits, and one setting event per field, its text saying which change it undid.
+    rate limits, and one setting event per field, its text saying which change it undid. ``check``, when
+    given, sees the change first and may refuse it by raising (the caller's rights, its audit entry).
 
     Raises:
         SettingRejected: nothing to undo, a field has changed since by other means (the primary after a
@@ -58,4 +66,6 @@ def undo_last_change(runtime: SessionRuntime, events: list[schema.Event], actor:
             "reason": f"undo of {undone} by {group[0].actor}"[:500],
         }
     )
+    if check is not None:
+        check(change)
     return runtime.change_settings(change)

@@ -2,7 +2,8 @@
 
 Each test module subclasses :class:`StreamingDevice` with what it sends (``stream``) and opens a session
 for it with :func:`device_session`: subject, device session (its channels declared, its estimator stack
-if given), the device thread started, and on the way out the device stopped and the session stopped.
+if given), a device token issued for it (issue #13: the device websocket refuses a connection without one),
+the device thread started with it, and on the way out the device stopped and the session stopped.
 """
 
 from __future__ import annotations
@@ -21,9 +22,10 @@ from tests.e2e.test_fingerprints import _call
 class StreamingDevice(threading.Thread):
     """A device thread: ``stream(ws)`` sends until ``stop`` is set; an exception is kept in ``error``."""
 
-    def __init__(self, base: str, session_id: int):
+    def __init__(self, base: str, session_id: int, token: str):
         super().__init__(daemon=True)
         self.url = base.replace("http://", "ws://") + f"/ws/devices/{session_id}"
+        self.token = token
         self.stop = threading.Event()
         self.error: BaseException | None = None
 
@@ -32,7 +34,7 @@ class StreamingDevice(threading.Thread):
 
     def run(self) -> None:
         try:
-            with connect(self.url) as ws:
+            with connect(self.url, additional_headers={"Authorization": f"Bearer {self.token}"}) as ws:
                 self.stream(ws)
         except BaseException as e:
             self.error = e
@@ -54,7 +56,8 @@ def device_session(
     if estimators is not None:
         body["settings"] = {"estimators": estimators}
     session = _call(server, "POST", "/api/sessions", body)
-    streaming = device(server, session["id"])
+    token = _call(server, "POST", f"/api/sessions/{session['id']}/device-tokens")["token"]
+    streaming = device(server, session["id"], token)
     streaming.start()
     try:
         yield session["id"], streaming

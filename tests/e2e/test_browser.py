@@ -6,14 +6,15 @@ CSV (and see a broken MCAP refused), then review the upload, scrub it, re-run it
 re-run chosen estimators of its stack, each overlaid and named in the legend.
 Screenshots of the live and review views go to ``tests/e2e/artifacts/``. Every test also checks that
 the page logged no console error and that no request left 127.0.0.1.
+
+The server runs with accounts on (issue #13), with one user per role (``tests/e2e/accounts.py``); the
+``watched`` page is logged in as the clinician, other screens log in as whom they play.
 """
 
 from __future__ import annotations
 
-import json
 import re
 import time
-import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +23,7 @@ from urllib.parse import urlsplit
 import pytest
 
 from server.bench.launch import LOOPBACK, free_port, start_server
+from tests.e2e.accounts import AUTH_ENV, add_users, client, log_in
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 
@@ -45,12 +47,14 @@ pytestmark = [
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """``gaitscope serve`` on free ports with a fresh data folder; yields its base URL."""
+    """``gaitscope serve`` on free ports with a fresh data folder, accounts on and one user per role; yields
+    its base URL."""
     data = tmp_path_factory.mktemp("gaitscope-data")
+    add_users(data)
     log_path = data / "server.log"
     with log_path.open("wb") as log:
         try:
-            server = start_server(data, "--viser-port", str(free_port()), output=log)
+            server = start_server(data, "--viser-port", str(free_port()), env=AUTH_ENV, output=log)
         except RuntimeError as e:
             pytest.fail(f"{e}:\n{log_path.read_text()[-3000:]}")
     try:
@@ -108,10 +112,22 @@ class Watched:
         assert self.external == [], f"requests left {LOOPBACK}: {self.external}"
 
 
-@pytest.fixture
-def watched(browser: playwright_api.Browser) -> Iterator[Watched]:
-    """A 1024x768 page (the smallest tablet we support) recording console errors and foreign requests."""
-    context = browser.new_context(viewport={"width": 1024, "height": 768})
+def base_of(server: object) -> str:
+    """A module's ``server`` fixture's base URL (a string, or an object with ``base``)."""
+    return server if isinstance(server, str) else str(server.base)
+
+
+def watch(
+    browser: playwright_api.Browser,
+    base: str | None,
+    user: str | None = "clinician",
+    viewport: tuple[int, int] = (1024, 768),
+) -> tuple[playwright_api.BrowserContext, Watched]:
+    """A new context and page recording console errors and foreign requests, logged in as ``user`` (through
+    the API, before any page loads; None: not logged in)."""
+    context = browser.new_context(viewport={"width": viewport[0], "height": viewport[1]})
+    if user is not None and base is not None:
+        log_in(context, base, user)
     page = context.new_page()
     page.set_default_timeout(15_000)
     w = Watched(page)
@@ -125,17 +141,21 @@ def watched(browser: playwright_api.Browser) -> Iterator[Watched]:
     page.on("pageerror", lambda e: w.console_errors.append(f"uncaught: {e}"))
     page.on("request", on_request)
     page.on("websocket", lambda ws: w.external.append(ws.url) if _leaves_loopback(ws.url) else None)
+    return context, w
+
+
+@pytest.fixture
+def watched(browser: playwright_api.Browser, server: object) -> Iterator[Watched]:
+    """A 1024x768 page (the smallest tablet we support), logged in as the clinician, recording console errors
+    and foreign requests."""
+    context, w = watch(browser, base_of(server))
     yield w
     context.close()
 
 
-def _patch(url: str, body: dict[str, object]) -> object:
-    """A PATCH from outside the browser: another clinician's screen."""
-    req = urllib.request.Request(
-        url, data=json.dumps(body).encode(), method="PATCH", headers={"Content-Type": "application/json"}
-    )
-    with urllib.request.urlopen(req, timeout=5) as resp:
-        return json.loads(resp.read())
+def _patch(base: str, path: str, body: dict[str, object], user: str = "experimenter") -> object:
+    """A PATCH from outside the browser: another user's screen."""
+    return client(base, user).call("PATCH", path, body)
 
 
 def _wait_responsive(page: playwright_api.Page, timeout_s: float = 30.0) -> None:
@@ -265,8 +285,11 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(setting_row).to_have_count(1)
     expect(setting_row.get_by_test_id("event-text")).to_have_text("Torque gain 1.00 → 1.30, by clinician")
 
-    # --- another screen changes the maximum torque: the controls and the events follow ---------------
-    _patch(f"{server}/api/sessions/{session_id}/settings", {"max_torque_Nm": 35.0, "actor": "experimenter"})
+    # --- an experimenter's screen changes the maximum torque (within the subject's limits, which a clinician
+    # set): the controls and the events follow ------------------------------------------------------------------
+    limits = {"torque_gain": 2.0, "max_torque_Nm": 40.0, "intent_gain_boost": 0.3}
+    client(server, "clinician").call("PUT", f"/api/subjects/{subject_id}/assistance-limits", limits)
+    _patch(server, f"/api/sessions/{session_id}/settings", {"max_torque_Nm": 35.0})
     expect(page.get_by_test_id("setting-max_torque_Nm")).to_have_value("35")
     expect(page.get_by_test_id("setting-max_torque_Nm-note")).to_have_text("changed elsewhere to 35.0")
     expect(setting_row).to_have_count(2)

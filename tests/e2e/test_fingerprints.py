@@ -18,8 +18,6 @@ from __future__ import annotations
 import json
 import re
 import time
-import urllib.error
-import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -27,6 +25,7 @@ from typing import Any
 import pytest
 
 from tests.e2e import test_browser as tb
+from tests.e2e.accounts import client, log_in
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
@@ -41,15 +40,9 @@ SHORT_S = 3.0  # about 2 strides: fewer than the 8 a calibration needs
 WALK_S = 16.0  # about 14 strides at 1.0 m/s
 
 
-def _call(base: str, method: str, path: str, body: dict[str, Any] | None = None) -> Any:
-    """A REST call from outside the browser (the experimenter's tooling); the JSON answer."""
-    data = None if body is None else json.dumps(body).encode()
-    req = urllib.request.Request(base + path, data=data, method=method, headers={"Content-Type": "application/json"})
-    try:
-        with urllib.request.urlopen(req, timeout=30) as resp:
-            return json.loads(resp.read() or b"null")
-    except urllib.error.HTTPError as e:
-        raise AssertionError(f"{method} {path}: {e.code} {e.read().decode(errors='replace')}") from None
+def _call(base: str, method: str, path: str, body: dict[str, Any] | None = None, user: str = "clinician") -> Any:
+    """A REST call from outside the browser (another screen, logged in as ``user``); the JSON answer."""
+    return client(base, user).call(method, path, body)
 
 
 def _record(base: str, session_id: int, seconds: float, name: str) -> dict[str, Any]:
@@ -147,7 +140,6 @@ def test_calibrate_compare_promote_and_roll_back(
     assert len(held) == 1 and held[0].request.post_data_json == {
         "trial_id": walk["id"],
         "model": "default",
-        "actor": "clinician",
         "note": "E2E treadmill 1.0 m/s",
     }
     held[0].continue_()
@@ -204,13 +196,21 @@ def test_calibrate_compare_promote_and_roll_back(
     events = [e["text"] for e in _call(server, "GET", f"/api/sessions/{session_id}/events")]
     assert any("v1 promoted by clinician (tracks her thigh better)" in t for t in events), events
 
-    # --- roll back (as the experimenter): the average model again --------------------------------------------
-    page.get_by_test_id("actor").select_option("experimenter")
+    # --- an experimenter may not roll back (the button says why); the admin does: the average model again -------
+    for user in ("experimenter", "admin"):
+        log_in(page.context, server, user)  # the same browser, another login
+        page.reload()
+        expect(page.get_by_test_id("active-model")).to_contain_text("v1 is in use")
+        if user == "experimenter":
+            expect(page.get_by_test_id("rollback")).to_be_disabled()
+            expect(page.get_by_test_id("rollback")).to_have_attribute(
+                "title", "Your role (experimenter) may not promote or roll back personalized models."
+            )
     page.get_by_test_id("rollback").click()
     expect(page.get_by_test_id("confirm-text")).to_contain_text("Roll back v1?")
     page.get_by_test_id("confirm-apply").click()
     expect(page.get_by_test_id("models-status")).to_have_text(
-        "v1 rolled back by experimenter: the average model is in use again."
+        "v1 rolled back by admin: the average model is in use again."
     )
     expect(page.get_by_test_id("active-model")).to_contain_text("the average model is in use")
     expect(row).to_have_attribute("data-state", "retired")

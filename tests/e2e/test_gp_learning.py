@@ -26,6 +26,7 @@ import pytest
 from websockets.sync.connection import Connection
 
 from tests.e2e import test_browser as tb
+from tests.e2e.accounts import log_in
 from tests.e2e.devices import StreamingDevice, device_session
 from tests.e2e.test_fingerprints import _call
 from tests.e2e.test_joint_angles import _sweep
@@ -105,7 +106,9 @@ def test_learning_card_bands_versions_freeze_and_rollback(
     card = page.get_by_test_id("gp-card")
     expect(card).to_be_visible(timeout=20_000)  # the stack runs gp_ekf: the card shows
     expect(card.locator("h2")).to_have_text("Learning gait model (GP-EKF, seed 003)")
-    page.get_by_test_id("actor").select_option("experimenter")
+    log_in(page.context, server, "experimenter")  # the experimenter runs the learning (a Runner's controls)
+    page.reload()
+    expect(card).to_be_visible(timeout=20_000)
 
     # --- the stance phase: in the card, following the walk; not on the gait-phase plot --------------------
     phase_legend = page.get_by_test_id("plot-phase").locator(".u-legend")

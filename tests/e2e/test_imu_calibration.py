@@ -31,8 +31,8 @@ watched = tb.watched
 class Device(StreamingDevice):
     """Streams frames in real time (100 Hz) to a device session: standing, or walking once asked to."""
 
-    def __init__(self, base: str, session_id: int):
-        super().__init__(base, session_id)
+    def __init__(self, base: str, session_id: int, token: str):
+        super().__init__(base, session_id, token)
         self.walking = threading.Event()
 
     def stream(self, ws: Connection) -> None:

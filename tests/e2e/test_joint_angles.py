@@ -61,8 +61,8 @@ def _walk() -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
 class Device(StreamingDevice):
     """Sends the walk in real time, over and over (session time running on), each frame answered by a torque."""
 
-    def __init__(self, base: str, session_id: int):
-        super().__init__(base, session_id)
+    def __init__(self, base: str, session_id: int, token: str):
+        super().__init__(base, session_id, token)
         self.period = len(_walk()[0]) / RATE  # s: the walk's length; the n-th pass starts at n periods
 
     def stream(self, ws: Connection) -> None:

@@ -28,6 +28,7 @@ from websockets.sync.connection import Connection
 
 from server.bench.launch import RunningServer, free_port, start_server
 from tests.e2e import test_browser as tb
+from tests.e2e.accounts import AUTH_ENV, add_users, log_in
 from tests.e2e.devices import StreamingDevice, device_session
 from tests.e2e.test_browser import Watched, playwright_api
 from tests.e2e.test_fingerprints import _call
@@ -56,9 +57,10 @@ class LiveServer:
 @pytest.fixture(scope="module")
 def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveServer]:
     data = tmp_path_factory.mktemp("gaitscope-live")
+    add_users(data)
     with (data / "server.log").open("ab") as log:
         try:
-            running = start_server(data, "--viser-port", str(free_port()), output=log)
+            running = start_server(data, "--viser-port", str(free_port()), env=AUTH_ENV, output=log)
         except RuntimeError as e:
             pytest.fail(f"{e}:\n{(data / 'server.log').read_text()[-3000:]}")
         live = LiveServer(running, data, log)
@@ -77,7 +79,7 @@ def _restart(data: Path, port: int, log: IO[bytes]) -> RunningServer:
     """``gaitscope serve`` again on the same data and port (``start_server`` picks a new port), once it answers."""
     exe = str(Path(sys.executable).with_name("gaitscope"))
     cmd = [exe, "serve", "--port", str(port), "--data-dir", str(data), "--viser-port", str(free_port())]
-    server = RunningServer(subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT), port)
+    server = RunningServer(subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=AUTH_ENV), port)
     deadline = time.monotonic() + 90
     while True:
         assert server.proc.poll() is None, f"gaitscope serve exited with {server.proc.returncode}"
@@ -91,8 +93,10 @@ def _restart(data: Path, port: int, log: IO[bytes]) -> RunningServer:
             time.sleep(0.2)
 
 
-def _page(browser: playwright_api.Browser, width: int, height: int) -> Iterator[Watched]:
+def _page(browser: playwright_api.Browser, width: int, height: int, base: str) -> Iterator[Watched]:
+    """A page of this size, logged in as the clinician."""
     context = browser.new_context(viewport={"width": width, "height": height})
+    log_in(context, base)
     page = context.new_page()
     page.set_default_timeout(20_000)
     w = Watched(page)
@@ -106,8 +110,8 @@ def _page(browser: playwright_api.Browser, width: int, height: int) -> Iterator[
 
 
 @pytest.fixture
-def wide(browser: playwright_api.Browser) -> Iterator[Watched]:
-    yield from _page(browser, 1440, 900)
+def wide(browser: playwright_api.Browser, server: str) -> Iterator[Watched]:
+    yield from _page(browser, 1440, 900, server)
 
 
 _STARTED: list[tuple[str, int]] = []  # the sessions a test started, stopped after it (a lighter machine)
@@ -188,10 +192,12 @@ def test_key_plots_in_view_and_the_layout_is_each_users(server: str, wide: Watch
     page.reload(wait_until="domcontentloaded")
     expect(page.get_by_test_id("connection")).to_have_text("connected")
     assert order() == mine
-    page.get_by_test_id("actor").select_option("experimenter")
-    assert order() == standard  # the experimenter has the standard layout ...
-    page.get_by_test_id("actor").select_option("clinician")
-    assert order() == mine  # ... and the clinician gets hers back
+    for user, layout in (("experimenter", standard), ("clinician", mine)):
+        # the experimenter logs in on this browser: the standard layout; the clinician again: hers is back
+        log_in(page.context, server, user)
+        page.reload(wait_until="domcontentloaded")
+        expect(page.get_by_test_id("connection")).to_have_text("connected")
+        assert order() == layout, user
     page.get_by_test_id("layout-menu").locator("summary").click()
     page.get_by_test_id("layout-reset").click()
     assert order() == standard
@@ -201,7 +207,7 @@ def test_key_plots_in_view_and_the_layout_is_each_users(server: str, wide: Watch
 def test_tablet_and_phone_put_what_matters_first(server: str, browser: playwright_api.Browser) -> None:
     sid = _sim_session(server, "LAY2")
     for width, height in ((1024, 768), (390, 844)):
-        for w in _page(browser, width, height):
+        for w in _page(browser, width, height, server):
             page = _open(w, server, sid)
             page.evaluate("() => localStorage.clear()")
             page.reload(wait_until="domcontentloaded")
@@ -422,7 +428,7 @@ def test_after_a_restart_the_page_says_what_happened_and_starts_a_new_session(
 ) -> None:
     base = live_server.base
     sid = _sim_session(base, "RST1")
-    _call(base, "PATCH", f"/api/sessions/{sid}/settings", {"torque_gain": 1.2, "actor": "clinician"})
+    _call(base, "PATCH", f"/api/sessions/{sid}/settings", {"torque_gain": 1.2})
     page = _open(wide, base, sid)
     expect(page.get_by_test_id("live-indicator")).to_have_text("LIVE", timeout=20_000)
     old = live_server.server

@@ -17,13 +17,13 @@ import io
 import json
 import re
 import time
-import urllib.request
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from tests.e2e import test_browser as tb
+from tests.e2e.accounts import client
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
@@ -46,13 +46,12 @@ WALK = {
 
 
 def _call(base: str, method: str, path: str, body: Any = None) -> Any:
-    data = None if body is None else json.dumps(body).encode()
-    req = urllib.request.Request(
-        f"{base}{path}", data=data, method=method, headers={"Content-Type": "application/json"}
-    )
-    with urllib.request.urlopen(req, timeout=30) as resp:
-        raw = resp.read()
-    return json.loads(raw) if raw and resp.headers.get_content_type() == "application/json" else raw
+    """A REST call as the clinician: the JSON answer, or the bytes of one that is not JSON (a download)."""
+    raw = client(base).raw(method, path, body)
+    try:
+        return json.loads(raw) if raw else raw
+    except (UnicodeDecodeError, ValueError):
+        return raw
 
 
 @pytest.fixture(scope="module")
@@ -63,7 +62,7 @@ def people(server: str) -> dict[str, Any]:
         ids[code] = _call(server, "POST", "/api/subjects", {"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})["id"]
     s = _call(server, "POST", "/api/sessions", {"subject_id": ids["PPL-A"], "source": WALK})
     time.sleep(4.0)
-    _call(server, "PATCH", f"/api/sessions/{s['id']}/settings", {"torque_gain": 1.3, "actor": "dr-e2e"})
+    _call(server, "PATCH", f"/api/sessions/{s['id']}/settings", {"torque_gain": 1.3})
     time.sleep(5.0)
     _call(server, "POST", f"/api/sessions/{s['id']}/stop")
     trials = _call(server, "GET", f"/api/trials?session_id={s['id']}")
@@ -124,7 +123,7 @@ def test_summary_and_exports(server: str, watched: tb.Watched, people: dict[str,
     expect(page.get_by_test_id("report-duration")).to_have_text(f"{summary['duration_s']:.1f} s")  # under a minute
     expect(page.get_by_test_id("report-strides")).to_have_text(str(summary["strides"]))
     assert summary["strides"] >= 4
-    expect(page.get_by_test_id("settings-change")).to_have_text("Torque gain 1.00 -> 1.30, by dr-e2e")
+    expect(page.get_by_test_id("settings-change")).to_have_text("Torque gain 1.00 -> 1.30, by clinician")
     expect(page.get_by_test_id("health-rate")).to_contain_text("Hz")
     expect(page.get_by_test_id("profile-speed").locator("canvas")).to_be_visible()
     expect(page.get_by_test_id("overlay-plot").locator("canvas")).to_be_visible()
@@ -140,7 +139,7 @@ def test_summary_and_exports(server: str, watched: tb.Watched, people: dict[str,
     assert dl.value.suggested_filename == f"gaitscope_PPL-A_session{sid}.pdf"
     text = " ".join(" ".join(p.extract_text() or "" for p in PdfReader(pdf).pages).split())
     assert f"Session {sid} of PPL-A" in text and f"Duration {summary['duration_s']:.1f} s" in text
-    assert "Torque gain 1.00 -> 1.30, by dr-e2e" in text and "Speed profile" in text
+    assert "Torque gain 1.00 -> 1.30, by clinician" in text and "Speed profile" in text
     expect(page.get_by_test_id("export-done")).to_contain_text("Ready")
 
     # An export of a long session takes seconds: here its status answers "running" (the server's own answer,

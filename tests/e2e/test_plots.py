@@ -150,7 +150,9 @@ def _legends(page: Page, testid_prefix: str = "h-") -> dict[str, list[tuple[str,
     return legends
 
 
-def _hover_rows(page: Page, plot: Locator, prefix: str, key: str, frac: float = 0.5, timeout_s: float = 10.0) -> list[tuple[str, str, str]]:
+def _hover_rows(
+    page: Page, plot: Locator, prefix: str, key: str, frac: float = 0.5, timeout_s: float = 10.0
+) -> list[tuple[str, str, str]]:
     """The legend rows of plot ``key`` with the mouse at ``frac`` of its width, once the legend shows a value
     (the legend follows the cursor on the browser's next frame; on a loaded machine that can take a while)."""
     deadline = time.monotonic() + timeout_s

@@ -91,7 +91,7 @@ def test_review(server: str, watched: tb.Watched, recording: dict[str, Any]) -> 
     page.screenshot(path=str(tb.ARTIFACTS / "review-recording.png"))
     # another clinician raises the gain during the trial; then the recording stops
     time.sleep(2.5)
-    _call(server, "PATCH", f"/api/sessions/{session['id']}/settings", {"torque_gain": 1.3, "actor": "dr-k"})
+    _call(server, "PATCH", f"/api/sessions/{session['id']}/settings", {"torque_gain": 1.3}, user="admin")
     time.sleep(4.0)
     stopped = _call(server, "POST", f"/api/sessions/{session['id']}/recording", {"action": "stop"})
     assert stopped["status"] == "finished" and stopped["id"] == tid
@@ -105,10 +105,10 @@ def test_review(server: str, watched: tb.Watched, recording: dict[str, Any]) -> 
     expect(page.get_by_test_id("rerun-start")).to_contain_text("A re-run starts from the settings that ran")
     change = page.get_by_test_id("rerun-change")
     expect(change).to_have_count(1)
-    expect(change).to_contain_text("Torque gain 1.00 → 1.30, by dr-k")
+    expect(change).to_contain_text("Torque gain 1.00 → 1.30, by admin")
     expect(page.get_by_test_id("rerun-changes")).not_to_contain_text("torque_gain")
-    _expect_labels(page, "timeline", "Torque gain 1.00 → 1.30, by dr-k")
-    _expect_labels(page, "review-plot-torque", "Torque gain 1.00 → 1.30, by dr-k")
+    _expect_labels(page, "timeline", "Torque gain 1.00 → 1.30, by admin")
+    _expect_labels(page, "review-plot-torque", "Torque gain 1.00 → 1.30, by admin")
 
     # --- 3. playback: play, pause, speed; keys; typing in a field is not a shortcut ------------------------
     t_end = float(page.get_by_test_id("scrubber").get_attribute("max") or "nan")
@@ -189,13 +189,13 @@ def test_review(server: str, watched: tb.Watched, recording: dict[str, Any]) -> 
     assert times == sorted(times)  # listed by time
     _expect_labels(page, "timeline", "Note: turns to talk", "Note: left foot scuffs")
     # someone else's note: listed, not deletable here
-    _call(server, "POST", f"/api/trials/{tid}/annotations", {"t": 3.0, "text": "check the strap", "actor": "dr-k"})
+    _call(server, "POST", f"/api/trials/{tid}/annotations", {"t": 3.0, "text": "check the strap"}, user="admin")
     page.reload()
     expect(rows).to_have_count(3, timeout=20_000)
     _leg_view_started(page)
     theirs = rows.filter(has_text="check the strap")
     expect(theirs.get_by_test_id("note-delete")).to_be_disabled()
-    expect(theirs.get_by_test_id("note-delete")).to_have_attribute("title", "Only dr-k may delete it")
+    expect(theirs.get_by_test_id("note-delete")).to_have_attribute("title", "Only admin may delete it")
     rows.filter(has_text="turns to talk").get_by_test_id("note-delete").click()
     expect(rows).to_have_count(2)
     saved = _call(server, "GET", f"/api/trials/{tid}/annotations")
@@ -232,7 +232,7 @@ def test_review(server: str, watched: tb.Watched, recording: dict[str, Any]) -> 
     stride_legend = page.get_by_test_id("ab-plot-stride").locator(".u-legend .u-series:visible")
     expect(stride_legend).to_have_count(4)  # % of stride, and each re-run once (its SD is its band)
     expect(stride_legend.nth(3)).to_contain_text("noisier sensors")
-    _expect_labels(page, "ab-plot-torque", "Torque gain 1.00 → 1.30, by dr-k", "Note: check the strap")
+    _expect_labels(page, "ab-plot-torque", "Torque gain 1.00 → 1.30, by admin", "Note: check the strap")
 
     # --- screenshots at the three sizes; nothing wider than the phone's screen ---------------------------
     for w, hgt in VIEWPORTS:

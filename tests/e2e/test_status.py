@@ -11,7 +11,6 @@ own panel minimized, the leg in view. Screenshots ``status-*.png`` go to ``tests
 from __future__ import annotations
 
 import io
-import json
 import re
 import subprocess
 import sys
@@ -28,6 +27,7 @@ import pytest
 
 from server.bench.launch import LOOPBACK, RunningServer, free_port
 from tests.e2e import test_browser as tb
+from tests.e2e.accounts import AUTH_ENV, add_users, client
 
 if TYPE_CHECKING:
     from playwright.sync_api import Page
@@ -78,7 +78,7 @@ class Restartable:
             str(self.data),
         ]
         with self.log.open("ab") as out:
-            proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT)
+            proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=AUTH_ENV)
         self.running = RunningServer(proc, self.port)
         deadline = time.monotonic() + timeout
         while True:
@@ -99,17 +99,14 @@ class Restartable:
             self.running = None
 
     def call(self, method: str, path: str, body: dict[str, Any] | None = None) -> Any:
-        data = None if body is None else json.dumps(body).encode()
-        req = urllib.request.Request(
-            self.base + path, data=data, method=method, headers={"Content-Type": "application/json"}
-        )
-        with urllib.request.urlopen(req, timeout=30) as resp:
-            return json.loads(resp.read())
+        """A REST call as the clinician (logged in once)."""
+        return client(self.base).call(method, path, body)
 
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Restartable]:
     data = tmp_path_factory.mktemp("gaitscope-status")
+    add_users(data)
     s = Restartable(data, free_port(), free_port(), data / "server.log")
     s.start()
     try:

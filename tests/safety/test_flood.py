@@ -21,6 +21,7 @@ import websockets
 from websockets.sync.client import connect
 
 from server.bench.launch import start_server
+from tests.device_tokens import issue_token
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
 pytestmark = pytest.mark.slow
@@ -43,7 +44,8 @@ def _frame(k: int, t: float) -> str:
 
 def _flood(port: int, sid: int, stop: threading.Event, counts: dict[str, int]) -> None:
     """Send as fast as the socket takes frames, from a thread of its own; count what comes back."""
-    with connect(f"ws://127.0.0.1:{port}/ws/devices/{sid}", max_queue=None) as ws:
+    token = issue_token(f"http://127.0.0.1:{port}", sid)
+    with connect(f"ws://127.0.0.1:{port}/ws/devices/{sid}?token={token}", max_queue=None) as ws:
 
         def read() -> None:
             with contextlib.suppress(Exception):
@@ -68,7 +70,8 @@ async def _steady(port: int, sid: int) -> tuple[int, int, list[float]]:
     """200 Hz, one frame at a time, timing each round trip."""
     rtts: list[float] = []
     sent = replies = 0
-    async with websockets.connect(f"ws://127.0.0.1:{port}/ws/devices/{sid}") as ws:
+    token = await asyncio.to_thread(issue_token, f"http://127.0.0.1:{port}", sid)
+    async with websockets.connect(f"ws://127.0.0.1:{port}/ws/devices/{sid}?token={token}") as ws:
         start = time.monotonic()
         k = 0
         while time.monotonic() - start < SECONDS:

@@ -32,6 +32,7 @@ from server.app import create_app
 from server.bench.launch import LOOPBACK, free_port, start_server
 from server.leg_view import LegView
 from server.settings import Settings
+from tests.device_tokens import issue_token
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
 pytestmark = pytest.mark.slow
@@ -151,7 +152,8 @@ def test_allowed_hosts_read_write_and_stream(live: Live, name: str) -> None:
     event = {"text": f"from {name}"}
     status, _ = _http(live.port, "POST", f"/api/sessions/{sid}/annotations", host, f"http://{host}", event)
     assert status == 201
-    with _ws(live.port, f"/ws/devices/{sid}", host, f"http://{host}") as ws:
+    token = issue_token(f"http://{LOOPBACK}:{live.port}", sid)
+    with _ws(live.port, f"/ws/devices/{sid}?token={token}", host, f"http://{host}") as ws:
         ws.send(json.dumps({"type": "frame", "seq": 0, "t": 0.0, "foot_angle_deg": 5.0}))
         assert json.loads(ws.recv(timeout=10))["type"] == "torque"
     with _ws(live.port, f"/ws/sessions/{sid}", host, f"http://{host}") as ws:
@@ -207,12 +209,29 @@ def test_leg_view_binds_the_servers_host_with_its_allowlist(tmp_path: Path) -> N
 
 def test_leg_view_will_not_start_without_its_guard(monkeypatch: pytest.MonkeyPatch) -> None:
     @contextlib.contextmanager
-    def bypassed(allowed_hosts: Any) -> Iterator[list[int]]:
+    def bypassed(allowed_hosts: Any, logged_in: Any = None) -> Iterator[list[int]]:
         yield []  # as if viser served some other way: the guard never went in
 
     monkeypatch.setattr(server.leg_view, "_guarded_serve", bypassed)
     with pytest.raises(RuntimeError, match="no host guard"):
         LegView(port=0)
+
+
+def test_leg_view_with_accounts_refuses_a_websocket_without_a_login() -> None:
+    view = LegView(port=0, logged_in=lambda cookie: "gaitscope_login=open" in cookie)
+    try:
+        host = f"{LOOPBACK}:{view.port}"
+        protocol = Subprotocol(f"viser-v{viser.__version__}")
+        for cookie in (None, "gaitscope_login=ended"):
+            headers = {} if cookie is None else {"Cookie": cookie}
+            with pytest.raises(InvalidStatus) as exc:
+                _ws(view.port, "/", host, f"http://{host}", subprotocols=[protocol], additional_headers=headers)
+            assert exc.value.response.status_code == 401
+        headers = {"Cookie": "theme=dark; gaitscope_login=open"}
+        with _ws(view.port, "/", host, f"http://{host}", subprotocols=[protocol], additional_headers=headers) as ws:
+            assert isinstance(ws.recv(timeout=10), bytes)
+    finally:
+        view.close()
 
 
 def test_guard_is_only_installed_while_viser_starts() -> None:
@@ -227,8 +246,10 @@ def test_guard_is_only_installed_while_viser_starts() -> None:
 def test_default_allowlist_is_loopback_plus_the_bind_host(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("GAITSCOPE_ALLOWED_HOSTS", raising=False)
     assert Settings().allowed_hosts == ["127.0.0.1", "localhost", "::1"]
-    assert Settings(host="0.0.0.0").allowed_hosts == ["127.0.0.1", "localhost", "::1"]
-    assert Settings(host="192.168.1.20").allowed_hosts == ["127.0.0.1", "localhost", "::1", "192.168.1.20"]
+    network = {"auth": True, "behind_tls_proxy": True}  # what a bind beyond loopback needs
+    assert Settings(host="0.0.0.0", **network).allowed_hosts == ["127.0.0.1", "localhost", "::1"]
+    wanted = ["127.0.0.1", "localhost", "::1", "192.168.1.20"]
+    assert Settings(host="192.168.1.20", **network).allowed_hosts == wanted
     assert "testserver" not in Settings().allowed_hosts
 
 

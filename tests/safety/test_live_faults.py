@@ -23,6 +23,7 @@ from starlette.websockets import WebSocketDisconnect
 
 from sessions.schema import SENSOR_LIMITS
 from sessions.synth.trials import replay_input, sensor_trial
+from tests.device_tokens import device_path
 
 MAX_TORQUE = 20.0
 
@@ -61,7 +62,7 @@ def _walk(k: int, t: float) -> dict[str, Any]:
 
 @contextmanager
 def _device(client: TestClient, sid: int) -> Iterator[Any]:
-    with client.websocket_connect(f"/ws/devices/{sid}") as ws:
+    with client.websocket_connect(device_path(client, sid)) as ws:
         yield ws
 
 

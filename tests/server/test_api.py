@@ -79,7 +79,7 @@ def test_session_runs_records_and_reviews(client: TestClient, tmp_path: Path) ->
 def test_settings_change_is_validated_rate_limited_and_recorded(client: TestClient) -> None:
     s = _session(client)
     url = f"/api/sessions/{s['id']}/settings"
-    r = client.patch(url, json={"torque_gain": 1.4, "actor": "dr-k", "reason": "more push-off"})
+    r = client.patch(url, json={"torque_gain": 1.4, "actor": "local", "reason": "more push-off"})
     assert r.status_code == 200 and r.json()["settings"]["torque_gain"] == 1.4
     r = client.patch(url, json={"torque_gain": 1.8})  # a second step right away breaks the rate limit
     assert r.status_code == 409 and "torque_gain" in r.json()["detail"]
@@ -91,7 +91,7 @@ def test_settings_change_is_validated_rate_limited_and_recorded(client: TestClie
     events = [e for e in client.get(f"/api/sessions/{s['id']}/events").json() if e["kind"] == "setting"]
     assert len(events) == 1
     e = events[0]
-    assert (e["field"], e["before"], e["after"], e["actor"]) == ("torque_gain", 1.0, 1.4, "dr-k")
+    assert (e["field"], e["before"], e["after"], e["actor"]) == ("torque_gain", 1.0, 1.4, "local")
     assert "more push-off" in e["text"]
     runtime = client.app.state.ctx.manager.get(s["id"])  # type: ignore[attr-defined]
     assert runtime.estimator.settings.torque_gain == 1.4  # applied to the estimator, not just stored

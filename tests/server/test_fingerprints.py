@@ -53,10 +53,10 @@ def test_calibrate_compare_promote_and_roll_back(client: TestClient) -> None:
     assert listing["components"] == 3 and listing["active"] is None and listing["versions"] == []
     assert len(listing["cohort"]) == 10 and all(len(p["fingerprint"]) == 3 for p in listing["cohort"])
 
-    r = client.post(f"/api/subjects/{sid}/fingerprints", json={"trial_id": tid, "actor": "dr-a", "note": "first"})
+    r = client.post(f"/api/subjects/{sid}/fingerprints", json={"trial_id": tid, "actor": "local", "note": "first"})
     assert r.status_code == 201, r.text
     v1 = r.json()
-    assert v1["state"] == "candidate" and v1["version"] == 1 and v1["created_by"] == "dr-a"
+    assert v1["state"] == "candidate" and v1["version"] == 1 and v1["created_by"] == "local"
     assert v1["strides_used"] >= 15 and v1["stride_length_source"] == "belt speed"
     assert v1["fit_rmse_personal_deg"] < v1["fit_rmse_avg_deg"]
     # the subject's fingerprint is the cohort subject's own, near its training one (same person, new walk)
@@ -76,28 +76,28 @@ def test_calibrate_compare_promote_and_roll_back(client: TestClient) -> None:
     # promote: a running session of the subject is told, its fp_ls takes it
     before = client.get(f"/api/subjects/{sid}/fingerprints").json()
     assert before["active"] is None
-    r = client.post(f"/api/subjects/{sid}/fingerprints/{v1['id']}/promote", json={"actor": "dr-a", "reason": "fits"})
-    assert r.status_code == 200 and r.json()["state"] == "active" and r.json()["promoted_by"] == "dr-a"
+    r = client.post(f"/api/subjects/{sid}/fingerprints/{v1['id']}/promote", json={"actor": "local", "reason": "fits"})
+    assert r.status_code == 200 and r.json()["state"] == "active" and r.json()["promoted_by"] == "local"
     tid2, runtime = _recorded(client, sid, _walk(8, subject=3))
     assert "fp_ls" in runtime.estimator.stack.names and runtime.fingerprint == v1["fingerprint"]
     v2 = client.post(f"/api/subjects/{sid}/fingerprints", json={"trial_id": tid2}).json()
     assert v2["version"] == 2
     client.app.state.ctx.manager.runtimes[runtime.session.id] = runtime  # type: ignore[attr-defined]
     try:
-        r = client.post(f"/api/subjects/{sid}/fingerprints/{v2['id']}/promote", json={"actor": "dr-b"})
+        r = client.post(f"/api/subjects/{sid}/fingerprints/{v2['id']}/promote", json={"actor": "local"})
         assert r.status_code == 200, r.text
         texts = [e.text for e in client.app.state.ctx.store.list_events(runtime.session.id)]  # type: ignore[attr-defined]
-        assert any("v2 promoted by dr-b; fp_ls takes it at the next heel strike" in t for t in texts), texts
+        assert any("v2 promoted by local; fp_ls takes it at the next heel strike" in t for t in texts), texts
     finally:
         del client.app.state.ctx.manager.runtimes[runtime.session.id]  # type: ignore[attr-defined]
     listing = client.get(f"/api/subjects/{sid}/fingerprints").json()
     assert listing["active"]["version"] == 2 and [v["state"] for v in listing["versions"]] == ["active", "retired"]
 
     # roll back: v1 again, then the average model, then nothing to roll back
-    r = client.post(f"/api/subjects/{sid}/fingerprints/rollback", json={"actor": "dr-b", "reason": "worse"})
+    r = client.post(f"/api/subjects/{sid}/fingerprints/rollback", json={"actor": "local", "reason": "worse"})
     assert r.status_code == 200 and r.json()["active"]["version"] == 1
     v2_now = next(v for v in r.json()["versions"] if v["version"] == 2)
-    assert v2_now["state"] == "retired" and v2_now["retired_by"] == "dr-b" and v2_now["retired_utc"]
+    assert v2_now["state"] == "retired" and v2_now["retired_by"] == "local" and v2_now["retired_utc"]
     r = client.post(f"/api/subjects/{sid}/fingerprints/rollback", json={})
     assert r.status_code == 200 and r.json()["active"] is None
     r = client.post(f"/api/subjects/{sid}/fingerprints/rollback", json={})

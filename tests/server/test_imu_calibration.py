@@ -18,6 +18,7 @@ from estimators.imu_frontend import G0, ImuFrontEnd, imu_inputs
 from sessions.formats.mcap_io import read_events, read_messages
 from sessions.live.sources import frames_from_table
 from sessions.synth.trials import sensor_trial
+from tests.device_tokens import device_path
 
 RATE = 100.0
 #: the sensors' mounting: pitch offset (deg) and gyro bias (x, y, z; deg/s)
@@ -74,9 +75,9 @@ def _front_ends(client: TestClient, sid: int) -> dict[str, ImuFrontEnd]:
 def test_standing_still_calibrates_stores_logs_records_and_is_applied_again(client: TestClient) -> None:
     subject_id, sid = _session(client)
     assert client.get(f"/api/sessions/{sid}/imu-calibration").json()["state"] == "idle"
-    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+    with client.websocket_connect(device_path(client, sid)) as device:
         _send(device, _standing(0.0, 1.0))
-        body = {"duration_s": 2, "actor": "dr a", "note": "upright"}
+        body = {"duration_s": 2, "actor": "local", "note": "upright"}
         r = client.post(f"/api/sessions/{sid}/imu-calibration", json=body)
         assert r.status_code == 202, r.text
         assert r.json()["state"] == "collecting" and r.json()["segments"] == ["foot", "shank"]
@@ -89,7 +90,7 @@ def test_standing_still_calibrates_stores_logs_records_and_is_applied_again(clie
         ends = _front_ends(client, sid)
     assert status["state"] == "done" and status["progress"] == 1.0
     result = status["result"]
-    assert result["ok"] and result["reason"] == "" and result["created_by"] == "dr a" and result["note"] == "upright"
+    assert result["ok"] and result["reason"] == "" and result["created_by"] == "local" and result["note"] == "upright"
     assert status["applied"] == result
     for s in result["sensors"]:  # each sensor's mounting, found and applied to its front end
         offset, bias = MOUNTING[s["segment"]]
@@ -100,7 +101,7 @@ def test_standing_still_calibrates_stores_logs_records_and_is_applied_again(clie
         assert (config.gyro_bias_x_dps, config.gyro_bias_y_dps, config.gyro_bias_z_dps) == tuple(s["gyro_bias_dps"])
     assert client.get(f"/api/subjects/{subject_id}/imu-calibrations").json() == [result]  # the current one
     event = next(e for e in client.get(f"/api/sessions/{sid}/events").json() if e["field"] == "imu_calibration")
-    assert event["kind"] == "system" and event["actor"] == "dr a" and event["t"] == pytest.approx(3.0)
+    assert event["kind"] == "system" and event["actor"] == "local" and event["t"] == pytest.approx(3.0)
     assert event["text"].startswith(f"IMU calibration {result['id']} applied: imu_foot pitch offset -5.0 deg")
     assert client.post(f"/api/sessions/{sid}/stop").status_code == 200
 
@@ -136,7 +137,7 @@ def test_standing_still_calibrates_stores_logs_records_and_is_applied_again(clie
 
 def test_walking_is_refused_with_each_sensors_reason_and_nothing_applied(client: TestClient) -> None:
     subject_id, sid = _session(client)
-    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+    with client.websocket_connect(device_path(client, sid)) as device:
         r = client.post(f"/api/sessions/{sid}/imu-calibration", json={"duration_s": 2})
         assert r.status_code == 202, r.text
         _send(device, _walking(0.0))

@@ -17,6 +17,7 @@ from sessions.formats.mcap_io import read_events, read_messages
 from sessions.live.sources import frames_from_table
 from sessions.registry import DECLARED
 from sessions.synth.trials import replay_columns, sensor_trial
+from tests.device_tokens import device_path
 from tests.uploads import upload
 
 #: Channels of the centre of mass relative to the stance foot, which a replay CSV does not have.
@@ -55,7 +56,7 @@ def test_a_walker_speeding_up_is_an_intent_event_live_in_the_recording_and_in_re
     browser_events = []
     with (
         client.websocket_connect(f"/ws/sessions/{sid}?max_rate_hz=10&batch_ms=100") as browser,
-        client.websocket_connect(f"/ws/devices/{sid}") as device,
+        client.websocket_connect(device_path(client, sid)) as device,
     ):
         assert json.loads(browser.receive_text())["type"] == "hello"
         for k, frame in enumerate(frames_from_table(sensors)):

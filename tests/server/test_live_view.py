@@ -89,10 +89,10 @@ def test_undo_sets_back_the_last_change_and_is_logged(client: TestClient) -> Non
     assert r.json()["settings"]["torque_gain"] == 1.0 and r.json()["settings"]["max_torque_Nm"] == 30.0
     events = _event_texts(client, sid)
     assert [(e["field"], e["before"], e["after"], e["actor"]) for e in events[-2:]] == [
-        ("torque_gain", 1.3, 1.0, "clinician"),
-        ("max_torque_Nm", 35.0, 30.0, "clinician"),
+        ("torque_gain", 1.3, 1.0, "local"),
+        ("max_torque_Nm", 35.0, 30.0, "local"),
     ]
-    assert "(undo of torque_gain 1.0 -> 1.3, max_torque_Nm 30.0 -> 35.0 by experimenter)" in events[-2]["text"]
+    assert "(undo of torque_gain 1.0 -> 1.3, max_torque_Nm 30.0 -> 35.0 by local)" in events[-2]["text"]
     time.sleep(0.65)
     r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})  # undoing the undo
     assert r.status_code == 200 and r.json()["settings"]["torque_gain"] == 1.3

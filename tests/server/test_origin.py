@@ -21,6 +21,7 @@ from server.origin import (
     host_name,
     refused_host,
 )
+from tests.device_tokens import device_path
 
 EVIL = {"origin": "http://evil.example"}
 
@@ -49,7 +50,7 @@ def test_same_origin_and_devices_pass(client: TestClient) -> None:
     sid = _session(client)
     same = {"origin": "http://testserver"}
     assert client.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.2}, headers=same).status_code == 200
-    with client.websocket_connect(f"/ws/devices/{sid}") as ws:  # a device sends no Origin
+    with client.websocket_connect(device_path(client, sid)) as ws:  # a device sends no Origin
         ws.send_json({"type": "frame", "seq": 0, "t": 0.0, "foot_angle_deg": 5.0})
         assert ws.receive_json()["type"] == "torque"
     assert client.post(f"/api/sessions/{sid}/stop", headers=same).status_code == 200

@@ -50,7 +50,7 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Any:
         sid = client.post("/api/subjects", json={"code": "RPT01", "leg_length_m": 0.9, "mass_kg": 70.0}).json()["id"]
         s = client.post("/api/sessions", json={"subject_id": sid, "source": TWO_SPEEDS}).json()
         _wait(client, s["id"], 4.0)
-        r = client.patch(f"/api/sessions/{s['id']}/settings", json={"torque_gain": 1.4, "actor": "dr-k"})
+        r = client.patch(f"/api/sessions/{s['id']}/settings", json={"torque_gain": 1.4, "actor": "local"})
         assert r.status_code == 200, r.text
         client.post(f"/api/sessions/{s['id']}/annotations", json={"text": "subject comfortable"})
         _wait(client, s["id"], 11.0)
@@ -94,7 +94,7 @@ def test_summary_numbers(recorded: Any) -> None:
     h = s["health"]
     assert h["samples"] == sum(t["samples"] for t in trials) and h["rate_hz"] == pytest.approx(200, rel=0.02)
     assert h["gaps"] == 0 and h["missing_percent"] == 0.0
-    assert [r["text"] for r in s["settings_history"]] == ["Torque gain 1.00 -> 1.40, by dr-k"]
+    assert [r["text"] for r in s["settings_history"]] == ["Torque gain 1.00 -> 1.40, by local"]
     assert s["settings_start"]["torque_gain"] == 1.0 and s["settings_end"]["torque_gain"] == 1.4
     assert any(e["text"] == "subject comfortable" for e in s["events"])
     cond = s["conditions"][0]
@@ -112,7 +112,7 @@ def test_pdf_report_reads_back(recorded: Any) -> None:
     assert f"Session {sid} of RPT01" in text
     assert f"Duration {s['duration_s']:.1f} s" in text  # under a minute
     assert f"Strides {s['strides']}" in text
-    assert "Torque gain 1.00 -> 1.40, by dr-k" in text
+    assert "Torque gain 1.00 -> 1.40, by local" in text
     for caption in FIGURE_TITLES.values():
         assert caption in text  # every figure is there
 

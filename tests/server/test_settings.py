@@ -12,6 +12,7 @@ from server.settings import Settings
 
 def test_defaults_are_local_and_embedded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("GAITSCOPE_DATABASE_URL", raising=False)  # set in the PostgreSQL run (tests/conftest.py)
     s = Settings()
     assert s.host == "127.0.0.1" and s.is_loopback and s.port == 8000 and s.viser_port == 8081
     assert s.database_url == "sqlite:///gaitscope-data/gaitscope.db" and s.demo
@@ -26,10 +27,20 @@ def test_environment_overrides(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) 
     assert (s.port, s.data_dir, s.database_url, s.demo) == (9100, tmp_path, "sqlite:///elsewhere.db", False)
 
 
-def test_non_loopback_is_refused_in_production_and_flagged_in_development() -> None:
-    with pytest.raises(ValidationError, match=r"refusing to listen on 0\.0\.0\.0 in production"):
-        Settings(host="0.0.0.0", environment="production")
-    assert not Settings(host="0.0.0.0").is_loopback  # allowed in development; `serve` prints a warning
+def test_non_loopback_needs_accounts_and_tls() -> None:
+    for env in ("development", "production"):
+        with pytest.raises(ValidationError, match=r"refusing to listen on 0\.0\.0\.0 without accounts .* and TLS"):
+            Settings(host="0.0.0.0", environment=env)
+    with pytest.raises(ValidationError, match=r"without accounts \(GAITSCOPE_AUTH=true\): bind"):
+        Settings(host="0.0.0.0", behind_tls_proxy=True)
+    with pytest.raises(ValidationError, match=r"without TLS"):
+        Settings(host="10.0.0.5", auth=True)
+    with pytest.raises(ValidationError, match=r"tls_cert and tls_key go together"):
+        Settings(auth=True, tls_cert="cert.pem")
+    behind_proxy = Settings(host="0.0.0.0", auth=True, behind_tls_proxy=True)
+    assert not behind_proxy.is_loopback and behind_proxy.tls
+    own_tls = Settings(host="10.0.0.5", auth=True, tls_cert="c.pem", tls_key="k.pem")
+    assert own_tls.tls and not Settings().tls
     assert Settings(host="localhost").is_loopback and Settings(host="::1").is_loopback
 
 

@@ -13,6 +13,7 @@ from starlette.websockets import WebSocketDisconnect
 from sessions.live.runtime import SUBSCRIBER_CAPACITY, Subscriber
 from sessions.schema import GaitState
 from sessions.synth.trials import replay_input, sensor_trial
+from tests.device_tokens import device_path
 
 SIM = {
     "kind": "simulated",
@@ -97,7 +98,7 @@ def test_live_device_gets_torque_back_and_browsers_see_it(client: TestClient) ->
     frames = replay_input(sensors)
     with (
         client.websocket_connect(f"/ws/sessions/{sid}?max_rate_hz=0&batch_ms=0") as browser,
-        client.websocket_connect(f"/ws/devices/{sid}") as device,
+        client.websocket_connect(device_path(client, sid)) as device,
     ):
         json.loads(browser.receive_text())
         torques = []
@@ -129,9 +130,11 @@ def test_live_device_gets_torque_back_and_browsers_see_it(client: TestClient) ->
 
 def test_second_device_and_device_on_simulated_session_are_refused(client: TestClient) -> None:
     sim = _session(client, SIM)
-    with client.websocket_connect(f"/ws/devices/{sim}") as ws, pytest.raises(WebSocketDisconnect) as exc:
-        ws.receive_text()
-    assert exc.value.code == 1008 and "takes no device" in exc.value.reason
+    r = client.post(f"/api/sessions/{sim}/device-tokens")  # no token for a session that takes no device
+    assert r.status_code == 409 and "takes no device" in r.json()["detail"]
+    with pytest.raises(WebSocketDisconnect) as exc, client.websocket_connect(f"/ws/devices/{sim}"):
+        pass
+    assert exc.value.code == 1008 and "no device token" in exc.value.reason
 
 
 def test_a_slow_subscriber_loses_its_oldest_samples_and_counts_them() -> None:

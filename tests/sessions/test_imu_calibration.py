@@ -4,7 +4,6 @@ calibrations (per subject and session, the latest the current one, a refused one
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -49,8 +48,8 @@ def test_too_short_a_period_is_refused_without_the_stand_still_hint() -> None:
     assert "try again" not in cal.reason and cal.sensors[0].gyro_motion_dps is None
 
 
-def test_the_store_keeps_accepted_calibrations_per_subject_and_session(tmp_path: Path) -> None:
-    store = Store(f"sqlite:///{tmp_path / 'db.sqlite'}")
+def test_the_store_keeps_accepted_calibrations_per_subject_and_session(database_url: str) -> None:
+    store = Store(database_url)
     subject = store.create_subject(schema.SubjectCreate(code="S1", leg_length_m=0.9, mass_kg=70.0))
     source = schema.DeviceSource()
     s1 = store.create_session(schema.SessionCreate(subject_id=subject.id, source=source, start=False))

@@ -47,13 +47,8 @@ def _url(path: Path) -> str:
 
 
 @pytest.fixture
-def db_path(tmp_path: Path) -> Path:
-    return tmp_path / "gaitscope.sqlite"
-
-
-@pytest.fixture
-def store(db_path: Path, clock: Clock) -> Iterator[Store]:
-    s = Store(_url(db_path))
+def store(database_url: str, clock: Clock) -> Iterator[Store]:
+    s = Store(database_url)  # SQLite, or PostgreSQL when the suite runs against one (tests/conftest.py)
     yield s
     s.close()
 
@@ -133,9 +128,9 @@ def test_session_for_a_missing_subject_is_not_found_and_not_stored(store: Store)
     assert store.list_sessions() == []
 
 
-def test_sqlite_enforces_foreign_keys(store: Store) -> None:
+def test_the_database_enforces_foreign_keys(store: Store) -> None:
     # Below the store's own checks: the database itself refuses a row pointing at no session.
-    with store._engine.begin() as conn, pytest.raises(IntegrityError, match="FOREIGN KEY"):
+    with store._engine.begin() as conn, pytest.raises(IntegrityError, match=r"(?i)foreign key"):
         conn.execute(
             text(
                 "INSERT INTO events (session_id, t, wall_utc, kind, text, actor) "
@@ -352,15 +347,15 @@ def test_trial_events_are_those_logged_with_the_trial(store: Store) -> None:
 # --- the file ------------------------------------------------------------------------------------
 
 
-def test_reopening_the_file_sees_the_data(db_path: Path, clock: Clock) -> None:
-    first = Store(_url(db_path))
+def test_reopening_the_database_sees_the_data(database_url: str, clock: Clock) -> None:
+    first = Store(database_url)
     subject = _subject(first)
     session = first.set_session_state(_session(first, subject.id).id, "running")
     trial = first.finish_trial(first.create_trial(session.id, "w", "recordings/w.mcap").id, "finished", 3, 0.01)
     event = first.add_event(session.id, t=0.25, kind="setting", text="g", before=1.0, after="x")
     first.close()
 
-    second = Store(_url(db_path))
+    second = Store(database_url)
     try:
         assert second.list_subjects() == [subject]
         assert second.list_sessions() == [session]
@@ -372,6 +367,7 @@ def test_reopening_the_file_sees_the_data(db_path: Path, clock: Clock) -> None:
 
 
 def test_creates_the_folder_and_uses_wal(tmp_path: Path, clock: Clock) -> None:
+    # SQLite-specific (its file, WAL and foreign-key pragma): SQLite in every run.
     path = tmp_path / "data" / "db" / "gaitscope.sqlite"
     s = Store(_url(path))
     try:
@@ -386,6 +382,7 @@ def test_creates_the_folder_and_uses_wal(tmp_path: Path, clock: Clock) -> None:
 
 
 def test_in_memory_database_is_shared_by_threads(clock: Clock) -> None:
+    # SQLite-specific (in-memory, one connection): SQLite in every run.
     s = Store("sqlite://")
     try:
         session_id = _session(s, _subject(s).id).id
@@ -455,3 +452,15 @@ def test_concurrent_duplicate_codes_store_exactly_one(store: Store) -> None:
     assert len(errors) == 7
     assert all(isinstance(e, Conflict) for e in errors)
     assert [s.code for s in store.list_subjects()] == ["SAME"]
+
+
+def test_a_value_the_database_refuses_is_a_conflict_and_changes_nothing(store: Store) -> None:
+    # PostgreSQL refuses a NUL character in text (SQLite keeps it): a clean Conflict naming why, not a crash.
+    body = schema.SubjectCreate(code="NUL01", leg_length_m=0.9, mass_kg=70.0, notes="a\x00b")
+    if store._engine.dialect.name == "postgresql":
+        with pytest.raises(Conflict, match=r"^the database refused a value: .*NUL"):
+            store.create_subject(body)
+        assert store.list_subjects() == []
+    else:
+        assert store.create_subject(body).notes == "a\x00b"
+        assert [s.notes for s in store.list_subjects()] == ["a\x00b"]

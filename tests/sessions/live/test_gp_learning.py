@@ -39,6 +39,7 @@ from sessions.live.sources import frames_from_table
 from sessions.schema import SensorFrame, SessionSettings
 from sessions.synth.cohort import CohortSpec, make_subjects
 from sessions.synth.speed_walks import SpeedProtocol, speed_walk
+from tests.device_tokens import device_path
 
 CHANNELS = ["hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "heel_strike"]
 #: 25 s of walking (five stances a window: three or four windows), then standing
@@ -142,7 +143,7 @@ def test_a_gp_ekf_session_retrains_logs_records_serves_its_bands_and_a_rerun_rep
     state = client.get(f"/api/sessions/{sid}/gp-learning").json()
     assert (state["version"], state["waiting"], state["frozen"], state["pending"]) == (0, None, False, None)
     assert [v["version"] for v in state["versions"]] == [0] and state["versions"][0]["population"]
-    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+    with client.websocket_connect(device_path(client, sid)) as device:
         _send(client, sid, device, frames, math.inf)
         state = client.get(f"/api/sessions/{sid}/gp-learning").json()
         requested = client.get(f"/api/sessions/{sid}/gp-learning?version=1").json()["requested"]
@@ -216,7 +217,7 @@ def test_a_later_trial_records_the_versions_kept_from_before_it_and_its_rerun_ca
     before) it gives what ran."""
     frames = walk[0]
     sid = _session(client, walk)
-    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+    with client.websocket_connect(device_path(client, sid)) as device:
         _send(client, sid, device, frames, 7.0)
         for action in ("stop", "start"):
             assert client.post(f"/api/sessions/{sid}/recording", json={"action": action}).status_code == 200
@@ -248,10 +249,10 @@ def test_freeze_stops_installs_a_rollback_reinstalls_and_both_are_logged_recorde
     frames = walk[0]
     sid = _session(client, walk)
     url = f"/api/sessions/{sid}/gp-learning"
-    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+    with client.websocket_connect(device_path(client, sid)) as device:
         _send(client, sid, device, frames, 6.0)
         assert client.get(url).json()["version"] == 1
-        r = client.post(url, json={"action": "freeze", "actor": "dr a", "reason": "stumbling"})
+        r = client.post(url, json={"action": "freeze", "actor": "local", "reason": "stumbling"})
         assert r.status_code == 200, r.text
         assert r.json()["frozen"] and r.json()["version"] == 1
         assert client.post(url, json={"action": "freeze", "actor": "dr b"}).status_code == 200  # no change, no event
@@ -267,12 +268,12 @@ def test_freeze_stops_installs_a_rollback_reinstalls_and_both_are_logged_recorde
         for body in ({"action": "rollback"}, {"action": "freeze", "version": 1}, {"action": "melt"},
                      {"action": "unfreeze", "extra": 1}, {"action": "rollback", "version": -1}, {}):  # fmt: skip
             assert client.post(url, json=body).status_code == 422, body
-        r = client.post(url, json={"action": "rollback", "version": 0, "actor": "dr a"})
+        r = client.post(url, json={"action": "rollback", "version": 0, "actor": "local"})
         assert r.status_code == 200, r.text
         assert (r.json()["version"], r.json()["waiting"], r.json()["rollback"]) == (1, 0, True)  # at a heel strike
         _send(client, sid, device, frames, 17.5)  # the slowest strides: 0.4 m/s at 15 s
         assert client.get(url).json()["version"] == 0  # installed while frozen: the clinician's choice
-        r = client.post(url, json={"action": "unfreeze", "actor": "dr a"})
+        r = client.post(url, json={"action": "unfreeze", "actor": "local"})
         assert r.status_code == 200 and not r.json()["frozen"]
         _send(client, sid, device, frames, math.inf)
         state = client.get(url).json()
@@ -281,17 +282,17 @@ def test_freeze_stops_installs_a_rollback_reinstalls_and_both_are_logged_recorde
 
     records = [m for _, _, m in read_messages(path, ["/gp_models"])]
     assert [(m["what"], m["version"], m["actor"]) for m in records] == [
-        ("trained", 1, "system"), ("installed", 1, "system"), ("frozen", 1, "dr a"), ("rollback", 0, "dr a"),
-        ("installed", 0, "system"), ("unfrozen", 0, "dr a"), ("trained", 3, "system"), ("installed", 3, "system"),
+        ("trained", 1, "system"), ("installed", 1, "system"), ("frozen", 1, "local"), ("rollback", 0, "local"),
+        ("installed", 0, "system"), ("unfrozen", 0, "local"), ("trained", 3, "system"), ("installed", 3, "system"),
     ]  # fmt: skip
     assert records[2]["reason"] == "stumbling"
     back = records[4]["t"]
     assert [(e["kind"], e["actor"], e["before"], e["after"], e["text"]) for e in events[1:]] == [
-        ("setting", "dr a", "learning", "frozen",
-         "GP learning frozen by dr a: no retraining or installs until unfrozen, v1 stays (stumbling)"),
-        ("setting", "dr a", 1.0, 0.0, "GP model rollback to v0 by dr a: installed at the next heel strike"),
-        ("system", "system", 1.0, 0.0, f"GP model v0 reinstalled at {back:.2f} s (rollback by dr a)"),
-        ("setting", "dr a", "frozen", "learning", "GP learning unfrozen by dr a: retraining resumes"),
+        ("setting", "local", "learning", "frozen",
+         "GP learning frozen by local: no retraining or installs until unfrozen, v1 stays (stumbling)"),
+        ("setting", "local", 1.0, 0.0, "GP model rollback to v0 by local: installed at the next heel strike"),
+        ("system", "system", 1.0, 0.0, f"GP model v0 reinstalled at {back:.2f} s (rollback by local)"),
+        ("setting", "local", "frozen", "learning", "GP learning unfrozen by local: retraining resumes"),
         ("system", "system", 0.0, 3.0, f"{window_text(3, (11, 15), tuple(records[6]['span_s']))}, {_rmse(records[6])}"
                                        f": installed at {records[7]['t']:.2f} s"),
     ]  # fmt: skip
@@ -368,7 +369,7 @@ def test_a_fit_that_raises_is_an_event_and_the_session_learns_on(
     monkeypatch.setattr(gp_learning, "fit_window", _fails_first)
     frames = walk[0]
     sid = _session(client, walk)
-    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+    with client.websocket_connect(device_path(client, sid)) as device:
         _send(client, sid, device, frames, 12.0)
         state = client.get(f"/api/sessions/{sid}/gp-learning").json()
     events = _gp_events(client, sid)
@@ -402,7 +403,7 @@ def test_a_worker_that_dies_is_an_event_and_the_next_fit_gets_a_new_one(
     runtime = _runtime(client, sid)
     learning = runtime.gp_learning
     assert learning is not None
-    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+    with client.websocket_connect(device_path(client, sid)) as device:
         _send_until_a_fit(client, sid, device, frames)
         pool = learning.trainer._pool  # the worker process of the server's ProcessPoolExecutor
         (pid,) = pool._processes  # type: ignore[union-attr]
@@ -425,7 +426,7 @@ def test_a_session_stopped_during_a_fit_stops_cleanly_and_the_worker_serves_the_
     runtime = _runtime(client, sid)
     learning = runtime.gp_learning
     assert learning is not None
-    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+    with client.websocket_connect(device_path(client, sid)) as device:
         _send_until_a_fit(client, sid, device, frames)
         fit = learning.fitting
     path = _stop(client, sid)  # the device gone, the fit under way (GPy's import alone takes a second)
@@ -433,7 +434,7 @@ def test_a_session_stopped_during_a_fit_stops_cleanly_and_the_worker_serves_the_
     assert list(read_messages(path, ["/gp_models"])) == [] and _gp_events(client, sid) == []
     wait([fit], timeout=120)  # the worker finishes it, unheard (one fit at a time: the next waits for it)
     sid2 = _session(client, walk)  # the same worker fits the next session's windows
-    with client.websocket_connect(f"/ws/devices/{sid2}") as device:
+    with client.websocket_connect(device_path(client, sid2)) as device:
         _send(client, sid2, device, frames, 6.0)
     assert client.get(f"/api/sessions/{sid2}/gp-learning").json()["version"] == 1
     _stop(client, sid2)
@@ -447,7 +448,7 @@ def test_a_window_waiting_for_the_shared_worker_is_shown_until_it_goes(
     learning = _runtime(client, sid).gp_learning
     assert learning is not None
     monkeypatch.setattr(learning.trainer, "may_submit", lambda session: False)  # the budget spent elsewhere
-    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+    with client.websocket_connect(device_path(client, sid)) as device:
         _send(client, sid, device, frames, 7.0)  # past the first window (5 stances)
         state = client.get(f"/api/sessions/{sid}/gp-learning").json()
         assert state["pending"] is None and state["queued_s"] is not None and state["queued_s"] >= 0.0

@@ -20,6 +20,7 @@ from sessions.live import manager
 from sessions.live.imu_events import PROBLEMS, SEVERITY, ImuEvent, ImuWatch
 from sessions.live.sources import LiveDevice, frames_from_table
 from sessions.synth.trials import sensor_trial
+from tests.device_tokens import device_path
 
 PERIOD = 0.01
 SEGMENTS = ("foot", "shank", "thigh")
@@ -205,7 +206,7 @@ def test_a_faulty_imu_is_reported_once_the_torque_stays_bounded_and_its_recovery
     assert runtime.estimator.primary == "phase_ekf"  # the faulty sensor feeds the phase estimator
     torques: list[float] = []
     during: dict[str, Any] = {}
-    with client.websocket_connect(f"/ws/devices/{sid}") as device:
+    with client.websocket_connect(device_path(client, sid)) as device:
         for frame in _walk():
             if FAULT[0] <= frame["t"] < FAULT[1]:
                 faulty = inject(frame)

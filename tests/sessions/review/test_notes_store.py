@@ -1,8 +1,7 @@
-"""Review notes in the store (``Store.add_review_annotation`` and friends) on a real SQLite file."""
+"""Review notes in the store (``Store.add_review_annotation`` and friends) on a real database (SQLite, or
+PostgreSQL when the suite runs against one)."""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import pytest
 
@@ -11,8 +10,8 @@ from sessions.store import NotAllowed, NotFound, Store
 
 
 @pytest.fixture
-def store(tmp_path: Path) -> Store:
-    s = Store(f"sqlite:///{tmp_path / 'gaitscope.db'}")
+def store(database_url: str) -> Store:
+    s = Store(database_url)
     subject = s.create_subject(schema.SubjectCreate(code="N01", leg_length_m=0.9, mass_kg=70.0))
     session = s.create_session(schema.SessionCreate(subject_id=subject.id, start=False))
     s.create_trial(session.id, "walk", "recordings/a.mcap")

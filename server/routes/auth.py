@@ -1,0 +1,80 @@
+"""``/api/auth``: log in and out, who am I, change my password.
+
+A login sets the ``gaitscope_login`` cookie (HttpOnly, SameSite=Strict, Secure behind TLS, for the login's
+length) and answers with :class:`~sessions.schema.Me`, whose ``csrf_token`` the browser sends back in the
+``X-CSRF-Token`` header with every state-changing request. With accounts off there is no login:
+``GET /api/auth/me`` answers ``local``, and ``POST /api/auth/login`` says so (409).
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, HTTPException, Request, Response
+
+from server.auth import COOKIE, LoggedIn, Who, public
+from server.routes.common import Ctx, audit
+from sessions import schema
+from sessions.accounts import LoginFailed
+
+router = APIRouter(prefix="/api/auth")
+
+
+def _me(c: Ctx, who: Who) -> schema.Me:
+    return schema.Me(
+        name=who.name, role=who.role, accounts=c.settings.auth, permissions=who.permissions, csrf_token=who.csrf_token
+    )
+
+
+@router.post("/login", dependencies=[public()])
+def login(body: schema.LoginRequest, request: Request, response: Response, c: Ctx) -> schema.Me:
+    """Check the name and password; 401 with the reason (the same for an unknown name and a wrong password),
+    and every failure audited and counted toward the lockout."""
+    if not c.settings.auth:
+        raise HTTPException(409, "accounts are off on this server: there is nothing to log in to")
+    client = request.client.host if request.client else "unknown"
+    try:
+        done = c.accounts.login(body.name, body.password)
+    except LoginFailed as e:
+        c.audit.record(
+            user=body.name, role="none", action="login.failed", target=client, outcome="refused", detail=str(e)
+        )
+        request.scope["gaitscope.audited"] = True  # recorded here: the audit middleware need not
+        raise HTTPException(401, str(e)) from None
+    who = Who(done.user.name, done.user.role, done.login_id, done.csrf_token)
+    audit(c, who, "login", client)
+    assert done.token is not None
+    response.set_cookie(
+        COOKIE, done.token, max_age=int(c.accounts.login_length.total_seconds()), httponly=True, samesite="strict",
+        secure=c.settings.tls, path="/",
+    )  # fmt: skip
+    return _me(c, who)
+
+
+@router.post("/logout", status_code=204)
+def logout(response: Response, c: Ctx, who: LoggedIn) -> Response:
+    if who.login_id is not None:
+        audit(c, who, "logout", who.name)
+        c.accounts.logout(who.login_id)
+    response.status_code = 204
+    response.delete_cookie(COOKIE, path="/", httponly=True, samesite="strict", secure=c.settings.tls)
+    return response
+
+
+@router.get("/me")
+def me(c: Ctx, who: LoggedIn) -> schema.Me:
+    """Who the server takes the caller to be: 401 when accounts are on and nobody is logged in."""
+    return _me(c, who)
+
+
+@router.post("/password", status_code=204)
+def change_password(body: schema.PasswordChange, c: Ctx, who: LoggedIn) -> Response:
+    """Change one's own password (the current one checked); every login of the account ends, this one too."""
+    if who.login_id is None:
+        raise HTTPException(409, "accounts are off on this server: there is no password to change")
+    audit(c, who, "password.change", who.name)
+    try:
+        c.accounts.change_password(who.name, body.current, body.new)
+    except LoginFailed as e:
+        raise HTTPException(403, str(e)) from None
+    response = Response(status_code=204)
+    response.delete_cookie(COOKIE, path="/", httponly=True, samesite="strict", secure=c.settings.tls)
+    return response

@@ -1,0 +1,227 @@
+"""Every route's rule, for every role: the OpenAPI document and the app's websockets are enumerated, each
+route must be in :data:`EXPECTED` (a new route without a rule fails here), must declare that rule, and
+answers each role as the rule says: 401 to nobody, 403 to a role without the permission, anything else
+to a role with it. The real app with accounts on, a real SQLite file, real logins with argon2 hashes."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.dependencies.models import Dependant
+from fastapi.routing import APIRoute, APIWebSocketRoute
+from fastapi.testclient import TestClient
+from starlette.websockets import WebSocketDisconnect
+
+from server.app import create_app
+from server.auth import COOKIE, CSRF_HEADER, PERMISSIONS, _device, _Guard, _public
+from server.settings import Settings
+from sessions import schema
+
+PASSWORD = "correct horse battery"
+#: (method, path) -> the permission it needs; "public": anyone; "device": its session's device token.
+EXPECTED: dict[tuple[str, str], str] = {
+    ("GET", "/api/health"): "public",
+    ("GET", "/api/schema"): "read",
+    ("POST", "/api/auth/login"): "public",
+    ("POST", "/api/auth/logout"): "login",
+    ("GET", "/api/auth/me"): "login",
+    ("POST", "/api/auth/password"): "login",
+    ("GET", "/api/users"): "admin",
+    ("POST", "/api/users"): "admin",
+    ("PATCH", "/api/users/{name}"): "admin",
+    ("GET", "/api/audit"): "admin",
+    ("GET", "/api/audit.csv"): "admin",
+    ("GET", "/api/audit/verify"): "admin",
+    ("POST", "/api/sessions/{session_id}/device-tokens"): "run",
+    ("GET", "/api/sessions/{session_id}/device-tokens"): "read",
+    ("DELETE", "/api/sessions/{session_id}/device-tokens/{token_id}"): "run",
+    ("GET", "/api/subjects"): "read",
+    ("POST", "/api/subjects"): "run",
+    ("GET", "/api/subjects/{subject_id}"): "read",
+    ("GET", "/api/subjects/{subject_id}/assistance-limits"): "read",
+    ("PUT", "/api/subjects/{subject_id}/assistance-limits"): "set_limits",
+    ("GET", "/api/subjects/{subject_id}/fingerprints"): "read",
+    ("POST", "/api/subjects/{subject_id}/fingerprints"): "run",
+    ("POST", "/api/subjects/{subject_id}/fingerprints/{personalization_id}/promote"): "promote",
+    ("POST", "/api/subjects/{subject_id}/fingerprints/rollback"): "promote",
+    ("GET", "/api/subjects/{subject_id}/fingerprints/{personalization_id}/export"): "read",
+    ("POST", "/api/subjects/{subject_id}/fingerprints/import"): "upload",
+    ("GET", "/api/subjects/{subject_id}/imu-calibrations"): "read",
+    ("GET", "/api/sessions"): "read",
+    ("POST", "/api/sessions"): "run",
+    ("GET", "/api/sessions/{session_id}"): "read",
+    ("POST", "/api/sessions/{session_id}/start"): "run",
+    ("POST", "/api/sessions/{session_id}/stop"): "run",
+    ("PATCH", "/api/sessions/{session_id}/settings"): "assist_within_limits",
+    ("POST", "/api/sessions/{session_id}/settings/undo"): "assist_within_limits",
+    ("GET", "/api/sessions/{session_id}/events"): "read",
+    ("POST", "/api/sessions/{session_id}/annotations"): "annotate",
+    ("POST", "/api/sessions/{session_id}/recording"): "run",
+    ("POST", "/api/sessions/{session_id}/imu-calibration"): "run",
+    ("GET", "/api/sessions/{session_id}/imu-calibration"): "read",
+    ("GET", "/api/sessions/{session_id}/gp-learning"): "read",
+    ("POST", "/api/sessions/{session_id}/gp-learning"): "run",
+    ("GET", "/api/sessions/{session_id}/summary"): "read",
+    ("POST", "/api/sessions/{session_id}/exports"): "read",
+    ("GET", "/api/exports/{job_id}"): "read",
+    ("GET", "/api/exports/{job_id}/file"): "read",
+    ("GET", "/api/models"): "read",
+    ("GET", "/api/trials"): "read",
+    ("GET", "/api/trials/{trial_id}"): "read",
+    ("GET", "/api/trials/{trial_id}/events"): "read",
+    ("GET", "/api/trials/{trial_id}/series"): "read",
+    ("GET", "/api/trials/{trial_id}/intent"): "read",
+    ("GET", "/api/trials/{trial_id}/download"): "read",
+    ("GET", "/api/trials/{trial_id}/settings"): "read",
+    ("GET", "/api/trials/{trial_id}/estimators"): "read",
+    ("POST", "/api/trials/{trial_id}/rerun"): "run",
+    ("POST", "/api/trials/{trial_id}/compare"): "read",
+    ("GET", "/api/trials/{trial_id}/annotations"): "read",
+    ("POST", "/api/trials/{trial_id}/annotations"): "annotate",
+    ("DELETE", "/api/trials/{trial_id}/annotations/{annotation_id}"): "annotate",
+    ("POST", "/api/uploads"): "upload",
+    ("PUT", "/api/uploads/{upload_id}"): "upload",
+    ("POST", "/api/uploads/{upload_id}/finish"): "upload",
+    ("DELETE", "/api/uploads/{upload_id}"): "upload",
+    ("GET", "/api/viewer"): "read",
+    ("POST", "/api/viewer/focus"): "read",
+    ("POST", "/api/viewer/show"): "read",
+    ("WEBSOCKET", "/ws/sessions/{session_id}"): "read",
+    ("WEBSOCKET", "/ws/devices/{session_id}"): "device",
+}
+
+
+def _settings(tmp_path: Path, **kw: Any) -> Settings:
+    return Settings(
+        data_dir=tmp_path / "data", demo=False, leg_view=False, allowed_hosts=["testserver"], disk_warn_mb=1,
+        disk_stop_mb=1, upload_min_free_mb=1, auth=True, **kw,
+    )  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def app_with_users(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
+    """The app with accounts on and one user of each role (``<role>1``)."""
+    with TestClient(create_app(_settings(tmp_path_factory.mktemp("roles")))) as c:
+        for role in schema.ROLES:
+            c.app.state.ctx.accounts.add_user(  # type: ignore[attr-defined]
+                schema.UserCreate(name=f"{role}1", role=role, password=PASSWORD), by="test"
+            )
+        yield c
+
+
+def login(client: TestClient, name: str, password: str = PASSWORD) -> dict[str, str]:
+    """Log ``name`` in; returns the headers a browser would send next (its cookie and CSRF token)."""
+    client.cookies.clear()
+    r = client.post("/api/auth/login", json={"name": name, "password": password})
+    assert r.status_code == 200, r.text
+    token = client.cookies.get(COOKIE)
+    assert token
+    client.cookies.clear()  # sent explicitly, per request, so that one client can act as several users
+    return {"cookie": f"{COOKIE}={token}", CSRF_HEADER: r.json()["csrf_token"]}
+
+
+def _walk(routes: list[Any]) -> Iterator[Any]:
+    """The app's routes, those of included routers too (FastAPI >= 0.16x wraps each included router)."""
+    for route in routes:
+        inner = getattr(route, "original_router", None)
+        if inner is not None:
+            yield from _walk(inner.routes)
+        else:
+            yield route
+
+
+def _routes(client: TestClient) -> set[tuple[str, str]]:
+    """Every REST route of the OpenAPI document, and every websocket route of the app."""
+    found = {(m.upper(), path) for path, item in client.get("/openapi.json").json()["paths"].items() for m in item}
+    walked = list(_walk(client.app.routes))  # type: ignore[attr-defined]
+    found |= {("WEBSOCKET", r.path) for r in walked if isinstance(r, APIWebSocketRoute)}
+    assert found >= {(m, r.path) for r in walked if isinstance(r, APIRoute) for m in r.methods}  # none hidden
+    return found
+
+
+def _rules(dependant: Dependant) -> list[str]:
+    """The rules a route's dependencies declare (its own and its dependencies')."""
+    out = []
+    for d in dependant.dependencies:
+        call = d.call
+        if isinstance(call, _Guard):
+            out.append("login" if call.permission is None else call.permission)
+        elif call is _public:
+            out.append("public")
+        elif call is _device:
+            out.append("device")
+        out.extend(_rules(d))
+    return out
+
+
+def test_every_route_has_a_rule_and_declares_it(app_with_users: TestClient) -> None:
+    routes = _routes(app_with_users)
+    assert sorted(set(routes) - set(EXPECTED)) == [], "routes without an expected rule: add them to EXPECTED"
+    assert sorted(set(EXPECTED) - set(routes)) == [], "rules for routes that do not exist"
+    for route in _walk(app_with_users.app.routes):  # type: ignore[attr-defined]
+        if isinstance(route, APIRoute):
+            for method in route.methods:
+                assert _rules(route.dependant) == [EXPECTED[(method, route.path)]], (method, route.path)
+        elif isinstance(route, APIWebSocketRoute):
+            assert _rules(route.dependant) == [EXPECTED[("WEBSOCKET", route.path)]], route.path
+
+
+def _url(path: str) -> str:
+    return re.sub(r"\{(\w+)\}", lambda m: "nobody" if m[1] in ("name", "upload_id") else "999", path)
+
+
+def _may(role: schema.Role, rule: str) -> bool:
+    return rule in ("public", "login") or rule in PERMISSIONS[role]
+
+
+@pytest.mark.parametrize("role", [None, *schema.ROLES])
+def test_every_route_answers_each_role_as_its_rule_says(app_with_users: TestClient, role: schema.Role | None) -> None:
+    client = app_with_users
+    headers = {} if role is None else login(client, f"{role}1")
+    checked = 0
+    for (method, path), rule in EXPECTED.items():
+        if method == "WEBSOCKET" or (method, path) in {("POST", "/api/auth/login"), ("POST", "/api/auth/logout")}:
+            continue  # websockets below; logging in and out is test_auth's
+        if (method, path) == ("POST", "/api/auth/password"):
+            body: Any = {"current": "wrong password", "new": "another good password"}
+        else:
+            body = {} if method in ("POST", "PUT", "PATCH") else None
+        r = client.request(method, _url(path), json=body, headers=headers)
+        if rule == "public":
+            assert r.status_code not in (401, 403), (method, path, r.status_code, r.text)
+        elif role is None:
+            assert r.status_code == 401, (method, path, r.status_code, r.text)
+        elif not _may(role, rule):
+            assert r.status_code == 403, (role, method, path, r.status_code, r.text)
+            assert "may not" in r.json()["detail"]
+        else:
+            assert r.status_code not in (401, 403) or (method, path) == ("POST", "/api/auth/password"), (
+                role, method, path, r.status_code, r.text,
+            )  # fmt: skip
+        checked += 1
+    assert checked == len(EXPECTED) - 4
+
+
+@pytest.mark.parametrize("role", [None, *schema.ROLES])
+def test_the_session_stream_needs_a_login(app_with_users: TestClient, role: schema.Role | None) -> None:
+    headers = {} if role is None else login(app_with_users, f"{role}1")
+    with pytest.raises(WebSocketDisconnect) as exc:
+        with app_with_users.websocket_connect("/ws/sessions/999", headers=headers) as ws:
+            ws.receive_text()
+    # nobody: refused (1008) before anything; a role: let in, then told there is no session 999
+    assert (exc.value.code == 1008) == (role is None), (role, exc.value.code, exc.value.reason)
+
+
+def test_state_changes_need_the_logins_csrf_token(app_with_users: TestClient) -> None:
+    client = app_with_users
+    headers = login(client, "clinician1")
+    body = {"code": "CSRF1", "leg_length_m": 0.9, "mass_kg": 70}
+    for sent in ({"cookie": headers["cookie"]}, {"cookie": headers["cookie"], CSRF_HEADER: "forged"}):
+        r = client.post("/api/subjects", json=body, headers=sent)
+        assert r.status_code == 403 and CSRF_HEADER in r.json()["detail"], r.text
+    assert client.get("/api/subjects", headers={"cookie": headers["cookie"]}).status_code == 200  # reads need none
+    assert client.post("/api/subjects", json=body, headers=headers).status_code == 201
