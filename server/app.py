@@ -110,6 +110,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             on_state=lambda *a: ctx.on_state(*a),
             disk_check=disk.check,
             gp_trainer=GPTrainer(duty=settings.gp_fit_duty),
+            node=settings.node,
         )
         accounts = Accounts(
             store, lockout_after=settings.lockout_after, lockout_minutes=settings.lockout_minutes,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ipaddress
+import socket
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -51,6 +52,10 @@ class Settings(BaseSettings):
             is marked Secure and the server trusts the proxy's forwarded scheme and client address.
         login_hours: a login lasts this long (a clinic's day).
         lockout_after, lockout_minutes: this many failed logins in a row lock an account for that long.
+        node: this process's name in a shared database (several gaitscope processes on one PostgreSQL):
+            stored with each session it runs; at start-up it recovers only its own sessions after a crash, and
+            it refuses to stop another's. Default ``<host name>:<port>``: stable across restarts, distinct for
+            processes on other machines or ports.
         gp_fit_duty: the fraction of its time the GP-EKF's shared fitting worker may spend fitting
             (:class:`~sessions.live.gp_learning.GPTrainer`): with many learning sessions on few cores,
             each retrains less often than seed 003's every 5 steps, so that the fits leave the cores to
@@ -76,6 +81,7 @@ class Settings(BaseSettings):
     disk_warn_mb: int = Field(default=512, ge=1)
     disk_stop_mb: int = Field(default=128, ge=1)
     gp_fit_duty: float = Field(default=DUTY, gt=0.0, le=1.0)
+    node: str = Field(default="", max_length=128)
     auth: bool = False
     tls_cert: Path | None = None
     tls_key: Path | None = None
@@ -98,6 +104,8 @@ class Settings(BaseSettings):
 
     @model_validator(mode="after")
     def _defaults_and_safety(self) -> Settings:
+        if not self.node:
+            self.node = f"{socket.gethostname()}:{self.port}"
         if not self.database_url:
             self.database_url = f"sqlite:///{(self.data_dir / 'gaitscope.db').as_posix()}"
         self.allowed_hosts = allowed_hosts_for(self.host, self.allowed_hosts)

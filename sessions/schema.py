@@ -352,6 +352,9 @@ class Session(BaseModel):
     created_utc: str
     started_utc: str | None = None
     stopped_utc: str | None = None
+    node: str | None = Field(
+        default=None, description="the server process that runs (or ran) it: several may share one database"
+    )
 
 
 #: ``recovered``: a crash left the recording unfinished and start-up recovery re-indexed it (the last

@@ -122,6 +122,7 @@ class _SessionRow(_Base):
     created_utc: Mapped[str] = mapped_column(String(40))
     started_utc: Mapped[str | None] = mapped_column(String(40))
     stopped_utc: Mapped[str | None] = mapped_column(String(40))
+    node: Mapped[str | None] = mapped_column(String(128))  # the process that runs it (Settings.node)
 
 
 class _TrialRow(_Base):
@@ -229,6 +230,7 @@ def _session(row: _SessionRow) -> schema.Session:
             "created_utc": row.created_utc,
             "started_utc": row.started_utc,
             "stopped_utc": row.stopped_utc,
+            "node": row.node,
         }
     )
 
@@ -476,14 +478,19 @@ class Store:
         with self._read() as session:
             return _session(self._get(session, _SessionRow, session_id))
 
-    def set_session_state(self, session_id: int, state: schema.SessionState) -> schema.Session:
+    def set_session_state(
+        self, session_id: int, state: schema.SessionState, node: str | None = None
+    ) -> schema.Session:
         """Move a session to ``state``; the first move to running / stopped stamps started / stopped_utc.
+        ``node``: the process that runs it, stored with a move to running.
 
         Any move is accepted: which ones are allowed is the server's rule.
         """
         with self._write() as session:
             row = self._get(session, _SessionRow, session_id, for_update=True)
             row.state = state
+            if state == "running" and node is not None:
+                row.node = node
             if state == "running" and row.started_utc is None:
                 row.started_utc = _stamp()
             elif state == "stopped" and row.stopped_utc is None:
@@ -516,9 +523,12 @@ class Store:
             session.flush()
             return _session(row), [_event(r) for r in rows]
 
-    def running_sessions(self) -> list[schema.Session]:
-        """Sessions in state ``running``, oldest first (at start-up: those a crash left running)."""
+    def running_sessions(self, node: str | None = None) -> list[schema.Session]:
+        """Sessions in state ``running``, oldest first (at start-up: those a crash left running); with ``node``,
+        only those that node runs (and those of no node: made before sessions had one)."""
         query = select(_SessionRow).where(_SessionRow.state == "running").order_by(_SessionRow.id)
+        if node is not None:
+            query = query.where((_SessionRow.node == node) | _SessionRow.node.is_(None))
         with self._read() as session:
             return [_session(r) for r in session.scalars(query)]
 

@@ -59,8 +59,10 @@ class SessionManager:
         on_state: Callable[[int, schema.GaitState, float], None] | None = None,
         disk_check: Callable[[], DiskState] | None = None,
         gp_trainer: GPTrainer | None = None,
+        node: str | None = None,
     ):
         self.store = store
+        self.node = node  # this process's name in the shared database (Settings.node)
         self.data_dir = data_dir
         self.models = models
         self.on_state = on_state
@@ -70,6 +72,9 @@ class SessionManager:
 
     def recover_after_crash(self) -> list[schema.Trial]:
         """At start-up: end every trial and session that a crash left open; returns the recovered trials.
+
+        Only this process's (its :attr:`node`'s, and those of no node): sessions another process runs on the
+        same database, and their recordings, are that process's.
 
         Every trial still ``recording`` ends ``recovered`` when :func:`~sessions.formats.mcap_io.recover`
         re-indexes its file (a kill loses at most the last ~0.5 s, :mod:`sessions.formats.recording`), else
@@ -81,7 +86,10 @@ class SessionManager:
         """
         recovered = []
         last_t: dict[int, float] = {}  # session -> latest session time seen in its recovered trials
+        elsewhere = {s.id for s in self.store.running_sessions() if s.node not in (None, self.node)}
         for trial in self.store.trials_with_status("recording"):
+            if trial.session_id in elsewhere:
+                continue  # another process's session, recording now: not this one's to recover
             path = self.data_dir / trial.path
             try:
                 result = recover(path)
@@ -102,7 +110,7 @@ class SessionManager:
             )
             self.store.add_event(trial.session_id, t=end_t, kind="system", text=text, trial_id=trial.id)
             log.warning("recovered %s (%d messages, %d bytes lost)", path, result.messages, result.lost_bytes)
-        for session in self.store.running_sessions():
+        for session in self.store.running_sessions(self.node):
             self.store.set_session_state(session.id, "stopped")
             t = max(last_t.get(session.id, 0.0), _last_event_t(self.store, session.id))
             self.store.add_event(session.id, t=t, kind="system", text="server restarted: session stopped")
@@ -150,7 +158,7 @@ class SessionManager:
                 self.store.add_event(session_id, t=0.0, kind="system", text=f"session refused to start: {e}")
             self.store.set_session_state(session_id, "failed")
             raise SessionStateError(f"session {session_id} cannot start: {e}") from e
-        session = runtime.session = self.store.set_session_state(session_id, "running")
+        session = runtime.session = self.store.set_session_state(session_id, "running", self.node)
         attach_history(runtime)  # the last 30 s for a browser that opens the session later, from the first sample
         try:
             runtime.start()
@@ -179,6 +187,8 @@ class SessionManager:
         session = self.store.get_session(session_id)
         runtime = self.runtimes.pop(session_id, None)
         if runtime is None:
+            if session.state == "running" and session.node not in (None, self.node):
+                raise SessionStateError(f"session {session_id} runs on {session.node}: stop it there")
             if session.state == "running":  # running in the database but not here: a stale record
                 return self.store.set_session_state(session_id, "stopped")
             raise SessionStateError(f"session {session_id} is {session.state}, not running")

@@ -29,13 +29,17 @@ FINAL = {"finished", "recovered", "uploaded", "damaged"}
 START_NS = 1_700_000_000_000_000_000
 
 
+NODE = "recovery-test-node"
+
+
 def settings_for(data: Path) -> Settings:
-    return Settings(data_dir=data, demo=False, leg_view=False, allowed_hosts=["testserver"])  # TestClient's Host
+    return Settings(data_dir=data, demo=False, leg_view=False, allowed_hosts=["testserver"], node=NODE)
 
 
 def test_killed_server_loses_at_most_a_second_and_restart_recovers(tmp_path: Path) -> None:
     data = tmp_path / "data"
-    server = start_server(data, "--no-leg-view", timeout=60)
+    # the restarted server is the same node (a supervisor restarts it on its port; here another port, so named)
+    server = start_server(data, "--no-leg-view", env={**os.environ, "GAITSCOPE_NODE": NODE}, timeout=60)
     try:
         time.sleep(4.0)  # the demo session records at 200 Hz: several chunks on disk
     finally:
@@ -161,3 +165,22 @@ def test_startup_ends_every_trial_and_session_a_crash_left_open(tmp_path: Path) 
         }
         assert client.get(f"/api/sessions/{live.id}/events").json() == before
         assert all(t["status"] in FINAL for t in client.get("/api/trials").json())
+
+
+def test_a_restart_leaves_another_nodes_running_session_alone(tmp_path: Path) -> None:
+    """Two processes on one database: a process that starts recovers its own sessions, not another's, and
+    refuses to stop another's."""
+    data = tmp_path / "data"
+    store = Store(settings_for(data).database_url)
+    subject = store.create_subject(schema.SubjectCreate(code="N1", leg_length_m=0.9, mass_kg=70.0))
+    mine, theirs = (store.create_session(schema.SessionCreate(subject_id=subject.id, start=False)) for _ in range(2))
+    store.set_session_state(mine.id, "running", NODE)
+    store.set_session_state(theirs.id, "running", "other-host:8000")
+    store.create_trial(theirs.id, "theirs", "recordings/theirs.mcap")
+    store.close()
+    with TestClient(create_app(settings_for(data))) as client:
+        states = {s["id"]: (s["state"], s["node"]) for s in client.get("/api/sessions").json()}
+        assert states == {mine.id: ("stopped", NODE), theirs.id: ("running", "other-host:8000")}
+        assert [t["status"] for t in client.get("/api/trials").json()] == ["recording"]  # theirs, still recording
+        r = client.post(f"/api/sessions/{theirs.id}/stop")
+        assert r.status_code == 409 and "runs on other-host:8000: stop it there" in r.json()["detail"]

@@ -24,7 +24,7 @@ def test_notes_round_trip_by_time_per_trial(store: Store) -> None:
     span = store.add_review_annotation(1, schema.ReviewAnnotationCreate(t=1.0, t_end=2.5, text="span"))
     other = store.add_review_annotation(2, schema.ReviewAnnotationCreate(t=0.5, text="other trial"))
     assert (late.id, late.trial_id, late.t, late.t_end, late.actor) == (1, 1, 5.0, None, "dr-k")
-    assert (span.t, span.t_end, span.actor) == (1.0, 2.5, "clinician") and span.created_utc
+    assert (span.t, span.t_end, span.actor) == (1.0, 2.5, "local") and span.created_utc
     assert [n.text for n in store.list_review_annotations(1)] == ["span", "late"]
     assert store.list_review_annotations(2) == [other]
 
