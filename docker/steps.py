@@ -12,7 +12,7 @@ What differs from the image, each on purpose and listed in the script's comments
 
 - Container paths (:data:`MAPPED`) live under ``root``; any other absolute path on a ``RUN``, ``ENV``,
   ``COPY``, ``WORKDIR`` or ``VOLUME`` line is refused (:func:`check_paths`), so a new one must be mapped.
-- ``python`` is the host's CPython (``$PYTHON``, at least 3.11) instead of the base image's.
+- ``python`` is the host's CPython 3.11 (``$PYTHON``; ``steps.sh`` checks the version) instead of the base image's.
 - Commands that need root inside the image (:data:`IMAGE_ONLY`: creating the user, ``chown``) are left out,
   and ``USER`` is not switched: the steps run as whoever runs the script.
 - ``--no-cache-dir`` is dropped, so that pip reuses the host's download cache (the image must not keep one).
@@ -388,7 +388,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--dockerfile", type=Path, default=here / "Dockerfile")
     p.add_argument("--context", type=Path, default=here.parent, help="build context (default: the repository)")
     p.add_argument("--root", type=Path, required=True, help="empty folder standing in for the image's file system")
-    p.add_argument("--python", default=sys.executable, help="CPython >= 3.11 standing in for the image's python")
+    p.add_argument("--python", default=sys.executable, help="CPython 3.11 standing in for the image's python")
     p.add_argument("--out", type=Path, help="write the script here (default: standard output)")
     a = p.parse_args(argv)
     try:

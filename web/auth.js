@@ -10,7 +10,8 @@
 import { api, loginHash, setCsrfToken, whenLoggedOut } from "./api.js";
 import { h } from "./ui.js";
 
-/** What each permission lets one do, in the words of the server's refusals (server/auth.py's DOES). */
+/** What each permission lets one do, in the words of the server's refusals (server/auth.py's DOES); only
+ *  `assist_within_limits` is shorter: the UI names it to a role that holds neither assistance permission. */
 export const DOES = {
   read: "see data",
   run: "run sessions and trials",
@@ -20,7 +21,7 @@ export const DOES = {
   assist_within_limits: "change assistance",
   promote: "promote or roll back personalized models",
   set_limits: "set the experimenters' assistance limits",
-  admin: "administer users",
+  admin: "administer users, models and the audit trail",
 };
 
 let _me = null;

@@ -45,6 +45,7 @@
  * @property {string} created_utc
  * @property {string | null} [started_utc=null]
  * @property {string | null} [stopped_utc=null]
+ * @property {string | null} [node=null] the server process that runs (or ran) it: several may share one database
  */
 
 /**
