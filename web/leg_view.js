@@ -15,11 +15,18 @@ import { h } from "./ui.js";
 // panel minimized, and the whole leg in view.
 export const MIN_LAYOUT_WIDTH = 600;
 
-/** Resolves the leg view's address for this browser: a loopback URL is moved to the dashboard's host. */
+/**
+ * Resolves the leg view's address for this browser: a loopback or wildcard address (the server's bind, as in a
+ * container) is moved to the dashboard's host, and a dashboard served over HTTPS (its own TLS, or a proxy's,
+ * which serves the view's port over TLS too) gets the view over HTTPS: a browser blocks an http:// frame in an
+ * https:// page.
+ */
 export function viewerUrl(url) {
   const u = new URL(url);
   const loop = (host) => ["127.0.0.1", "localhost", "[::1]"].includes(host);
-  if (loop(u.hostname) && !loop(location.hostname)) u.hostname = location.hostname;
+  const wildcard = (host) => ["0.0.0.0", "[::]"].includes(host);
+  if ((loop(u.hostname) && !loop(location.hostname)) || wildcard(u.hostname)) u.hostname = location.hostname;
+  if (location.protocol === "https:") u.protocol = "https:";
   return u.toString();
 }
 

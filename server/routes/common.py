@@ -154,3 +154,12 @@ def audit(
     c.audit.record(
         user=who.name, role=who.role, action=action, target=target, before=before, after=after, detail=detail
     )
+
+
+def not_running_here(c: AppContext, session_id: int, what: str = "") -> str:
+    """Why session ``session_id`` has no runtime in this process, in words: it does not exist (NotFound), it is
+    not running, or it runs in another process (its node) sharing the database. ``what``: "; <what it needs>"."""
+    session = c.store.get_session(session_id)
+    if session.state == "running" and session.node not in (None, c.manager.node):
+        return f"session {session_id} runs on {session.node}, not on this server ({c.manager.node}): use that one"
+    return f"session {session_id} is not running{what}"

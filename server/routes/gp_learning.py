@@ -10,7 +10,7 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Query
 
 from server.auth import Runner, allow
-from server.routes.common import Ctx, audit, by
+from server.routes.common import Ctx, audit, by, not_running_here
 from sessions import schema
 from sessions.gp_models import GP_EKF
 from sessions.live.gp_learning import GPLearning
@@ -24,7 +24,7 @@ def _running(c: Ctx, session_id: int) -> tuple[SessionRuntime, GPLearning]:
     runtime = c.manager.get(session_id)
     if runtime is None:
         c.store.get_session(session_id)
-        raise HTTPException(409, f"session {session_id} is not running; its GP-EKF learns only while it runs")
+        raise HTTPException(409, not_running_here(c, session_id, "; its GP-EKF learns only while it runs"))
     if runtime.gp_learning is None:
         stack = ", ".join(runtime.estimator.stack.names)
         raise HTTPException(409, f"session {session_id} runs no GP-EKF: {GP_EKF} is not in its stack ({stack})")

@@ -7,7 +7,7 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException
 
 from server.auth import Runner, allow
-from server.routes.common import Ctx, audit, by
+from server.routes.common import Ctx, audit, by, not_running_here
 from sessions import schema
 
 router = APIRouter(prefix="/api")
@@ -22,7 +22,7 @@ async def start_imu_calibration(
     runtime = c.manager.get(session_id)
     if runtime is None:
         c.store.get_session(session_id)
-        raise HTTPException(409, f"session {session_id} is not running; IMUs calibrate only while it runs")
+        raise HTTPException(409, not_running_here(c, session_id, "; IMUs calibrate only while it runs"))
     if not runtime.imu_segments:
         raise HTTPException(
             409,

@@ -6,7 +6,7 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException
 
 from server.auth import Annotator, Assistant, Runner, allow
-from server.routes.common import Ctx, OptionalId, audit, by, check_assistance, trained_model
+from server.routes.common import Ctx, OptionalId, audit, by, check_assistance, not_running_here, trained_model
 from sessions import schema
 from sessions.live.manager import SessionStateError
 from sessions.store import Conflict
@@ -58,7 +58,7 @@ async def change_settings(session_id: int, body: schema.SettingsChange, c: Ctx, 
     runtime = c.manager.get(session_id)
     if runtime is None:
         c.store.get_session(session_id)
-        raise SessionStateError(f"session {session_id} is not running; settings change only while it runs")
+        raise SessionStateError(not_running_here(c, session_id, "; settings change only while it runs"))
     requested = body.model_dump(exclude={"actor", "reason"}, exclude_none=True)
     check_assistance(c, who, runtime.session.subject_id, requested)
     current = runtime.session.settings.model_dump()
@@ -87,7 +87,7 @@ async def recording(session_id: int, body: schema.RecordingControl, c: Ctx, who:
     audit(c, who, f"recording.{body.action}", f"session {session_id}", after=body.model_dump())
     runtime = c.manager.get(session_id)
     if runtime is None:
-        raise HTTPException(409, f"session {session_id} is not running")
+        raise HTTPException(409, not_running_here(c, session_id))
     if body.action == "start":
         if runtime.trial is not None:
             return runtime.trial  # already recording: that trial, under its own name

@@ -22,7 +22,7 @@ from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
 
 from server.auth import Assistant, allow, device
-from server.routes.common import Ctx, audit, check_assistance
+from server.routes.common import Ctx, audit, check_assistance, not_running_here
 from sessions import schema
 from sessions.estimation import FrameRefused
 from sessions.live.manager import SessionStateError
@@ -64,10 +64,10 @@ async def _runtime(ws: WebSocket, session_id: int) -> SessionRuntime | None:
     if runtime is None:
         try:
             c.store.get_session(session_id)
-            reason = f"session {session_id} is not running"
+            reason = not_running_here(c, session_id)
         except NotFound:
             reason = f"session {session_id} does not exist"
-        await ws.close(code=NOT_FOUND, reason=reason)
+        await ws.close(code=NOT_FOUND, reason=reason[:120])
         return None
     return runtime
 
@@ -169,7 +169,7 @@ async def undo_settings(session_id: int, body: schema.SettingsUndo, c: Ctx, who:
     runtime = c.manager.get(session_id)
     if runtime is None:
         c.store.get_session(session_id)  # 404 for an unknown session
-        raise SessionStateError(f"session {session_id} is not running; settings change only while it runs")
+        raise SessionStateError(not_running_here(c, session_id, "; settings change only while it runs"))
     subject_id = runtime.session.subject_id
 
     def check(change: schema.SettingsChange) -> None:
