@@ -12,10 +12,14 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from estimators.pipeline import PipelineConfig, TrainedModel
 from sessions.errors import DataFormatError
 from sessions.schema import SETTING_LIMITS, ModelProvenance, SubjectCreate, field_bounds
+
+if TYPE_CHECKING:
+    from server.settings import Settings
 
 EXIT_BAD_INPUT = 2
 
@@ -344,12 +348,10 @@ def _safe_url(url: str) -> str:
     return make_url(url).render_as_string(hide_password=True)
 
 
-def _has_users(settings: object) -> bool:
-    from server.settings import Settings
+def _has_users(settings: Settings) -> bool:
     from sessions.accounts import Accounts
     from sessions.store import Store
 
-    assert isinstance(settings, Settings)
     store = Store(settings.database_url)
     try:
         return Accounts(store).count_users() > 0

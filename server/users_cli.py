@@ -49,11 +49,9 @@ def _errors(e: ValidationError) -> str:
 
 
 def _audit(store: Any, action: str, target: str, before: Any = None, after: Any = None) -> None:
-    """Write the command's change to the audit trail, when the audit trail is installed."""
-    try:
-        from sessions.audit import AuditLog
-    except ImportError:
-        return
+    """Write the command's change to the audit trail, before it is made."""
+    from sessions.audit import AuditLog
+
     AuditLog(store).record(user="cli", role="admin", action=action, target=target, before=before, after=after)
 
 

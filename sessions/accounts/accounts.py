@@ -20,6 +20,7 @@ Choices:
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import hashlib
 import hmac
 import secrets
@@ -103,7 +104,12 @@ class Accounts:
         self.lockout = dt.timedelta(minutes=lockout_minutes)
         self.login_length = dt.timedelta(hours=login_hours)
         self._hasher = hasher or PasswordHasher()
-        self._dummy_hash = self._hasher.hash(_DUMMY_PASSWORD)
+
+    @functools.cached_property
+    def _dummy_hash(self) -> str:
+        """The hash an unknown name's password is checked against: made at the first such login, not with every
+        :class:`Accounts` (an argon2 hash costs 64 MiB and tens of milliseconds)."""
+        return self._hasher.hash(_DUMMY_PASSWORD)
 
     # --- users --------------------------------------------------------------------------------------
 
