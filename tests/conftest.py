@@ -12,12 +12,15 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import logging
 import os
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pandas as pd
 import pytest
+import sqlalchemy.exc
 from fastapi.testclient import TestClient
 from sqlalchemy import Engine, create_engine, make_url
 from sqlalchemy.pool import NullPool
@@ -104,8 +107,23 @@ def _postgres_copy(admin: Engine, kind: str) -> Iterator[str]:
     try:
         yield make_url(POSTGRES).set(database=name).render_as_string(hide_password=False)
     finally:
-        with admin.connect() as c:
-            c.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+        _drop(admin, name)
+
+
+def _drop(admin: Engine, name: str, tries: int = 5) -> None:
+    """Drop a test's database. ``WITH (FORCE)`` may be refused while one of its connections belongs to a
+    process of another role (a server subprocess's worker ending as it is asked): try again shortly; the
+    throwaway cluster, and any database left in it, is deleted when the run ends anyway."""
+    for attempt in range(tries):
+        try:
+            with admin.connect() as c:
+                c.exec_driver_sql(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+            return
+        except sqlalchemy.exc.DBAPIError:
+            if attempt == tries - 1:
+                logging.getLogger(__name__).warning("test database %s not dropped (deleted with the cluster)", name)
+                return
+            time.sleep(0.5)
 
 
 @pytest.fixture(scope="module", autouse=True)
