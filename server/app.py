@@ -28,6 +28,7 @@ from server.settings import Settings
 from sessions import schema
 from sessions.accounts import Accounts
 from sessions.audit import AuditLog
+from sessions.audit.key import settings_key
 from sessions.formats.models import gaitscope_version
 from sessions.live.disk import DiskGuard
 from sessions.live.gp_learning import GPTrainer
@@ -79,6 +80,13 @@ def _cookie_logged_in(accounts: Accounts, cookie_header: str) -> bool:
     return morsel is not None and accounts.identify(morsel.value) is not None
 
 
+def _audit_key(settings: Settings) -> bytes:
+    """The audit trail's key: ``GAITSCOPE_AUDIT_KEY``, else the data folder's ``audit.key`` (made at first start)."""
+    key = settings_key(settings, create=True)
+    assert key is not None  # created if missing
+    return key
+
+
 def _demo(ctx: AppContext) -> None:
     """An empty database gets a demo subject walking seed 000's treadmill protocol."""
     if ctx.store.list_subjects():
@@ -116,9 +124,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             store, lockout_after=settings.lockout_after, lockout_minutes=settings.lockout_minutes,
             login_hours=settings.login_hours,
         )  # fmt: skip
+        audit = AuditLog(store, _audit_key(settings))
+        audit.ensure_keyed()  # a trail from before the key: its keyed part starts here; another key: refused
         ctx = AppContext(
             settings=settings, store=store, models=models, manager=manager, uploads=Uploads(settings),
-            accounts=accounts, audit=AuditLog(store),
+            accounts=accounts, audit=audit,
         )  # fmt: skip
         ctx.uploads.clear_leftovers()  # uploads live in memory: a restart ends them
         for trial in ctx.manager.recover_after_crash():

@@ -7,7 +7,7 @@ import socket
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from server.origin import LOOPBACK_HOSTS, allowed_host, allowed_hosts_for
@@ -56,6 +56,9 @@ class Settings(BaseSettings):
             stored with each session it runs; at start-up it recovers only its own sessions after a crash, and
             it refuses to stop another's. Default ``<host name>:<port>``: stable across restarts, distinct for
             processes on other machines or ports.
+        audit_key: the audit trail's key (``GAITSCOPE_AUDIT_KEY``, at least 32 characters): every entry carries an
+            HMAC under it (:mod:`sessions.audit.key`). Unset: the data folder's ``audit.key``, created (0600) at
+            first start. Processes sharing one database need the same key: set it on each.
         gp_fit_duty: the fraction of its time the GP-EKF's shared fitting worker may spend fitting
             (:class:`~sessions.live.gp_learning.GPTrainer`): with many learning sessions on few cores,
             each retrains less often than seed 003's every 5 steps, so that the fits leave the cores to
@@ -90,6 +93,7 @@ class Settings(BaseSettings):
     lockout_after: int = Field(default=5, ge=1, le=100)
     lockout_minutes: float = Field(default=15.0, gt=0.0, le=24.0 * 60)
     allowed_hosts: Annotated[list[str], NoDecode] = Field(default_factory=lambda: list(LOOPBACK_HOSTS))
+    audit_key: SecretStr | None = None
 
     @field_validator("allowed_hosts", mode="before")
     @classmethod

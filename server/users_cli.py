@@ -48,11 +48,21 @@ def _errors(e: ValidationError) -> str:
     return "; ".join(f"{'.'.join(str(x) for x in err['loc'])}: {err['msg']}" for err in e.errors())
 
 
-def _audit(store: Any, action: str, target: str, before: Any = None, after: Any = None) -> None:
-    """Write the command's change to the audit trail, before it is made."""
+def _audit(a: argparse.Namespace, store: Any, action: str, target: str, before: Any = None, after: Any = None) -> None:
+    """Write the command's change to the audit trail, before it is made (MAC'd with the server's audit key)."""
+    from server.settings import Settings
     from sessions.audit import AuditLog
+    from sessions.audit.key import settings_key
 
-    AuditLog(store).record(user="cli", role="admin", action=action, target=target, before=before, after=after)
+    settings = Settings(**({"data_dir": a.data_dir} if a.data_dir is not None else {}))
+    key = settings_key(settings, create=True)
+    assert key is not None  # created if missing
+    log = AuditLog(store, key)
+    try:
+        log.ensure_keyed(user="cli")  # refused if the server writes with another key
+    except ValueError as e:
+        raise DataFormatError(str(e), file="audit") from None
+    log.record(user="cli", role="admin", action=action, target=target, before=before, after=after)
 
 
 def cmd_user(a: argparse.Namespace) -> int:
@@ -69,16 +79,16 @@ def cmd_user(a: argparse.Namespace) -> int:
         try:
             if a.user_command == "add":
                 body = schema.UserCreate(name=a.name, role=a.role, password=_password(a))
-                _audit(store, "user.add", a.name, after={"role": a.role})
+                _audit(a, store, "user.add", a.name, after={"role": a.role})
                 user = accounts.add_user(body, by="cli")
                 print(f"added {user.role} {user.name!r}")
             elif a.user_command == "reset-password":
                 change = schema.UserChange(password=_password(a), unlock=True)
-                _audit(store, "user.reset_password", a.name)
+                _audit(a, store, "user.reset_password", a.name)
                 accounts.change_user(a.name, change, by="cli")
                 print(f"new password set for {a.name!r}; their logins ended")
             elif a.user_command == "unlock":
-                _audit(store, "user.unlock", a.name)
+                _audit(a, store, "user.unlock", a.name)
                 accounts.change_user(a.name, schema.UserChange(unlock=True), by="cli")
                 print(f"{a.name!r} unlocked")
         except ValidationError as e:

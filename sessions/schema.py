@@ -1587,6 +1587,11 @@ class AuditEntry(BaseModel):
     detail: str = ""
     prev_hash: str = Field(pattern=r"^[0-9a-f]{64}$")
     hash: str = Field(pattern=r"^[0-9a-f]{64}$")
+    mac: str | None = Field(
+        default=None,
+        pattern=r"^[0-9a-f]{64}$",
+        description="HMAC-SHA256 of ``hash`` under the audit key (null: written before the trail was keyed)",
+    )
 
 
 class AuditQuery(_Strict):
@@ -1622,6 +1627,29 @@ class AuditVerification(BaseModel):
     problem: str | None = Field(default=None, description="why, in words ('hash mismatch at seq 17 ...')")
     last_hash: str | None = Field(
         default=None, description="the newest entry's hash: note it elsewhere to detect a cut-off tail later"
+    )
+    keyed_from: int | None = Field(
+        default=None,
+        description="the first entry with a MAC; those before it (written before the trail was keyed) are "
+        "checked by the SHA-256 chain only. Null: no keyed entry",
+    )
+    checkpoint_seq: int | None = Field(
+        default=None, description="the checkpoint checked against: no entry up to this seq was cut or rewritten"
+    )
+
+
+class AuditCheckpoint(_Strict):
+    """The audit trail's head at a moment, signed with the audit key: the file ``gaitscope audit checkpoint``
+    writes, for the admin to keep away from the database. ``gaitscope audit verify --checkpoint FILE`` then
+    proves that no entry up to ``seq`` was cut off or rewritten since (``sessions/audit/log.py``)."""
+
+    format: Literal["gaitscope-audit-checkpoint/1"] = "gaitscope-audit-checkpoint/1"
+    seq: int = Field(ge=0, le=INT64_MAX, description="how many entries the trail had (the newest one's seq)")
+    hash: str = Field(pattern=r"^[0-9a-f]{64}$", description="the newest entry's hash (64 zeros: no entry)")
+    time_utc: str = Field(max_length=40, description="when the checkpoint was made (ISO-8601 UTC)")
+    mac: str = Field(
+        pattern=r"^[0-9a-f]{64}$",
+        description="HMAC-SHA256 under the audit key of the canonical JSON of the other fields",
     )
 
 

@@ -828,6 +828,7 @@
  * @property {string} [detail=""]
  * @property {string} prev_hash
  * @property {string} hash
+ * @property {string | null} [mac=null] HMAC-SHA256 of ``hash`` under the audit key (null: written before the trail was keyed)
  */
 
 /**
@@ -851,6 +852,8 @@
  * @property {number | null} [first_bad_seq=null] where the chain first breaks
  * @property {string | null} [problem=null] why, in words ('hash mismatch at seq 17 ...')
  * @property {string | null} [last_hash=null] the newest entry's hash: note it elsewhere to detect a cut-off tail later
+ * @property {number | null} [keyed_from=null] the first entry with a MAC; those before it (written before the trail was keyed) are checked by the SHA-256 chain only. Null: no keyed entry
+ * @property {number | null} [checkpoint_seq=null] the checkpoint checked against: no entry up to this seq was cut or rewritten
  */
 
 /**
@@ -1393,7 +1396,12 @@ export const FIELD_LIMITS = deepFreeze({
     max_torque_Nm: { min: 0.0, max: 80.0 },
     intent_gain_boost: { min: 0.0, max: 0.3 },
   },
-  AuditEntry: { seq: { min: 1 }, prev_hash: { pattern: "^[0-9a-f]{64}$" }, hash: { pattern: "^[0-9a-f]{64}$" } },
+  AuditEntry: {
+    seq: { min: 1 },
+    prev_hash: { pattern: "^[0-9a-f]{64}$" },
+    hash: { pattern: "^[0-9a-f]{64}$" },
+    mac: { pattern: "^[0-9a-f]{64}$" },
+  },
   AuditQuery: {
     user: { minLength: 1, maxLength: 64 },
     action: { minLength: 1, maxLength: 128 },

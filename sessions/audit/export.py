@@ -20,7 +20,7 @@ __all__ = ["COLUMNS", "csv_chunks", "safe_cell"]
 
 #: The CSV's columns, in order (the fields of :class:`sessions.schema.AuditEntry` but the row key).
 COLUMNS: Final = ("seq", "time_utc", "user", "role", "action", "target", "before", "after", "outcome", "detail",
-                  "prev_hash", "hash")  # fmt: skip
+                  "prev_hash", "hash", "mac")  # fmt: skip
 _FORMULA_START: Final = ("=", "+", "-", "@", "\t", "\r")
 #: Rows per yielded piece of text.
 _ROWS_PER_CHUNK: Final = 500

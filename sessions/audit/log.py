@@ -22,9 +22,32 @@ escaped), so an auditor can re-check a row with any JCS implementation, e.g. ``j
 detail,outcome,prev_hash,role,seq,target,time_utc,user}' | sha256sum`` on a row as JSON (jq agrees with JCS on
 every character but DEL, which it escapes).
 
+**The key.** A hash chain alone proves nothing against someone who can write the database: they change an entry
+and re-hash it and every entry after it, or append an entry of their own, and the chain checks. So each entry
+also carries ``mac``, the HMAC-SHA256 (RFC 2104) of its ``hash`` (the 64 hex characters as ASCII) under the
+audit key, which is kept outside the database (:mod:`sessions.audit.key`)::
+
+    mac = HMAC-SHA256( key, ASCII(hash) )
+
+Since ``hash`` covers ``prev_hash``, each MAC vouches for its entry and for the whole chain before it.
+
+**Checkpoints** (:meth:`AuditLog.checkpoint`, ``gaitscope audit checkpoint``): the newest ``seq`` and ``hash`` at a
+moment, with the HMAC-SHA256 under the key of their canonical JSON (:class:`sessions.schema.AuditCheckpoint`),
+written to a small file the admin keeps elsewhere. Checked against one, verification also finds entries cut off
+the end, up to the checkpoint.
+
 **What verification finds**: a changed entry (its hash no longer matches), a deleted one (a gap in ``seq``), a
-re-ordered or re-hashed one (``prev_hash`` no longer matches the entry before). What no hash chain can find on its
-own is the *newest* entries cut off: :meth:`AuditLog.verify` returns the last hash, to be noted elsewhere.
+re-ordered or re-hashed one (``prev_hash`` no longer matches the entry before, or, re-chained, its MAC no longer
+matches), a forged one (no MAC, or a MAC not made with the key), and, against a checkpoint, entries cut off or
+rewritten up to the checkpoint's ``seq``. What it cannot find: entries after the newest checkpoint cut off (the
+trail then simply ends earlier; take checkpoints often), or anything done by someone holding both the key and
+the database (they can re-make every MAC; only a checkpoint kept where they cannot reach it still binds them).
+
+**Trails from before the key** (migration ``0005_audit_mac``): their entries have no MAC. The first time a server
+runs with a key, :meth:`AuditLog.ensure_keyed` appends an ``audit.keyed`` entry, the first with a MAC; entries
+before it are checked by the SHA-256 chain only, which :attr:`~sessions.schema.AuditVerification.keyed_from`
+reports. After it, an entry without a MAC is a break; so is a trail whose newest entry has none (its MACs
+stripped and the chain re-hashed, which makes the whole trail look older than the key).
 
 **Appends serialize**: every append is one write transaction (``BEGIN IMMEDIATE`` on SQLite); on PostgreSQL,
 where several server processes may share the database, it first takes the transaction-scoped advisory lock
@@ -37,6 +60,7 @@ from __future__ import annotations
 import builtins
 import datetime as dt
 import hashlib
+import hmac
 import json
 from collections.abc import Iterator
 from typing import Any, Final
@@ -48,7 +72,7 @@ from sessions import schema
 from sessions.audit.tables import AuditRow
 from sessions.store import Store
 
-__all__ = ["LOCK_KEY", "VERIFY_CHUNK", "AuditLog", "entry_hash"]
+__all__ = ["LOCK_KEY", "VERIFY_CHUNK", "AuditKeyMismatch", "AuditLog", "checkpoint_mac", "entry_hash", "entry_mac"]
 
 #: Key of the PostgreSQL advisory lock that serializes appends: "gs-audit" as a signed 64-bit integer.
 LOCK_KEY: Final = int.from_bytes(b"gs-audit", "big", signed=True)
@@ -72,6 +96,22 @@ def entry_hash(fields: dict[str, Any]) -> str:
     """The SHA-256 (hex) of an entry's canonical JSON: ``fields`` must hold exactly the hashed columns."""
     text = json.dumps(fields, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def entry_mac(key: bytes, hash_hex: str) -> str:
+    """The HMAC-SHA256 (hex) of an entry's ``hash`` under the audit key."""
+    return hmac.new(key, hash_hex.encode("ascii"), hashlib.sha256).hexdigest()
+
+
+def checkpoint_mac(key: bytes, checkpoint: schema.AuditCheckpoint) -> str:
+    """The HMAC-SHA256 (hex) under the audit key of a checkpoint's canonical JSON, its ``mac`` left out."""
+    fields = checkpoint.model_dump(mode="json", exclude={"mac"})
+    text = json.dumps(fields, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+    return hmac.new(key, text.encode("utf-8"), hashlib.sha256).hexdigest()
+
+
+class AuditKeyMismatch(ValueError):
+    """The audit key is not the one the trail's newest entry was written with."""
 
 
 def _json_default(value: Any) -> Any:
@@ -119,10 +159,55 @@ def _filtered(query: schema.AuditQuery) -> Select[AuditRow]:
 
 
 class AuditLog:
-    """The audit trail in ``store``'s database: :meth:`record`, :meth:`list`, :meth:`iter`, :meth:`verify`."""
+    """The audit trail in ``store``'s database: :meth:`record`, :meth:`list`, :meth:`iter`, :meth:`verify`,
+    :meth:`checkpoint`. ``key``: the audit key (:func:`sessions.audit.key.audit_key`); every entry appended
+    carries its MAC."""
 
-    def __init__(self, store: Store) -> None:
+    def __init__(self, store: Store, key: bytes) -> None:
+        if not key:
+            raise ValueError("the audit trail needs its key (sessions.audit.key.audit_key)")
         self.store = store
+        self._key = key
+
+    def ensure_keyed(self, user: str = "server") -> None:
+        """Check that the trail's newest entry was written with this key, or, if it has no MAC (a trail from
+        before the key), append the ``audit.keyed`` entry that starts the keyed part. Nothing on an empty trail.
+
+        Raises:
+            AuditKeyMismatch: the newest entry's MAC is not this key's: another process writes with another key
+                (give every process the same ``GAITSCOPE_AUDIT_KEY``), or the entry was forged.
+        """
+        with self.store.reading() as session:
+            last = session.execute(
+                select(AuditRow.seq, AuditRow.hash, AuditRow.mac).order_by(AuditRow.seq.desc()).limit(1)
+            ).first()
+        if last is None:
+            return
+        if last.mac is None:
+            self.record(
+                user=user, role="admin", action="audit.keyed", target="audit", outcome="done",
+                detail=f"entries from here on carry an HMAC-SHA256 under the audit key; seq 1 to {last.seq} were "
+                "written before and are checked by the SHA-256 chain only",
+            )  # fmt: skip
+            return
+        if not hmac.compare_digest(entry_mac(self._key, last.hash), last.mac):
+            raise AuditKeyMismatch(
+                f"the audit trail's newest entry (seq {last.seq}) was not written with this audit key: every "
+                "process writing to the trail needs the same key (GAITSCOPE_AUDIT_KEY, or the data folder's "
+                "audit.key); run 'gaitscope audit verify' to see whether the trail was tampered with"
+            )
+
+    def checkpoint(self) -> schema.AuditCheckpoint:
+        """The trail's head now (newest ``seq`` and ``hash``; 0 and 64 zeros when empty), signed with the key."""
+        with self.store.reading() as session:
+            last = session.execute(select(AuditRow.seq, AuditRow.hash).order_by(AuditRow.seq.desc()).limit(1)).first()
+        unsigned = schema.AuditCheckpoint(
+            seq=0 if last is None else last.seq,
+            hash=schema.AUDIT_GENESIS if last is None else last.hash,
+            time_utc=_now().isoformat(timespec="milliseconds"),
+            mac="0" * 64,
+        )
+        return unsigned.model_copy(update={"mac": checkpoint_mac(self._key, unsigned)})
 
     def record(
         self,
@@ -168,7 +253,8 @@ class AuditLog:
             fields["time_utc"] = _now().isoformat(timespec="milliseconds")
             fields["seq"] = 1 if last is None else last.seq + 1
             fields["prev_hash"] = schema.AUDIT_GENESIS if last is None else last.hash
-            row = AuditRow(**fields, hash=entry_hash(fields))
+            digest = entry_hash(fields)
+            row = AuditRow(**fields, hash=digest, mac=entry_mac(self._key, digest))
             session.add(row)
             session.flush()  # assigns the id
             return _entry(row)
@@ -205,22 +291,34 @@ class AuditLog:
         with self.store.reading() as session:
             return session.scalar(select(func.count()).select_from(AuditRow)) or 0
 
-    def verify(self, chunk: int = VERIFY_CHUNK) -> schema.AuditVerification:
+    def verify(
+        self, chunk: int = VERIFY_CHUNK, checkpoint: schema.AuditCheckpoint | None = None
+    ) -> schema.AuditVerification:
         """Walk the chain from seq 1 and report the first break, if any (streaming, ``chunk`` rows at a time).
 
         In order, for each entry: its ``seq`` must be the one expected (a gap: an entry was deleted; a repeat: one
         was copied), its hash must match its fields (else it was changed), its ``prev_hash`` must be the hash of
-        the entry before (else entries were re-ordered, or one was changed and re-hashed).
+        the entry before (else entries were re-ordered, or one was changed and re-hashed), and its MAC must be the
+        key's for its hash (else it was re-hashed or forged without the key); once one entry has a MAC, every later
+        one must, and so must the newest. With ``checkpoint`` (signed with this key), the trail must reach its
+        ``seq`` and have its ``hash`` there (else entries were cut off, or rewritten by someone with the key).
         """
+        if checkpoint is not None and not hmac.compare_digest(checkpoint_mac(self._key, checkpoint), checkpoint.mac):
+            return schema.AuditVerification(
+                ok=False, entries=0, problem="the checkpoint's MAC does not match: it was edited, or made with "
+                "another audit key",
+            )  # fmt: skip
         checked = 0
         prev_hash = schema.AUDIT_GENESIS
+        keyed_from: int | None = None
+        at_checkpoint: str | None = schema.AUDIT_GENESIS if checkpoint is not None and checkpoint.seq == 0 else None
         # Plain tuples of the columns (seq last, the paging's key), not ORM objects nor attribute access: a million
         # entries take a third of the time.
         names = [name for name in _HASHED if name != "seq"]
-        columns = select(AuditRow.hash, *(getattr(AuditRow, name) for name in names), AuditRow.seq)
+        columns = select(AuditRow.hash, AuditRow.mac, *(getattr(AuditRow, name) for name in names), AuditRow.seq)
         for rows in self._chunks(columns, chunk):
             for row in rows:
-                stored, *values, seq = row
+                stored, mac, *values, seq = row
                 fields = dict(zip(names, values, strict=True))
                 fields["seq"] = seq
                 expected = checked + 1
@@ -238,8 +336,43 @@ class AuditLog:
                         else "prev_hash of seq 1 is not 64 zeros"
                     )
                     bad = seq
+                elif mac is None and keyed_from is not None:
+                    problem = f"seq {seq} has no MAC, though entries are keyed from seq {keyed_from} (forged)"
+                    bad = seq
+                elif mac is not None and not hmac.compare_digest(entry_mac(self._key, stored), mac):
+                    problem = f"MAC mismatch at seq {seq} (the entry was re-hashed or forged without the key)"
+                    bad = seq
                 if problem is not None:
-                    return schema.AuditVerification(ok=False, entries=checked, first_bad_seq=bad, problem=problem)
+                    return schema.AuditVerification(
+                        ok=False, entries=checked, first_bad_seq=bad, problem=problem, keyed_from=keyed_from
+                    )
+                if mac is not None and keyed_from is None:
+                    keyed_from = seq
                 checked += 1
                 prev_hash = stored
-        return schema.AuditVerification(ok=True, entries=checked, last_hash=prev_hash if checked else None)
+                if checkpoint is not None and seq == checkpoint.seq:
+                    at_checkpoint = stored
+        result = schema.AuditVerification(
+            ok=True, entries=checked, last_hash=prev_hash if checked else None, keyed_from=keyed_from
+        )
+        if checked and keyed_from is None:
+            return result.model_copy(update={
+                "ok": False, "first_bad_seq": checked,
+                "problem": f"the newest entry (seq {checked}) has no MAC: the trail was rewritten without the key, "
+                "or no server has run with the key since the upgrade (start one once)",
+            })  # fmt: skip
+        if checkpoint is not None:
+            if checked < checkpoint.seq:
+                return result.model_copy(update={
+                    "ok": False, "first_bad_seq": checked + 1,
+                    "problem": f"the trail ends at seq {checked}, but the checkpoint of {checkpoint.time_utc} "
+                    f"covers seq {checkpoint.seq}: entries {checked + 1} to {checkpoint.seq} were cut off",
+                })  # fmt: skip
+            if at_checkpoint != checkpoint.hash:
+                return result.model_copy(update={
+                    "ok": False, "first_bad_seq": checkpoint.seq,
+                    "problem": f"seq {checkpoint.seq}'s hash is not the checkpoint's: the trail up to it was "
+                    "rewritten since the checkpoint",
+                })  # fmt: skip
+            result = result.model_copy(update={"checkpoint_seq": checkpoint.seq})
+        return result

@@ -55,6 +55,9 @@ class AuditRow(Base):
     detail: Mapped[str] = mapped_column(Text)
     prev_hash: Mapped[str] = mapped_column(String(64))
     hash: Mapped[str] = mapped_column(String(64))
+    #: HMAC-SHA256 of ``hash`` under the audit key (``sessions/audit/key.py``); None for the entries written
+    #: before the trail was keyed (migration ``0005_audit_mac``).
+    mac: Mapped[str | None] = mapped_column(String(64))
 
 
 def _sqlite_ddl() -> list[str]:

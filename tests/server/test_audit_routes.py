@@ -105,11 +105,12 @@ def test_verify_reports_an_intact_then_a_tampered_chain(client: TestClient) -> N
         audit.record(user="ana", role="admin", action="settings.change", target="session 1", after={"gain": i})
     r = client.get("/api/audit/verify")
     assert r.status_code == 200
-    assert r.json() == {"ok": True, "entries": 20, "first_bad_seq": None, "problem": None,
+    assert r.json() == {"ok": True, "entries": 20, "first_bad_seq": None, "problem": None, "keyed_from": 1,
+                        "checkpoint_seq": None,
                         "last_hash": audit.list(schema.AuditQuery(limit=1))[0].hash}  # fmt: skip
     _tamper(client.app.state.ctx.settings.database_url, "UPDATE audit SET after = '{\"gain\":0.5}' WHERE seq = 17")  # type: ignore[attr-defined]
     assert client.get("/api/audit/verify").json() == {
-        "ok": False, "entries": 16, "first_bad_seq": 17, "last_hash": None,
+        "ok": False, "entries": 16, "first_bad_seq": 17, "last_hash": None, "keyed_from": 1, "checkpoint_seq": None,
         "problem": "hash mismatch at seq 17 (the entry was changed)",
     }  # fmt: skip
 
@@ -238,7 +239,7 @@ def _entries_as(client: TestClient, headers: dict[str, str], **filters: Any) -> 
 
 class _Ctx:
     def __init__(self, store: Store) -> None:
-        self.audit = AuditLog(store)
+        self.audit = AuditLog(store, b"k" * 32)
         self.settings = Settings(auth=False)
 
 
@@ -316,11 +317,43 @@ def test_cli_verify_and_export(client: TestClient, tmp_path: Path, capsys: pytes
     assert main(["audit", "verify", "--data-dir", data]) == 0
     assert "31 entries" in capsys.readouterr().out
 
+    mark = tmp_path / "elsewhere" / "checkpoint.json"
+    assert main(["audit", "checkpoint", "--data-dir", data, "--out", str(mark)]) == 0
+    assert capsys.readouterr().out.startswith("wrote the checkpoint of seq 32 (hash ")  # its own entry included
+    assert schema.AuditCheckpoint.model_validate_json(mark.read_text()).seq == 32
+    assert main(["audit", "verify", "--data-dir", data, "--checkpoint", str(mark)]) == 0
+    assert "no entry up to seq 32 (the checkpoint) was cut off or rewritten" in capsys.readouterr().out
+
+    _tamper(client.app.state.ctx.settings.database_url, "DELETE FROM audit WHERE seq >= 31")  # type: ignore[attr-defined]
+    assert main(["audit", "verify", "--data-dir", data]) == 0  # cut at its end, a chain is still a chain
+    capsys.readouterr()
+    assert main(["audit", "verify", "--data-dir", data, "--checkpoint", str(mark)]) == 1
+    assert "entries 31 to 32 were cut off" in capsys.readouterr().out
     _tamper(client.app.state.ctx.settings.database_url, "DELETE FROM audit WHERE seq = 18")  # type: ignore[attr-defined]
     assert main(["audit", "verify", "--data-dir", data]) == 1
     assert (
         capsys.readouterr().out == "audit trail BROKEN after 17 good entries: seq 18 missing (an entry was deleted)\n"
     )
+
+
+def test_cli_needs_the_servers_audit_key(
+    client: TestClient, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _audit(client).record(user="ana", role="admin", action="x", target="t")
+    data = tmp_path / "data"
+    (data / "audit.key").rename(tmp_path / "moved.key")
+    assert main(["audit", "verify", "--data-dir", str(data)]) == 2
+    assert "no audit key: set GAITSCOPE_AUDIT_KEY" in capsys.readouterr().err
+    assert main(["audit", "checkpoint", "--data-dir", str(data), "--out", str(tmp_path / "c.json")]) == 2
+    assert not (data / "audit.key").exists()  # only writers make a key, and only where the trail has none
+    monkeypatch.setenv("GAITSCOPE_AUDIT_KEY", "another key, not the server's one!")
+    assert main(["audit", "verify", "--data-dir", str(data)]) == 1
+    assert "MAC mismatch at seq 1" in capsys.readouterr().out
+    out = tmp_path / "c.json"
+    assert main(["audit", "checkpoint", "--data-dir", str(data), "--out", str(out)]) == 2
+    assert "was not written with this audit key" in capsys.readouterr().err and not out.exists()
+    monkeypatch.setenv("GAITSCOPE_AUDIT_KEY", (tmp_path / "moved.key").read_text())
+    assert main(["audit", "verify", "--data-dir", str(data)]) == 0
 
 
 def test_cli_refuses_bad_input(

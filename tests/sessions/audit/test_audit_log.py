@@ -1,5 +1,6 @@
-"""The audit trail: the hash chain as documented, tampering found (with the triggers dropped), the triggers
-themselves, filters, and appends from many threads and two stores at once.
+"""The audit trail: the hash chain and its MACs as documented, tampering found (with the triggers dropped): edits,
+re-hashing, forged appends, truncation against a checkpoint; a trail from before the key; the triggers themselves,
+filters, and appends from many threads and two stores at once.
 
 On the database of the ``database_url`` fixture: PostgreSQL when ``GAITSCOPE_TEST_POSTGRES`` is set, else SQLite.
 """
@@ -8,11 +9,14 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
+import hmac
 import itertools
 import json
 import math
+import stat
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -21,12 +25,14 @@ from sqlalchemy.exc import DBAPIError
 from sqlalchemy.pool import NullPool
 
 from sessions import migrations, schema
-from sessions.audit import AuditLog, entry_hash
+from sessions.audit import AuditKeyMismatch, AuditLog, audit_key, checkpoint_mac, entry_hash, entry_mac
 from sessions.audit import log as log_module
 from sessions.audit.tables import TRIGGERS, create_triggers, drop_triggers
+from sessions.errors import DataFormatError
 from sessions.store import Store, make_engine, write_transaction
 
 T0 = dt.datetime(2026, 3, 1, 8, 0, 0, tzinfo=dt.UTC)
+KEY = b"k" * 32
 
 
 @pytest.fixture
@@ -38,7 +44,7 @@ def store(database_url: str) -> Iterator[Store]:
 
 @pytest.fixture
 def audit(store: Store) -> AuditLog:
-    return AuditLog(store)
+    return AuditLog(store, KEY)
 
 
 def _fill(audit: AuditLog, n: int) -> list[schema.AuditEntry]:
@@ -78,7 +84,7 @@ def test_a_chain_of_many_entries_verifies_in_any_chunk_size(audit: AuditLog) -> 
     assert all(b.prev_hash == a.hash for a, b in itertools.pairwise(entries))
     for chunk in (1, 7, 250, 5000):
         result = audit.verify(chunk=chunk)
-        assert result == schema.AuditVerification(ok=True, entries=250, last_hash=entries[-1].hash)
+        assert result == schema.AuditVerification(ok=True, entries=250, last_hash=entries[-1].hash, keyed_from=1)
     assert audit.count() == 250
 
 
@@ -126,7 +132,7 @@ def test_a_changed_entry_is_found(audit: AuditLog, database_url: str) -> None:
     _raw(database_url, "UPDATE audit SET after = '{\"torque_gain\":9.0}' WHERE seq = 17")
     result = audit.verify(chunk=5)
     assert result == schema.AuditVerification(
-        ok=False, entries=16, first_bad_seq=17, problem="hash mismatch at seq 17 (the entry was changed)"
+        ok=False, entries=16, first_bad_seq=17, problem="hash mismatch at seq 17 (the entry was changed)", keyed_from=1
     )
 
 
@@ -134,7 +140,7 @@ def test_a_deleted_entry_is_found(audit: AuditLog, database_url: str) -> None:
     _fill(audit, 30)
     _raw(database_url, "DELETE FROM audit WHERE seq = 18")
     assert audit.verify(chunk=4) == schema.AuditVerification(
-        ok=False, entries=17, first_bad_seq=18, problem="seq 18 missing (an entry was deleted)"
+        ok=False, entries=17, first_bad_seq=18, problem="seq 18 missing (an entry was deleted)", keyed_from=1
     )
 
 
@@ -158,39 +164,197 @@ def test_swapped_entries_are_found(audit: AuditLog, database_url: str) -> None:
     assert result.problem == "hash mismatch at seq 5 (the entry was changed)"
 
 
-def test_a_changed_and_rehashed_entry_breaks_the_link_to_the_next(audit: AuditLog, database_url: str) -> None:
-    """An intruder who knows the recipe re-hashes the entry they changed: the next entry's prev_hash gives it away."""
+def test_a_changed_and_rehashed_entry_is_found_by_its_mac(audit: AuditLog, database_url: str) -> None:
+    """An intruder who knows the recipe re-hashes the entry they changed: without the key, its MAC gives it away."""
     entries = _fill(audit, 25)
     old = entries[18]
-    forged = {**old.model_dump(exclude={"id", "hash"}), "user": "nobody"}
+    forged = {**old.model_dump(exclude={"id", "hash", "mac"}), "user": "nobody"}
     _raw(database_url, f"UPDATE audit SET \"user\" = 'nobody', hash = '{entry_hash(forged)}' WHERE seq = 19")
     result = audit.verify(chunk=3)
     assert result == schema.AuditVerification(
-        ok=False, entries=19, first_bad_seq=20, problem="prev_hash of seq 20 does not match seq 19"
+        ok=False, entries=18, first_bad_seq=19, keyed_from=1,
+        problem="MAC mismatch at seq 19 (the entry was re-hashed or forged without the key)",
+    )  # fmt: skip
+
+
+def _rechain(entries: list[schema.AuditEntry], changed_seq: int, key: bytes | None) -> list[str]:
+    """UPDATEs that change entry ``changed_seq``'s detail and re-hash every entry from it on (re-MAC'd with
+    ``key``, or with their MACs kept when None), as an intruder who knows the recipe would."""
+    prev = entries[changed_seq - 2].hash if changed_seq > 1 else "0" * 64
+    statements = []
+    for e in entries[changed_seq - 1 :]:
+        forged = {**e.model_dump(exclude={"id", "hash", "mac"}), "prev_hash": prev}
+        if e.seq == changed_seq:
+            forged["detail"] = "forged"
+        h = entry_hash(forged)
+        mac = e.mac if key is None else entry_mac(key, h)
+        statements.append(
+            f"UPDATE audit SET detail = '{forged['detail']}', prev_hash = '{prev}', hash = '{h}', mac = '{mac}' "
+            f"WHERE seq = {e.seq}"
+        )
+        prev = h
+    return statements
+
+
+def test_the_whole_chain_rewritten_from_a_changed_entry_is_found_without_the_key(
+    audit: AuditLog, database_url: str
+) -> None:
+    """Every entry from the changed one re-hashed, so that the SHA-256 chain checks: the MACs do not."""
+    entries = _fill(audit, 6)
+    _raw(database_url, *_rechain(entries, 4, key=None))
+    result = audit.verify()
+    assert (result.ok, result.entries, result.first_bad_seq) == (False, 3, 4)
+    assert result.problem == "MAC mismatch at seq 4 (the entry was re-hashed or forged without the key)"
+
+
+def test_the_whole_chain_rewritten_with_the_key_is_found_against_a_checkpoint(
+    audit: AuditLog, database_url: str
+) -> None:
+    """What the MACs cannot find: someone with the key and the database re-makes them. A checkpoint taken before
+    (kept elsewhere) still binds them."""
+    entries = _fill(audit, 6)
+    mark = audit.checkpoint()
+    assert (mark.seq, mark.hash) == (6, entries[-1].hash)
+    _raw(database_url, *_rechain(entries, 4, key=KEY))
+    assert audit.verify().ok  # the chain and its MACs check: only the checkpoint can tell
+    result = audit.verify(checkpoint=mark)
+    assert (result.ok, result.first_bad_seq) == (False, 6)
+    assert result.problem == (
+        "seq 6's hash is not the checkpoint's: the trail up to it was rewritten since the checkpoint"
     )
 
 
-def test_the_whole_chain_rewritten_from_a_changed_entry_is_not_found_but_the_last_hash_tells(
+def test_newest_entries_cut_off_are_found_against_a_checkpoint(audit: AuditLog, database_url: str) -> None:
+    entries = _fill(audit, 10)
+    mark = audit.checkpoint()
+    assert audit.verify(checkpoint=mark) == schema.AuditVerification(
+        ok=True, entries=10, last_hash=entries[-1].hash, keyed_from=1, checkpoint_seq=10
+    )
+    audit.record(user="u1", role="admin", action="after.checkpoint", target="t")  # later entries are fine
+    assert audit.verify(checkpoint=mark).ok
+    _raw(database_url, "DELETE FROM audit WHERE seq >= 9")
+    assert audit.verify().ok  # a chain cut at its end is still a chain
+    result = audit.verify(checkpoint=mark)
+    assert (result.ok, result.entries, result.first_bad_seq) == (False, 8, 9)
+    assert result.problem == (
+        f"the trail ends at seq 8, but the checkpoint of {mark.time_utc} covers seq 10: entries 9 to 10 were cut off"
+    )
+
+
+def test_a_checkpoint_edited_or_made_with_another_key_is_refused(audit: AuditLog) -> None:
+    _fill(audit, 4)
+    mark = audit.checkpoint()
+    assert audit.verify(checkpoint=mark).ok
+    lowered = mark.model_copy(update={"seq": 2, "hash": audit.list()[-2].hash})
+    assert not audit.verify(checkpoint=lowered).ok
+    other = AuditLog(audit.store, b"x" * 32).checkpoint()
+    result = audit.verify(checkpoint=other)
+    assert not result.ok and "checkpoint's MAC does not match" in (result.problem or "")
+
+
+def test_a_checkpoint_is_the_documented_recipe(audit: AuditLog) -> None:
+    _fill(audit, 2)
+    mark = audit.checkpoint()
+    text_ = (
+        '{"format":"gaitscope-audit-checkpoint/1","hash":"' + mark.hash + '","seq":2,"time_utc":"' + mark.time_utc
+        + '"}'
+    )  # fmt: skip
+    assert mark.mac == hmac.new(KEY, text_.encode(), hashlib.sha256).hexdigest()
+    assert mark.mac == checkpoint_mac(KEY, mark)
+
+
+def test_a_forged_entry_appended_without_the_key_is_found(audit: AuditLog, database_url: str) -> None:
+    entries = _fill(audit, 5)
+    last = entries[-1]
+    forged = {**last.model_dump(exclude={"id", "hash", "mac"}), "seq": 6, "prev_hash": last.hash, "detail": "forged"}
+    columns = ", ".join(f'"{k}"' for k in forged)
+    values = ", ".join(
+        "NULL" if v is None else (str(v) if isinstance(v, int) else "'" + v + "'") for v in forged.values()
+    )
+    for mac, problem in (
+        ("NULL", "seq 6 has no MAC, though entries are keyed from seq 1 (forged)"),
+        ("'" + entry_mac(b"guess" * 8, entry_hash(forged)) + "'",
+         "MAC mismatch at seq 6 (the entry was re-hashed or forged without the key)"),
+    ):  # fmt: skip
+        _raw(
+            database_url,
+            "DELETE FROM audit WHERE seq = 6",
+            f"INSERT INTO audit (id, {columns}, hash, mac) VALUES (1000, {values}, '{entry_hash(forged)}', {mac})",
+        )
+        result = audit.verify()
+        assert (result.ok, result.entries, result.first_bad_seq, result.problem) == (False, 5, 6, problem)
+
+
+def test_the_mac_is_the_documented_recipe(audit: AuditLog) -> None:
+    e = audit.record(user="ana", role="clinician", action="x", target="t")
+    assert e.mac == hmac.new(KEY, e.hash.encode("ascii"), hashlib.sha256).hexdigest()
+
+
+# --- a trail from before the key (migration 0005) ------------------------------------------------------------
+
+
+def _unkeyed(database_url: str, audit: AuditLog, n: int) -> list[schema.AuditEntry]:
+    """``n`` entries as revision 0004 wrote them: no MAC."""
+    entries = _fill(audit, n)
+    _raw(database_url, "UPDATE audit SET mac = NULL")
+    return entries
+
+
+def test_a_trail_from_before_the_key_is_marked_keyed_and_verifies_its_old_part_by_the_old_rule(
     audit: AuditLog, database_url: str
 ) -> None:
-    """What a chain cannot find by itself: every later entry re-hashed. The newest hash, noted elsewhere, can."""
-    entries = _fill(audit, 6)
-    noted = audit.verify().last_hash
-    assert noted == entries[-1].hash
-    prev = entries[2].hash
-    statements = []
-    for e in entries[3:]:
-        forged = {**e.model_dump(exclude={"id", "hash"}), "prev_hash": prev}
-        if e.seq == 4:
-            forged["detail"] = "forged"
-        h = entry_hash(forged)
-        statements.append(
-            f"UPDATE audit SET detail = '{forged['detail']}', prev_hash = '{prev}', hash = '{h}' WHERE seq = {e.seq}"
-        )
-        prev = h
-    _raw(database_url, *statements)
+    _unkeyed(database_url, audit, 7)
     result = audit.verify()
-    assert result.ok and result.last_hash != noted
+    assert (result.ok, result.first_bad_seq, result.entries) == (False, 7, 7)  # no keyed head: not proven
+    assert "the newest entry (seq 7) has no MAC" in (result.problem or "")
+    audit.ensure_keyed()
+    marker = audit.list()[0]
+    assert (marker.seq, marker.action, marker.user, marker.outcome) == (8, "audit.keyed", "server", "done")
+    assert "seq 1 to 7 were written before" in marker.detail and marker.mac is not None
+    audit.ensure_keyed()  # once only
+    _fill(audit, 3)
+    result = audit.verify()
+    assert (result.ok, result.entries, result.keyed_from) == (True, 11, 8)
+    # the old part still checks by the old rule: an edit there is found
+    _raw(database_url, "UPDATE audit SET detail = 'x' WHERE seq = 3")
+    assert audit.verify().first_bad_seq == 3
+
+
+def test_macs_stripped_to_pass_for_a_trail_from_before_the_key_are_found(audit: AuditLog, database_url: str) -> None:
+    _fill(audit, 5)
+    _raw(database_url, "UPDATE audit SET mac = NULL WHERE seq = 5")
+    result = audit.verify()
+    assert (result.ok, result.first_bad_seq) == (False, 5)
+    assert result.problem == "seq 5 has no MAC, though entries are keyed from seq 1 (forged)"
+    _raw(database_url, "UPDATE audit SET mac = NULL")
+    result = audit.verify()
+    assert (result.ok, result.first_bad_seq) == (False, 5)
+    assert "the newest entry (seq 5) has no MAC" in (result.problem or "")
+
+
+def test_another_key_is_refused_before_it_writes(audit: AuditLog) -> None:
+    _fill(audit, 2)
+    other = AuditLog(audit.store, b"y" * 32)
+    with pytest.raises(AuditKeyMismatch, match=r"seq 2\) was not written with this audit key"):
+        other.ensure_keyed()
+    assert audit.count() == 2
+    audit.ensure_keyed()  # the right key: nothing to do
+    assert audit.count() == 2
+
+
+def test_the_key_file_is_made_once_with_0600_and_the_environment_wins(tmp_path: Path) -> None:
+    assert audit_key(tmp_path, None, create=False) is None
+    key = audit_key(tmp_path, None, create=True)
+    path = tmp_path / "audit.key"
+    assert key is not None and len(key) == 64 and key == path.read_text().strip().encode()
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert audit_key(tmp_path, None, create=True) == key  # not made again
+    assert audit_key(tmp_path, "e" * 40, create=True) == b"e" * 40
+    with pytest.raises(DataFormatError, match="GAITSCOPE_AUDIT_KEY: the audit key must be at least 32 characters"):
+        audit_key(tmp_path, "short", create=True)
+    path.write_text("abc\n")
+    with pytest.raises(DataFormatError, match="at least 32 characters, got 3"):
+        audit_key(tmp_path, None, create=False)
 
 
 # --- the triggers -------------------------------------------------------------------------------------
@@ -321,7 +485,7 @@ def test_a_date_alone_is_midnight_utc() -> None:
 def test_concurrent_appends_keep_the_chain_gap_free(store: Store, database_url: str) -> None:
     """Eight threads on one store and four on a second store (as a second server process would be)."""
     other = Store(database_url)
-    logs = [AuditLog(store), AuditLog(other)]
+    logs = [AuditLog(store, KEY), AuditLog(other, KEY)]
     errors: list[BaseException] = []
     start = threading.Barrier(12)
 
@@ -345,4 +509,6 @@ def test_concurrent_appends_keep_the_chain_gap_free(store: Store, database_url: 
     assert [e.seq for e in entries] == list(range(1, 181))
     assert sorted(e.time_utc for e in entries) == [e.time_utc for e in entries]  # time never runs backwards
     assert {e.user for e in entries} == {f"w{w}" for w in range(12)}
-    assert logs[0].verify(chunk=50) == schema.AuditVerification(ok=True, entries=180, last_hash=entries[-1].hash)
+    assert logs[0].verify(chunk=50) == schema.AuditVerification(
+        ok=True, entries=180, last_hash=entries[-1].hash, keyed_from=1
+    )
