@@ -67,8 +67,8 @@ class AppContext:
             self.leg_view.show(state, leg_length, session_id)
 
 
-def _cookie_logged_in(accounts: Accounts, cookie_header: str) -> bool:
-    """Whether a ``Cookie`` header holds an open login (the leg view's own server asks)."""
+def _cookie_logged_in(accounts: Accounts, cookie_header: str) -> int | None:
+    """The open login a ``Cookie`` header holds, by id, if any (the leg view's own server asks)."""
     from http.cookies import CookieError, SimpleCookie
 
     from server.auth import COOKIE
@@ -76,8 +76,9 @@ def _cookie_logged_in(accounts: Accounts, cookie_header: str) -> bool:
     try:
         morsel = SimpleCookie(cookie_header).get(COOKIE)
     except CookieError:
-        return False
-    return morsel is not None and accounts.identify(morsel.value) is not None
+        return None
+    login = None if morsel is None else accounts.identify(morsel.value)
+    return None if login is None else login.login_id
 
 
 def _audit_key(settings: Settings) -> bytes:
@@ -137,7 +138,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             model = models.get("default")[0]
             logged_in = functools.partial(_cookie_logged_in, accounts) if settings.auth else None
             ctx.leg_view = LegView(
-                settings.host, settings.viser_port, model, allowed_hosts=settings.allowed_hosts, logged_in=logged_in
+                settings.host, settings.viser_port, model, allowed_hosts=settings.allowed_hosts, logged_in=logged_in,
+                watch=accounts.watch,
             )
         app.state.ctx = ctx
         await asyncio.to_thread(warm_up, models.get("default")[0])  # compile the kernels before answering

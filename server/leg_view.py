@@ -9,7 +9,10 @@ a ``Host`` outside the allowlist is refused (DNS rebinding), and so is a websock
 viser 1.1 has no hook for that; it serves with ``websockets.asyncio.server.serve`` and its own
 ``process_request``, so while the ``ViserServer`` starts, ``serve`` is wrapped to put the guard in
 front of viser's hook (:func:`_guarded_serve`). If viser ever starts without going through it, the
-view refuses to start rather than run unguarded.
+view refuses to start rather than run unguarded. With accounts on, the guard also refuses a websocket
+without an open login, and registers the one it lets in with the login's
+:class:`~sessions.accounts.LoginWatch`: when the login ends (logout, the account disabled, a password
+changed) the socket is closed with 1008 and the reason at once.
 
 Scene, in the sagittal plane x (forward) / z (up), y = 0, seen by default from the subject's right::
 
@@ -47,13 +50,14 @@ the ghost's shank and foot differ from the measured ones exactly where the model
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import functools
 import math
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from http import HTTPStatus
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 import viser
@@ -74,6 +78,9 @@ from sessions.synth.cohort import (
     SHANK_FRAC,
     THIGH_FRAC,
 )
+
+if TYPE_CHECKING:
+    from sessions.accounts import LoginWatch
 from sessions.synth.normative import CLASSES, KNEE, curve_spline, normative
 
 __all__ = ["LegView", "knee_flexion_deg", "quat_y", "segment_angles_for", "status_markdown"]
@@ -232,12 +239,13 @@ _serve_lock = threading.Lock()  # one guarded start at a time: the wrapper is pr
 
 @contextlib.contextmanager
 def _guarded_serve(
-    allowed_hosts: Iterable[str], logged_in: Callable[[str], bool] | None = None
+    allowed_hosts: Iterable[str], logged_in: LoggedIn | None = None, watch: LoginWatch | None = None
 ) -> Iterator[list[int]]:
     """While open, ``websockets.asyncio.server.serve`` runs :func:`server.origin.websockets_guard`
     before the caller's own ``process_request``; with ``logged_in`` (accounts on), a websocket whose
     ``Cookie`` header carries no open login is refused too (401): the dashboard's login cookie is sent to
-    the leg view's port as well, cookies being per host, not per port.
+    the leg view's port as well, cookies being per host, not per port. With ``watch`` too, a websocket let
+    in is closed (1008) when its login ends.
 
     Yields a list that gets an entry per guarded ``serve`` call, to check that the guard is in place.
     """
@@ -247,7 +255,7 @@ def _guarded_serve(
 
     def serve(*args: Any, process_request: ProcessRequest | None = None, **kwargs: Any) -> Any:
         installed.append(1)
-        then = process_request if logged_in is None else _login_guard(logged_in, process_request)
+        then = process_request if logged_in is None else _login_guard(logged_in, process_request, watch)
         return original(*args, process_request=websockets_guard(allowed, then=then), **kwargs)
 
     with _serve_lock:
@@ -258,14 +266,47 @@ def _guarded_serve(
             websockets.asyncio.server.serve = original  # type: ignore[misc]
 
 
-def _login_guard(logged_in: Callable[[str], bool], then: ProcessRequest | None) -> ProcessRequest:
+#: Whether a ``Cookie`` header holds an open login: falsy if not; the login's id (an int), or True.
+LoggedIn = Callable[[str], int | bool | None]
+
+
+def _login_guard(logged_in: LoggedIn, then: ProcessRequest | None, watch: LoginWatch | None) -> ProcessRequest:
     def process_request(connection: ServerConnection, request: Request) -> Any:
         upgrade = any("websocket" in u.lower() for u in request.headers.get_all("Upgrade"))
-        if upgrade and not logged_in("; ".join(request.headers.get_all("Cookie"))):
+        if not upgrade:
+            return None if then is None else then(connection, request)
+        login = logged_in("; ".join(request.headers.get_all("Cookie")))
+        if not login:
             return connection.respond(HTTPStatus.UNAUTHORIZED, "log in to the dashboard first\n")
+        if watch is not None and not isinstance(login, bool):
+            _close_when_login_ends(connection, login, watch)
         return None if then is None else then(connection, request)
 
     return process_request
+
+
+def _close_when_login_ends(connection: ServerConnection, login_id: int, watch: LoginWatch) -> None:
+    """Close ``connection`` (1008, the reason) when login ``login_id`` ends; stop watching when it closes.
+    Called on viser's event loop (in the handshake); the watch calls back from any thread."""
+    loop = asyncio.get_running_loop()
+
+    def close(reason: str) -> None:
+        asyncio.run_coroutine_threadsafe(connection.close(1008, reason[:120]), loop)
+
+    unwatch = watch.watch(login_id, close)
+
+    async def unwatch_when_closed() -> None:
+        try:
+            await connection.wait_closed()
+        finally:
+            unwatch()
+
+    task = loop.create_task(unwatch_when_closed())
+    _closing_tasks.add(task)  # a reference until it is done (the loop keeps only weak ones)
+    task.add_done_callback(_closing_tasks.discard)
+
+
+_closing_tasks: set[asyncio.Task[None]] = set()
 
 
 class LegView:
@@ -278,8 +319,9 @@ class LegView:
         model: the gait model that poses the ghost; None uses the states' ``*_pred_deg``.
         allowed_hosts: the names the view may be reached at (``Settings.allowed_hosts``); default
             the loopback names and ``host``.
-        logged_in: with accounts on, tells whether a request's ``Cookie`` header holds an open login;
-            the view's websocket is refused without one. None: accounts off.
+        logged_in: with accounts on, tells whether a request's ``Cookie`` header holds an open login (its
+            id, or True); the view's websocket is refused without one. None: accounts off.
+        watch: with ``logged_in``, the logins' watch: a websocket whose login ends is closed (1008).
 
     Raises:
         RuntimeError: viser started without the host guard (a viser version that serves otherwise).
@@ -291,7 +333,8 @@ class LegView:
         port: int = 8081,
         model: TrainedModel | None = None,
         allowed_hosts: Iterable[str] | None = None,
-        logged_in: Callable[[str], bool] | None = None,
+        logged_in: LoggedIn | None = None,
+        watch: LoginWatch | None = None,
     ) -> None:
         self._host = host
         self._model = model
@@ -299,7 +342,7 @@ class LegView:
         self._closed = False
         self._leg_length = _DEFAULT_LEG_LENGTH
         self.allowed_hosts = allowed_hosts_for(host, LOOPBACK_HOSTS if allowed_hosts is None else allowed_hosts)
-        with _guarded_serve(self.allowed_hosts, logged_in) as installed:
+        with _guarded_serve(self.allowed_hosts, logged_in, watch) as installed:
             self.server = viser.ViserServer(host=host, port=port, label="gaitscope leg", verbose=False)
         try:
             if not installed:

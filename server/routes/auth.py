@@ -4,10 +4,19 @@ A login sets the ``gaitscope_login`` cookie (HttpOnly, SameSite=Strict, Secure b
 length) and answers with :class:`~sessions.schema.Me`, whose ``csrf_token`` the browser sends back in the
 ``X-CSRF-Token`` header with every state-changing request. With accounts off there is no login:
 ``GET /api/auth/me`` answers ``local``, and ``POST /api/auth/login`` says so (409).
+
+Failed logins are throttled per client address and per name (:mod:`sessions.accounts.throttle`); every
+refusal is the same 401 (:data:`~sessions.accounts.REFUSED`) after the same work. The client's address is the
+connection's, or behind a TLS proxy (``Settings.behind_tls_proxy``) the one uvicorn takes from the proxy's
+``X-Forwarded-For``. Password hashing runs off the event loop, outside any database transaction, in a pool
+of its own (:meth:`~sessions.accounts.Accounts.login_async`).
 """
 
 from __future__ import annotations
 
+import functools
+
+import anyio.to_thread
 from fastapi import APIRouter, HTTPException, Request, Response
 
 from server.auth import COOKIE, LoggedIn, Who, public
@@ -25,22 +34,25 @@ def _me(c: Ctx, who: Who) -> schema.Me:
 
 
 @router.post("/login", dependencies=[public()])
-def login(body: schema.LoginRequest, request: Request, response: Response, c: Ctx) -> schema.Me:
-    """Check the name and password; 401 with the reason (the same for an unknown name and a wrong password),
-    and every failure audited and counted toward the lockout."""
+async def login(body: schema.LoginRequest, request: Request, response: Response, c: Ctx) -> schema.Me:
+    """Check the name and password; 401 with one answer for an unknown name, a wrong password and an attempt
+    the throttle holds back; every failure audited and counted by the throttle. A disabled account's right
+    password is told so."""
     if not c.settings.auth:
         raise HTTPException(409, "accounts are off on this server: there is nothing to log in to")
     client = request.client.host if request.client else "unknown"
     try:
-        done = c.accounts.login(body.name, body.password)
+        done = await c.accounts.login_async(body.name, body.password, client)
     except LoginFailed as e:
-        c.audit.record(
-            user=body.name, role="none", action="login.failed", target=client, outcome="refused", detail=str(e)
-        )
+        record = functools.partial(
+            c.audit.record, user=body.name, role="none", action="login.failed", target=client, outcome="refused",
+            detail=e.detail,
+        )  # fmt: skip
+        await anyio.to_thread.run_sync(record)
         request.scope["gaitscope.audited"] = True  # recorded here: the audit middleware need not
         raise HTTPException(401, str(e)) from None
     who = Who(done.user.name, done.user.role, done.login_id, done.csrf_token)
-    audit(c, who, "login", client)
+    await anyio.to_thread.run_sync(audit, c, who, "login", client)
     assert done.token is not None
     response.set_cookie(
         COOKIE, done.token, max_age=int(c.accounts.login_length.total_seconds()), httponly=True, samesite="strict",
@@ -66,13 +78,16 @@ def me(c: Ctx, who: LoggedIn) -> schema.Me:
 
 
 @router.post("/password", status_code=204)
-def change_password(body: schema.PasswordChange, c: Ctx, who: LoggedIn) -> Response:
-    """Change one's own password (the current one checked); every login of the account ends, this one too."""
+def change_password(body: schema.PasswordChange, request: Request, c: Ctx, who: LoggedIn) -> Response:
+    """Change one's own password (the current one checked; a wrong one counts as a failed login from this
+    address); every login of the account ends, this one too, and their open streams close. A sync route: the
+    hashes run in a worker thread, outside any transaction."""
     if who.login_id is None:
         raise HTTPException(409, "accounts are off on this server: there is no password to change")
     audit(c, who, "password.change", who.name)
+    client = request.client.host if request.client else "unknown"
     try:
-        c.accounts.change_password(who.name, body.current, body.new)
+        c.accounts.change_password(who.name, body.current, body.new, client)
     except LoginFailed as e:
         raise HTTPException(403, str(e)) from None
     response = Response(status_code=204)

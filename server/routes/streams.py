@@ -16,12 +16,13 @@ import contextlib
 import logging
 import math
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any
 
 from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
 
-from server.auth import Assistant, allow, device
+from server.auth import Assistant, Who, allow, device
 from server.routes.common import Ctx, audit, check_assistance, not_running_here
 from sessions import schema
 from sessions.estimation import FrameRefused
@@ -79,11 +80,15 @@ async def session_stream(
     max_rate_hz: float = Query(default=60.0, ge=0.0, le=2000.0),
     batch_ms: float = Query(default=33.0, ge=0.0, le=1000.0),
 ) -> None:
-    """Stream a session's gait states (decimated and batched as the client asks), health and events."""
+    """Stream a session's gait states (decimated and batched as the client asks), health and events.
+
+    Closed with 1008 and the reason within moments of the login it was opened with ending (logout, the
+    account disabled or demoted, its password changed), as a device's stream is when its token is revoked."""
     await ws.accept()
     runtime = await _runtime(ws, session_id)
     if runtime is None:
         return
+    login_ended = _login_ended(ws)
     history = attach_history(runtime)
     sub = runtime.subscribe(max_rate_hz)
     history.seam(sub)
@@ -93,17 +98,67 @@ async def session_stream(
         await ws.send_text(_dump(hello))
         for batch in recent:
             await ws.send_text(_dump(batch))
-        tasks = {asyncio.create_task(_pump(ws, runtime, sub, batch_ms / 1000.0)), asyncio.create_task(_drain(ws))}
+        ended = asyncio.create_task(login_ended.wait())
+        pump, drain = asyncio.create_task(_pump(ws, runtime, sub, batch_ms / 1000.0)), asyncio.create_task(_drain(ws))
+        tasks = {pump, drain, ended}
         _, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
         for task in pending:
             task.cancel()
         for task in tasks:
             with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, RuntimeError):
                 await task
+        if ended.done() and not ended.cancelled():
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(ws.close(code=POLICY, reason=ended.result()[:120]), timeout=1.0)
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
         runtime.unsubscribe(sub)
+        login_ended.close()
+
+
+#: Seconds between a stream's checks that its login is still open in the database: the fallback for logins
+#: ended where this process cannot see it (another process, ``gaitscope user reset-password``; expiry).
+LOGIN_CHECK_S = 10.0
+
+
+class _LoginEnded:
+    """Tells a socket that the login it was opened with has ended: at once when this process ends it
+    (:class:`~sessions.accounts.LoginWatch`), within :data:`LOGIN_CHECK_S` otherwise."""
+
+    def __init__(self, ws: WebSocket, who: Who | None) -> None:
+        self._c: AppContext = ws.app.state.ctx
+        self._login_id = None if who is None else who.login_id
+        self._reason: asyncio.Future[str] = asyncio.get_running_loop().create_future()
+        self._unwatch: Callable[[], None] | None = None
+        if self._login_id is not None:
+            loop = asyncio.get_running_loop()
+            self._unwatch = self._c.accounts.watch.watch(
+                self._login_id, lambda reason: loop.call_soon_threadsafe(self._set, reason)
+            )
+
+    def _set(self, reason: str) -> None:
+        if not self._reason.done():
+            self._reason.set_result(reason)
+
+    async def wait(self) -> str:
+        """The reason, once the login has ended (never, with accounts off)."""
+        login_id = self._login_id
+        while login_id is not None:
+            with contextlib.suppress(TimeoutError):
+                return await asyncio.wait_for(asyncio.shield(self._reason), timeout=LOGIN_CHECK_S)
+            if login_id not in await asyncio.to_thread(self._c.accounts.open_logins, [login_id]):
+                self._set("login ended")
+        return await self._reason
+
+    def close(self) -> None:
+        if self._unwatch is not None:
+            self._unwatch()
+
+
+def _login_ended(ws: WebSocket) -> _LoginEnded:
+    who = ws.scope.get("gaitscope.who")
+    return _LoginEnded(ws, who if isinstance(who, Who) else None)
 
 
 async def _drain(ws: WebSocket) -> None:

@@ -1,19 +1,29 @@
-"""Accounts: users with argon2id password hashes, login sessions with lockout, device tokens, and the assistance
-limits a clinician sets for experimenters.
+"""Accounts: users with argon2id password hashes, login sessions with a failed-login throttle, device tokens,
+and the assistance limits a clinician sets for experimenters.
 
 One :class:`Accounts` per server, over the :class:`~sessions.store.Store`'s database (its tables are
-:mod:`sessions.accounts.tables`). Every method is one transaction. Times are ISO-8601 UTC.
+:mod:`sessions.accounts.tables`). Every method is one transaction, but a login and a password change: a read, the
+hash outside any transaction, then a write. Times are ISO-8601 UTC.
 
 Choices:
 
 - Passwords: argon2id through argon2-cffi's :class:`~argon2.PasswordHasher` with its defaults (RFC 9106's
   second recommended profile, 64 MiB, 3 passes), rehashed on the next login when those defaults change.
-- A login that fails ``lockout_after`` times in a row locks the account for ``lockout_minutes``; a good login
-  resets the count; an admin may unlock at once. An unknown name costs the same argon2 verification as a
-  known one, so the answer's timing does not tell whether a name exists.
+- Failed logins are throttled, not locked out (:mod:`sessions.accounts.throttle`): per (address, name),
+  per address and per name, with exponential waits up to ``lockout_minutes``; a stranger's failures never
+  stop the owner logging in from an address that has not failed. Every refusal is the same answer
+  (:data:`REFUSED`) after the same work, one argon2 verification, whether the name exists or not, the
+  password is wrong or the attempt had to wait (an unknown name is verified against a fixed dummy hash).
+  The database keeps the account's failed logins in a row and until when failing addresses wait (what the
+  admins see); an admin's unlock clears both.
+- Hashing never runs inside a database transaction: a login reads the account, verifies outside any
+  transaction, then writes; at most ``hash_slots`` hashes run at once in the process (each takes 64 MiB
+  and tens of milliseconds of every core), and :meth:`Accounts.login_async` runs them on a small pool of
+  its own, never on the event loop nor in the threads the other routes share.
 - Login sessions: a 256-bit random token in the cookie, stored as its SHA-256; each has its own CSRF token
   (the synchronizer-token pattern, OWASP) and ends ``login_hours`` after it began (a clinic's day), or at
-  logout, or when the password changes (every login of the user ends).
+  logout, or when the password changes (every login of the user ends). The sockets opened with a login
+  are told when it ends (:class:`~sessions.accounts.watch.LoginWatch`, :attr:`Accounts.watch`).
 - Device tokens: 256-bit random, one session each, shown once, stored as SHA-256, revocable.
 """
 
@@ -24,25 +34,52 @@ import functools
 import hashlib
 import hmac
 import secrets
+import threading
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Final
 
+import anyio.to_thread
+from anyio import CapacityLimiter
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
 from sqlalchemy import func, orm, select, update
 
 from sessions import schema
 from sessions.accounts.tables import DeviceTokenRow, LimitsRow, LoginRow, UserRow
+from sessions.accounts.throttle import LoginThrottle
+from sessions.accounts.watch import LoginWatch
 from sessions.store import Conflict, NotFound, Store
 
-__all__ = ["Accounts", "Login", "LoginFailed"]
+__all__ = ["REFUSED", "Accounts", "Login", "LoginFailed"]
 
 #: A fixed hash verified for unknown names, so that they take as long as known ones.
 _DUMMY_PASSWORD = "not a password of anyone's"
 
+#: The one answer to every refused login: an unknown name, a wrong password, or an attempt the throttle held back
+#: (OWASP: one generic message whether the name is wrong, the password, or the account is locked).
+REFUSED: Final = "wrong name or password"
+
 
 class LoginFailed(PermissionError):
-    """A login was refused; the message says why in words fit to show (it never says whether a name exists,
-    except that a locked account says it is locked)."""
+    """A login was refused; the message says why in words fit to show (a login's refusal is always
+    :data:`REFUSED`, except a disabled account's with the right password), ``detail`` what happened, for the
+    audit trail."""
+
+    def __init__(self, message: str, detail: str | None = None) -> None:
+        super().__init__(message)
+        self.detail = detail or message
+
+
+@dataclass(frozen=True)
+class _Attempt:
+    """A login attempt between its read of the account and its verification."""
+
+    name: str
+    address: str
+    user_id: int | None  # None: no such name
+    password_hash: str | None  # None: no such name (the dummy hash is verified)
+    waits: bool  # the throttle holds this attempt back: refused whatever the password
 
 
 @dataclass(frozen=True)
@@ -82,10 +119,14 @@ class Accounts:
 
     Args:
         store: the database.
-        lockout_after: failed logins in a row that lock an account.
-        lockout_minutes: how long the lock lasts.
+        lockout_after: failed logins of one address at one name before its attempts wait (1 s, doubling
+            with each further failure); see :class:`~sessions.accounts.throttle.LoginThrottle` for the
+            counts per address and per name, which start at four times this.
+        lockout_minutes: the longest wait.
         login_hours: how long a login session lasts.
         hasher: the password hasher (argon2-cffi's defaults unless given; tests may pass a cheaper one).
+        throttle: the failed-login throttle (made from ``lockout_after`` and ``lockout_minutes`` unless given).
+        hash_slots: argon2 hashes or verifications running at once in this process, at most.
     """
 
     def __init__(
@@ -96,20 +137,39 @@ class Accounts:
         lockout_minutes: float = 15.0,
         login_hours: float = 12.0,
         hasher: PasswordHasher | None = None,
+        throttle: LoginThrottle | None = None,
+        hash_slots: int = 2,
     ) -> None:
-        if lockout_after < 1 or lockout_minutes <= 0 or login_hours <= 0:
-            raise ValueError("lockout_after, lockout_minutes and login_hours must be positive")
+        if lockout_after < 1 or lockout_minutes <= 0 or login_hours <= 0 or hash_slots < 1:
+            raise ValueError("lockout_after, lockout_minutes, login_hours and hash_slots must be positive")
         self._store = store
-        self.lockout_after = lockout_after
-        self.lockout = dt.timedelta(minutes=lockout_minutes)
         self.login_length = dt.timedelta(hours=login_hours)
         self._hasher = hasher or PasswordHasher()
+        self.throttle = throttle or LoginThrottle(
+            free=lockout_after, free_address=4 * lockout_after, free_account=4 * lockout_after,
+            cap_s=60.0 * lockout_minutes,
+        )  # fmt: skip
+        self.watch = LoginWatch()
+        self._hash_slots = threading.BoundedSemaphore(hash_slots)
+        self._hash_slot_count = hash_slots
+        self._pools: tuple[CapacityLimiter, CapacityLimiter] | None = None
 
     @functools.cached_property
     def _dummy_hash(self) -> str:
         """The hash an unknown name's password is checked against: made at the first such login, not with every
         :class:`Accounts` (an argon2 hash costs 64 MiB and tens of milliseconds)."""
-        return self._hasher.hash(_DUMMY_PASSWORD)
+        return self._hash(_DUMMY_PASSWORD)
+
+    def _hash(self, password: str) -> str:
+        with self._hash_slots:
+            return self._hasher.hash(password)
+
+    def _verify(self, password_hash: str, password: str) -> bool:
+        with self._hash_slots:
+            try:
+                return self._hasher.verify(password_hash, password)
+            except (VerifyMismatchError, VerificationError, InvalidHashError):
+                return False
 
     # --- users --------------------------------------------------------------------------------------
 
@@ -119,11 +179,15 @@ class Accounts:
 
     def add_user(self, body: schema.UserCreate, by: str) -> schema.User:
         """A new account; :class:`Conflict` if the name is taken."""
+        with self._store.reading() as s:
+            if s.scalar(select(UserRow.id).where(UserRow.name == body.name)) is not None:
+                raise Conflict(f"user {body.name!r} exists")
+        password_hash = self._hash(body.password)  # outside any transaction
         with self._store.writing() as s:
             if s.scalar(select(UserRow.id).where(UserRow.name == body.name)) is not None:
                 raise Conflict(f"user {body.name!r} exists")
             row = UserRow(
-                name=body.name, role=body.role, password_hash=self._hasher.hash(body.password), disabled=False,
+                name=body.name, role=body.role, password_hash=password_hash, disabled=False,
                 created_utc=_stamp(_now()), created_by=by, failed_logins=0,
             )  # fmt: skip
             s.add(row)
@@ -147,7 +211,10 @@ class Accounts:
 
     def change_user(self, name: str, change: schema.UserChange, by: str) -> tuple[schema.User, schema.User]:
         """Apply an admin's change; returns (before, after). Disabling, demoting or resetting the password of
-        an account ends its logins. The last enabled admin cannot be disabled or demoted (:class:`Conflict`)."""
+        an account ends its logins (and their open sockets are told). The last enabled admin cannot be disabled
+        or demoted (:class:`Conflict`). An unlock also clears this process's throttle of the name."""
+        new_hash = None if change.password is None else self._hash(change.password)  # outside any transaction
+        ended: list[int] = []
         with self._store.writing() as s:
             row = self._user_row(s, name)
             before = _user(row)
@@ -166,53 +233,99 @@ class Accounts:
                 row.disabled, end_logins = change.disabled, end_logins or change.disabled
             if change.unlock:
                 row.failed_logins, row.locked_until_utc = 0, None
-            if change.password is not None:
-                row.password_hash, end_logins = self._hasher.hash(change.password), True
+            if new_hash is not None:
+                row.password_hash, end_logins = new_hash, True
             if end_logins:
-                self._end_logins(s, row.id)
+                ended = self._end_logins(s, row.id)
             s.flush()
-            return before, _user(row)
+            after = _user(row)
+        if change.unlock:
+            self.throttle.unlock(name)
+        why = "password reset" if new_hash is not None else "disabled" if after.disabled else "role changed"
+        self.watch.end(ended, f"login ended: account {why}")
+        return before, after
 
     # --- logins -------------------------------------------------------------------------------------
 
-    def login(self, name: str, password: str, now: dt.datetime | None = None) -> Login:
-        """Check the password and open a login session; :class:`LoginFailed` if refused (the failure is
-        counted, and the account locked after ``lockout_after`` in a row)."""
-        now = now or _now()
-        with self._store.writing() as s:
-            row = s.scalar(select(UserRow).where(UserRow.name == name))
-            if row is None:
-                self._verify(self._dummy_hash, password)
-                raise LoginFailed("wrong name or password")
-            if row.locked_until_utc is not None and dt.datetime.fromisoformat(row.locked_until_utc) > now:
-                until = row.locked_until_utc
-                raise LoginFailed(f"account {name!r} is locked after repeated failed logins until {until}")
-            if not self._verify(row.password_hash, password):
-                row.failed_logins += 1
-                if row.failed_logins >= self.lockout_after:
-                    row.locked_until_utc = _stamp(now + self.lockout)
-                failed = LoginFailed("wrong name or password")
-            elif row.disabled:
-                failed = LoginFailed(f"account {name!r} is disabled: ask an admin")
-            else:
-                if self._hasher.check_needs_rehash(row.password_hash):
-                    row.password_hash = self._hasher.hash(password)
-                row.failed_logins, row.locked_until_utc, row.last_login_utc = 0, None, _stamp(now)
-                token, csrf = secrets.token_urlsafe(32), secrets.token_urlsafe(32)
-                login = LoginRow(
-                    user_id=row.id, token_sha256=_sha256(token), csrf_token=csrf, created_utc=_stamp(now),
-                    seen_utc=_stamp(now), expires_utc=_stamp(now + self.login_length),
-                )  # fmt: skip
-                s.add(login)
-                s.flush()
-                return Login(_user(row), login.id, csrf, token)
-        raise failed  # after the commit: the count (and the lock) are kept
+    def login(self, name: str, password: str, address: str = "unknown", now: dt.datetime | None = None) -> Login:
+        """Check the password and open a login session, all in the calling thread; :class:`LoginFailed` if
+        refused (:data:`REFUSED`, counted by the throttle and in the account's row). The server uses
+        :meth:`login_async`."""
+        attempt = self._begin_login(name, address)
+        return self._finish_login(attempt, self._check(attempt, password), now)
 
-    def _verify(self, password_hash: str, password: str) -> bool:
-        try:
-            return self._hasher.verify(password_hash, password)
-        except (VerifyMismatchError, VerificationError, InvalidHashError):
-            return False
+    async def login_async(
+        self, name: str, password: str, address: str = "unknown", now: dt.datetime | None = None
+    ) -> Login:
+        """:meth:`login` for the event loop: the database's read and write in the shared worker threads, the
+        verification in a pool of its own of ``hash_slots`` threads (one of them, for the attempts the
+        throttle holds back, so that a flood of those does not queue ahead of the others). A flood of logins
+        thus never blocks the loop nor takes the threads the other routes need."""
+        if self._pools is None:
+            self._pools = (CapacityLimiter(self._hash_slot_count), CapacityLimiter(1))
+        attempt = await anyio.to_thread.run_sync(self._begin_login, name, address)
+        pool = self._pools[1] if attempt.waits else self._pools[0]
+        checked = await anyio.to_thread.run_sync(self._check, attempt, password, limiter=pool)
+        return await anyio.to_thread.run_sync(self._finish_login, attempt, checked, now)
+
+    def _begin_login(self, name: str, address: str) -> _Attempt:
+        with self._store.reading() as s:
+            row = s.scalar(select(UserRow).where(UserRow.name == name))
+            found = None if row is None else (row.id, row.password_hash, row.failed_logins, row.locked_until_utc)
+        if found is not None and found[2] == 0 and found[3] is None:
+            self.throttle.forget_name(name)  # an admin unlocked it (perhaps from the command line), or a good login
+        waits = self.throttle.wait(address, name) > 0
+        return _Attempt(name, address, None if found is None else found[0], None if found is None else found[1], waits)
+
+    def _check(self, attempt: _Attempt, password: str) -> tuple[bool, str | None]:
+        """The verification (always exactly one), and the password's new hash if the hasher's parameters
+        changed since it was made; no database."""
+        ok = self._verify(attempt.password_hash or self._dummy_hash, password)
+        ok = ok and attempt.password_hash is not None and not attempt.waits
+        rehash = None
+        if ok and attempt.password_hash is not None and self._hasher.check_needs_rehash(attempt.password_hash):
+            rehash = self._hash(password)
+        return ok, rehash
+
+    def _finish_login(self, attempt: _Attempt, checked: tuple[bool, str | None], now: dt.datetime | None) -> Login:
+        now = now or _now()
+        ok, rehash = checked
+        if not ok:
+            if attempt.waits:  # an attempt held back was not checked: it is no further failure
+                raise LoginFailed(REFUSED, "held back by the failed-login throttle (not checked)")
+            self._failed(attempt.name, attempt.address, now)
+            raise LoginFailed(REFUSED, "wrong name or password")
+        with self._store.writing() as s:
+            row = s.get(UserRow, attempt.user_id)
+            if row is None or row.password_hash != attempt.password_hash:
+                raise LoginFailed(REFUSED, "the account was removed or its password changed during the login")
+            if row.disabled:
+                raise LoginFailed(f"account {attempt.name!r} is disabled: ask an admin")
+            if rehash is not None:
+                row.password_hash = rehash
+            row.failed_logins, row.locked_until_utc, row.last_login_utc = 0, None, _stamp(now)
+            token, csrf = secrets.token_urlsafe(32), secrets.token_urlsafe(32)
+            login = LoginRow(
+                user_id=row.id, token_sha256=_sha256(token), csrf_token=csrf, created_utc=_stamp(now),
+                seen_utc=_stamp(now), expires_utc=_stamp(now + self.login_length),
+            )  # fmt: skip
+            s.add(login)
+            s.flush()
+            done = Login(_user(row), login.id, csrf, token)
+        self.throttle.succeeded(attempt.address, attempt.name)
+        return done
+
+    def _failed(self, name: str, address: str, now: dt.datetime) -> None:
+        """Count a failed check of ``name``'s password from ``address``: in the throttle, and in the account's
+        row (the same statement for a name that does not exist, which changes nothing)."""
+        self.throttle.failed(address, name)
+        wait = self.throttle.name_wait(name)
+        until = _stamp(now + dt.timedelta(seconds=wait)) if wait > 0 else None
+        with self._store.writing() as s:
+            s.execute(
+                update(UserRow).where(UserRow.name == name)
+                .values(failed_logins=UserRow.failed_logins + 1, locked_until_utc=until)
+            )  # fmt: skip
 
     def identify(self, token: str, now: dt.datetime | None = None) -> Login | None:
         """The login whose cookie token this is, if it is open, unexpired and its user enabled."""
@@ -230,26 +343,65 @@ class Accounts:
             return Login(_user(user), login.id, login.csrf_token)
 
     def logout(self, login_id: int) -> None:
+        """End a login; its open sockets are told."""
         with self._store.writing() as s:
             s.execute(update(LoginRow).where(LoginRow.id == login_id).values(ended_utc=_stamp(_now())))
+        self.watch.end([login_id], "logged out")
 
-    def change_password(self, name: str, current: str, new: str) -> None:
-        """Change one's own password (the current one checked); every login of the user ends."""
+    def change_password(self, name: str, current: str, new: str, address: str = "unknown") -> None:
+        """Change one's own password (the current one checked, and a wrong one counted by the throttle as a
+        failed login from ``address``); every login of the user ends and their open sockets are told."""
+        wait = self.throttle.wait(address, name)
+        with self._store.reading() as s:
+            old_hash = self._user_row(s, name).password_hash
+        right = self._verify(old_hash, current)
+        if wait > 0:
+            raise LoginFailed(f"too many wrong passwords: try again in {wait:.0f} s")
+        if not right:
+            self._failed(name, address, _now())
+            raise LoginFailed("the current password is wrong")
+        if current == new:
+            raise Conflict("the new password is the current one")
+        new_hash = self._hash(new)  # outside any transaction
         with self._store.writing() as s:
             row = self._user_row(s, name)
-            if not self._verify(row.password_hash, current):
-                raise LoginFailed("the current password is wrong")
-            if current == new:
-                raise Conflict("the new password is the current one")
-            row.password_hash = self._hasher.hash(new)
-            self._end_logins(s, row.id)
+            if row.password_hash != old_hash:
+                raise Conflict("the password was changed meanwhile: log in again")
+            row.password_hash = new_hash
+            ended = self._end_logins(s, row.id)
+        self.watch.end(ended, "login ended: password changed")
+
+    def open_logins(self, login_ids: Iterable[int], now: dt.datetime | None = None) -> set[int]:
+        """Which of ``login_ids`` are still open (not ended, unexpired, their user enabled)."""
+        ids, now = list(login_ids), now or _now()
+        if not ids:
+            return set()
+        with self._store.reading() as s:
+            found = s.execute(
+                select(LoginRow.id, LoginRow.ended_utc, LoginRow.expires_utc, UserRow.disabled)
+                .join(UserRow, UserRow.id == LoginRow.user_id).where(LoginRow.id.in_(ids))
+            ).all()  # fmt: skip
+        return {
+            i for i, ended, expires, disabled in found
+            if ended is None and not disabled and dt.datetime.fromisoformat(expires) > now
+        }  # fmt: skip
+
+    def sweep(self) -> int:
+        """Tell the sockets of logins that ended without this process ending them (another process, e.g.
+        ``gaitscope user reset-password``, or their expiry); returns how many sockets were told."""
+        watched = self.watch.open_ids()
+        gone = set(watched) - self.open_logins(watched)
+        return self.watch.end(gone, "login ended") if gone else 0
 
     @staticmethod
-    def _end_logins(s: orm.Session, user_id: int) -> None:
+    def _end_logins(s: orm.Session, user_id: int) -> list[int]:
+        """End every open login of the user; their ids (the caller tells their sockets after the commit)."""
+        ids = list(s.scalars(select(LoginRow.id).where(LoginRow.user_id == user_id, LoginRow.ended_utc.is_(None))))
         s.execute(
             update(LoginRow).where(LoginRow.user_id == user_id, LoginRow.ended_utc.is_(None))
             .values(ended_utc=_stamp(_now()))
         )  # fmt: skip
+        return ids
 
     # --- device tokens ------------------------------------------------------------------------------
 

@@ -209,7 +209,7 @@ def test_leg_view_binds_the_servers_host_with_its_allowlist(tmp_path: Path) -> N
 
 def test_leg_view_will_not_start_without_its_guard(monkeypatch: pytest.MonkeyPatch) -> None:
     @contextlib.contextmanager
-    def bypassed(allowed_hosts: Any, logged_in: Any = None) -> Iterator[list[int]]:
+    def bypassed(allowed_hosts: Any, logged_in: Any = None, watch: Any = None) -> Iterator[list[int]]:
         yield []  # as if viser served some other way: the guard never went in
 
     monkeypatch.setattr(server.leg_view, "_guarded_serve", bypassed)
