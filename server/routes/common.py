@@ -11,13 +11,14 @@ from fastapi import Depends, FastAPI, HTTPException, Query, Request, status
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel
+from sqlalchemy.exc import DBAPIError
 
 from estimators.pipeline import TrainedModel
 from sessions import schema
-from sessions.errors import DataFormatError
+from sessions.errors import FREE_SPACE_HINT, DataFormatError, DiskFull, is_disk_full
 from sessions.live.gp_learning import LearningRefused
 from sessions.live.manager import SessionStateError
-from sessions.live.runtime import ChangeNotSaved, DiskFull, SettingRejected
+from sessions.live.runtime import ChangeNotSaved, SettingRejected
 from sessions.store import Conflict, NotFound
 
 if TYPE_CHECKING:
@@ -61,10 +62,16 @@ ERROR_STATUS: dict[type[Exception], int] = {
 
 
 def install_error_handlers(app: FastAPI) -> None:
-    """Routes raise domain errors; these handlers turn them into ``{"detail": message}`` responses."""
+    """Routes raise domain errors; these handlers turn them into ``{"detail": message}`` responses.
+
+    A full disk is 507 wherever it is met: :class:`~sessions.errors.DiskFull`, a domain error raised
+    from one (a change not saved), and the database's or the file system's own error (SQLite's
+    "database or disk is full", PostgreSQL's 53100, ``ENOSPC``), which would otherwise be a 500."""
 
     def handler(code: int) -> Callable[[Request, Exception], Awaitable[JSONResponse]]:
         async def handle(_: Request, exc: Exception) -> JSONResponse:
+            if code != status.HTTP_507_INSUFFICIENT_STORAGE and is_disk_full(exc):
+                return _disk_full(f"{exc}: the server's disk is full; {FREE_SPACE_HINT}")
             return JSONResponse({"detail": str(exc)}, status_code=code)
 
         return handle
@@ -72,6 +79,20 @@ def install_error_handlers(app: FastAPI) -> None:
     for exc_type, code in ERROR_STATUS.items():
         app.add_exception_handler(exc_type, handler(code))
     app.add_exception_handler(RequestValidationError, _validation_error)
+    for storage_error in (DBAPIError, OSError):
+        app.add_exception_handler(storage_error, _storage_error)
+
+
+def _disk_full(detail: str) -> JSONResponse:
+    return JSONResponse({"detail": detail}, status_code=status.HTTP_507_INSUFFICIENT_STORAGE)
+
+
+async def _storage_error(request: Request, exc: Exception) -> JSONResponse:
+    """507 for a database or file error that says the disk is full; any other is re-raised (a 500: a server fault)."""
+    if request.scope["type"] != "http" or not is_disk_full(exc):
+        raise exc
+    done = "nothing was read" if request.method in ("GET", "HEAD") else "nothing was changed"
+    return _disk_full(f"{request.method} {request.url.path}: {done}: the server's disk is full; {FREE_SPACE_HINT}")
 
 
 async def _validation_error(_: Request, exc: Exception) -> JSONResponse:
@@ -100,7 +121,7 @@ def trained_model(c: AppContext, name: str) -> TrainedModel:
 
 def reviewable_trial(c: AppContext, trial_id: int) -> tuple[schema.Trial, Path]:
     """A trial whose recording can be read (not still recording, not damaged; 409 if so) and its file."""
-    trial = c.store.get_trial(trial_id)
+    trial = c.manager.shown_trial(c.store.get_trial(trial_id))
     if trial.status == "recording":
         raise HTTPException(409, f"trial {trial_id} is still recording; stop the recording to review it")
     if trial.status == "damaged":
@@ -159,7 +180,9 @@ def audit(
 def not_running_here(c: AppContext, session_id: int, what: str = "") -> str:
     """Why session ``session_id`` has no runtime in this process, in words: it does not exist (NotFound), it is
     not running, or it runs in another process (its node) sharing the database. ``what``: "; <what it needs>"."""
-    session = c.store.get_session(session_id)
+    session = c.manager.shown(c.store.get_session(session_id))
     if session.state == "running" and session.node not in (None, c.manager.node):
         return f"session {session_id} runs on {session.node}, not on this server ({c.manager.node}): use that one"
+    if (unsaved := c.manager.unsaved.get(session_id)) is not None:  # it ended here: say why
+        return f"session {session_id} is {session.state} ({unsaved.reason}){what}"
     return f"session {session_id} is not running{what}"

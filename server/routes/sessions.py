@@ -16,7 +16,7 @@ router = APIRouter(prefix="/api")
 
 @router.get("/sessions", dependencies=[allow("read")])
 def list_sessions(c: Ctx, subject_id: OptionalId = None) -> list[schema.Session]:
-    return c.store.list_sessions(subject_id)
+    return [c.manager.shown(s) for s in c.store.list_sessions(subject_id)]
 
 
 @router.post("/sessions", status_code=201)
@@ -26,7 +26,7 @@ async def create_session(body: schema.SessionCreate, c: Ctx, who: Runner) -> sch
         check_assistance(c, who, body.subject_id, body.settings.model_dump(exclude={"primary"}))
     audit(c, who, "session.create", f"subject {body.subject_id}", after=body.model_dump(mode="json"))
     if isinstance(body.source, schema.ReplaySource):
-        trial = c.store.get_trial(body.source.trial_id)
+        trial = c.manager.shown_trial(c.store.get_trial(body.source.trial_id))
         if trial.status in ("recording", "damaged"):
             why = "is still recording" if trial.status == "recording" else "has a damaged recording"
             raise SessionStateError(f"trial {trial.id} {why}; it cannot be replayed")
@@ -36,7 +36,7 @@ async def create_session(body: schema.SessionCreate, c: Ctx, who: Runner) -> sch
 
 @router.get("/sessions/{session_id}", dependencies=[allow("read")])
 def get_session(session_id: int, c: Ctx) -> schema.Session:
-    return c.store.get_session(session_id)
+    return c.manager.shown(c.store.get_session(session_id))
 
 
 @router.post("/sessions/{session_id}/start")

@@ -33,12 +33,12 @@ _MaxPoints = Annotated[int, Query(ge=10, le=20000)]
 
 @router.get("/trials", dependencies=[allow("read")])
 def list_trials(c: Ctx, session_id: OptionalId = None) -> list[schema.Trial]:
-    return c.store.list_trials(session_id)
+    return [c.manager.shown_trial(t) for t in c.store.list_trials(session_id)]
 
 
 @router.get("/trials/{trial_id}", dependencies=[allow("read")])
 def get_trial(trial_id: int, c: Ctx) -> schema.Trial:
-    return c.store.get_trial(trial_id)
+    return c.manager.shown_trial(c.store.get_trial(trial_id))
 
 
 @router.get("/trials/{trial_id}/events", dependencies=[allow("read")])

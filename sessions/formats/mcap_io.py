@@ -11,20 +11,39 @@ Every problem with a file raises :class:`~sessions.errors.DataFormatError` namin
 
 from __future__ import annotations
 
+import errno
 import io
 import itertools
 import json
+import os
 import struct
+import zlib
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any, Final
 
 import numpy as np
-from mcap.data_stream import ReadDataStream
+from mcap.data_stream import ReadDataStream, RecordBuilder
 from mcap.exceptions import McapError
+from mcap.opcode import Opcode
 from mcap.reader import McapReader, make_reader
-from mcap.records import Attachment, Channel, Chunk, Header, Message, Metadata, Schema
+from mcap.records import (
+    Attachment,
+    Channel,
+    Chunk,
+    ChunkIndex,
+    DataEnd,
+    Footer,
+    Header,
+    Message,
+    MessageIndex,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.summary import Summary
 from mcap.writer import Writer
@@ -48,6 +67,7 @@ __all__ = [
     "read_sensor_frames",
     "read_series",
     "recover",
+    "recover_in_place",
     "series_window",
 ]
 
@@ -447,7 +467,8 @@ def recover(path: Path) -> RecoveryResult:
     Reads the file front to back and keeps every complete record: the header, metadata,
     attachments, schemas, channels and the messages of every chunk whose CRC checks; stops at the
     torn tail. The result is written beside the file, synced and moved over it, so if anything fails
-    the original is left exactly as it was. A finished file is left untouched.
+    the original is left exactly as it was. A finished file is left untouched. A disk with no room
+    for that copy (full) raises OSError ``ENOSPC``: :func:`recover_in_place` needs no copy.
 
     Raises:
         DataFormatError: not an MCAP file (bad magic).
@@ -466,6 +487,168 @@ def recover(path: Path) -> RecoveryResult:
         if stats is None or stats.message_count != messages:
             raise DataFormatError("recovery wrote an unreadable file; the original is kept", file=str(path))
     return RecoveryResult(messages=messages, lost_bytes=lost, recovered=True)
+
+
+def recover_in_place(path: Path) -> RecoveryResult:
+    """Index an unfinished MCAP file where it lies: :func:`recover` for a disk with no room for a copy.
+
+    Reads the file's records front to back, as :func:`recover` does, and appends the summary section
+    (schemas, channels, statistics, chunk and metadata indexes) and the footer right after the last
+    complete chunk and its message indexes, cutting off the torn tail. That takes a few hundred bytes
+    per chunk (about 1 MiB for an hour at 200 Hz). When even that does not fit (the disk is full),
+    the last chunks are cut off one by one, each freeing its space, until the index fits. The file is
+    never copied: an interruption while the index is written leaves it unfinished again, which
+    :func:`recover` handles. A finished file is left untouched.
+
+    Raises:
+        DataFormatError: not an MCAP file, or a damaged chunk before the end (only :func:`recover`,
+            which copies the file, can skip one), or nothing is left to index.
+        OSError: the index could not be written even with all data cut off.
+    """
+    name = str(path)
+    with open(path, "r+b") as f:
+        finished = _finished(f, name)
+        if finished is not None:
+            stats = finished[1].statistics
+            return RecoveryResult(messages=stats.message_count if stats else 0, lost_bytes=0, recovered=False)
+        size = f.seek(0, io.SEEK_END)
+        f.seek(0)
+        scan = _scan_records(f, name)
+        for kept in range(len(scan.chunks), 0, -1):
+            end = scan.chunks[kept - 1].end
+            summary = scan.summary(kept, end)
+            try:
+                f.truncate(end)
+                f.seek(end)
+                f.write(summary)
+                f.flush()
+                os.fsync(f.fileno())
+            except OSError as exc:
+                if exc.errno not in (errno.ENOSPC, errno.EDQUOT):
+                    raise
+                f.truncate(end)  # free what was written, then try with one chunk less
+                continue
+            messages = sum(c.messages for c in scan.chunks[:kept])
+            return RecoveryResult(messages=messages, lost_bytes=size - end, recovered=True)
+    raise DataFormatError("no complete chunk to keep" if not scan.chunks else
+                          "the disk has no room even for the index of the first chunk", file=name)  # fmt: skip
+
+
+@dataclass
+class _ScannedChunk:
+    """A chunk of an unfinished file, as :func:`recover_in_place` indexes it."""
+
+    index: ChunkIndex
+    end: int  # offset just past the chunk and its message indexes
+    messages: int
+    counts: dict[int, int]  # messages per channel id
+
+
+@dataclass
+class _Scan:
+    """The complete records of an unfinished file that its summary section lists."""
+
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
+    metadata: list[MetadataIndex] = field(default_factory=list)
+    chunks: list[_ScannedChunk] = field(default_factory=list)
+
+    def summary(self, kept: int, start: int) -> bytes:
+        """DataEnd, the summary section of the first ``kept`` chunks, footer and magic, for offset ``start``."""
+        chunks = self.chunks[:kept]
+        counts: dict[int, int] = {}
+        for c in chunks:
+            for channel_id, n in c.counts.items():
+                counts[channel_id] = counts.get(channel_id, 0) + n
+        head = RecordBuilder()
+        DataEnd(data_section_crc=0).write(head)
+        summary_start = start + head.count
+        body = RecordBuilder()
+        offsets: list[SummaryOffset] = []
+
+        def group(opcode: Opcode, records: Sequence[Any]) -> None:
+            begin = body.count
+            for record in records:
+                record.write(body)
+            offsets.append(SummaryOffset(opcode, summary_start + begin, body.count - begin))
+
+        times = [c.index for c in chunks if c.messages]
+        group(Opcode.SCHEMA, list(self.schemas.values()))
+        group(Opcode.CHANNEL, list(self.channels.values()))
+        group(Opcode.STATISTICS, [Statistics(
+            attachment_count=0, channel_count=len(self.channels), channel_message_counts=counts,
+            chunk_count=len(chunks), message_count=sum(c.messages for c in chunks),
+            message_end_time=max((i.message_end_time for i in times), default=0),
+            message_start_time=min((i.message_start_time for i in times), default=0),
+            metadata_count=len(self.metadata), schema_count=len(self.schemas),
+        )])  # fmt: skip
+        group(Opcode.CHUNK_INDEX, [c.index for c in chunks])
+        group(Opcode.METADATA_INDEX, self.metadata)
+        offset_start = summary_start + body.count
+        for offset in offsets:
+            offset.write(body)
+        data = body.end()
+        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, summary_start, offset_start), zlib.crc32(data))
+        tail = RecordBuilder()
+        Footer(summary_start=summary_start, summary_offset_start=offset_start, summary_crc=crc).write(tail)
+        return head.end() + data + tail.end() + _MAGIC
+
+
+def _scan_records(f: IO[bytes], name: str) -> _Scan:
+    """The complete chunks (with their message indexes), schemas, channels and metadata of ``f``, in order,
+    up to the torn tail or the first damaged chunk."""
+    scan = _Scan()
+    records = StreamReader(f, skip_magic=False, emit_chunks=True).records
+    good_end = len(_MAGIC)
+    while True:
+        try:
+            record = next(records)
+        except StopIteration:
+            break
+        except Exception as exc:
+            if not _is_damage(exc):
+                raise
+            break  # the torn tail
+        begin, end = good_end, f.tell()
+        if isinstance(record, Chunk):
+            try:
+                contents = breakup_chunk(record, validate_crc=True)
+            except Exception as exc:
+                if not _is_damage(exc):
+                    raise
+                break  # damaged (or cut short): keep what comes before it
+            counts: dict[int, int] = {}
+            for inner in contents:
+                if isinstance(inner, Schema):
+                    scan.schemas.setdefault(inner.id, inner)
+                elif isinstance(inner, Channel):
+                    scan.channels.setdefault(inner.id, inner)
+                elif isinstance(inner, Message):
+                    counts[inner.channel_id] = counts.get(inner.channel_id, 0) + 1
+            index = ChunkIndex(
+                chunk_length=end - begin, chunk_start_offset=begin, compression=record.compression,
+                compressed_size=len(record.data), message_end_time=record.message_end_time,
+                message_index_length=0, message_index_offsets={}, message_start_time=record.message_start_time,
+                uncompressed_size=record.uncompressed_size,
+            )  # fmt: skip
+            scan.chunks.append(_ScannedChunk(index, end, sum(counts.values()), counts))
+        elif isinstance(record, MessageIndex) and scan.chunks and scan.chunks[-1].end == begin:
+            last = scan.chunks[-1]
+            last.index.message_index_offsets[record.channel_id] = begin
+            last.index.message_index_length += end - begin
+            last.end = end
+        elif isinstance(record, Metadata):
+            scan.metadata.append(MetadataIndex(offset=begin, length=end - begin, name=record.name))
+        elif isinstance(record, Schema):
+            scan.schemas.setdefault(record.id, record)
+        elif isinstance(record, Channel):
+            scan.channels.setdefault(record.id, record)
+        elif not isinstance(record, Header | MessageIndex):
+            break  # attachments, or records after the data section: not what a recorder leaves; stop here
+        good_end = end
+    if not scan.channels and not scan.chunks:
+        raise DataFormatError("nothing complete to keep", file=name)
+    return scan
 
 
 def _copy_complete_records(src: IO[bytes], dst: IO[bytes]) -> tuple[int, int]:

@@ -4,17 +4,20 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import datetime as dt
 import logging
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Final
 
 from estimators.pipeline import TrainedModel
 from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.formats.mcap_io import read_messages, recover
+from sessions.errors import DataFormatError, DiskFull, disk_full, is_disk_full
+from sessions.formats.mcap_io import recover
 from sessions.formats.models import default_model_path, load_model
 from sessions.live.gp_learning import GPTrainer
-from sessions.live.runtime import DiskState, SessionRuntime
+from sessions.live.runtime import DiskState, SessionRuntime, count_states
 from sessions.live.sources import FrameSource, LiveDevice, ReplayDevice, SimulatedDevice
 from sessions.live.subscribers import attach_history
 from sessions.store import Store
@@ -22,8 +25,31 @@ from sessions.store import Store
 log = logging.getLogger("gaitscope")
 
 
+#: Seconds between two tries to store what the database refused when a session ended (a full disk).
+RETRY_S: Final = 2.0
+
+
 class SessionStateError(RuntimeError):
     """An action that the session's state does not allow (start a running session, ...)."""
+
+
+@dataclass
+class Unsaved:
+    """A session that ended here but whose end the database could not store yet (its disk full).
+
+    Attributes:
+        session: the session as it is: its final state (what the API shows meanwhile).
+        reason: why it ended, in the user's words.
+        trials: its trials' final rows, by id, not stored yet (shown meanwhile).
+        events: the events that end them or the session (``Store.add_event``'s arguments), not stored yet.
+        error: the last failure to store them.
+    """
+
+    session: schema.Session
+    reason: str
+    trials: dict[int, schema.Trial] = field(default_factory=dict)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    error: Exception | None = None
 
 
 class ModelStore:
@@ -69,6 +95,9 @@ class SessionManager:
         self.disk_check = disk_check
         self.runtimes: dict[int, SessionRuntime] = {}
         self.gp_trainer = gp_trainer or GPTrainer()
+        #: Sessions that ended here whose end is not stored yet, by id: retried every ``RETRY_S`` (:meth:`reconcile`)
+        self.unsaved: dict[int, Unsaved] = {}
+        self._retrying: asyncio.Task[None] | None = None
 
     def recover_after_crash(self) -> list[schema.Trial]:
         """At start-up: end every trial and session that a crash left open; returns the recovered trials.
@@ -93,7 +122,7 @@ class SessionManager:
             path = self.data_dir / trial.path
             try:
                 result = recover(path)
-                samples, duration, end_t = _count(path)
+                samples, duration, end_t = count_states(path)
             except Exception as e:
                 expected = isinstance(e, OSError | DataFormatError)  # else a bug: log its traceback
                 log.error("trial %d: could not recover %s: %s", trial.id, path, e, exc_info=not expected)
@@ -158,45 +187,136 @@ class SessionManager:
                 self.store.add_event(session_id, t=0.0, kind="system", text=f"session refused to start: {e}")
             self.store.set_session_state(session_id, "failed")
             raise SessionStateError(f"session {session_id} cannot start: {e}") from e
-        session = runtime.session = self.store.set_session_state(session_id, "running", self.node)
+        try:
+            session = runtime.session = self.store.set_session_state(session_id, "running", self.node)
+        except Exception as e:
+            if is_disk_full(e):
+                raise disk_full(f"session {session_id} did not start", e) from e
+            raise
         attach_history(runtime)  # the last 30 s for a browser that opens the session later, from the first sample
         try:
             runtime.start()
         except Exception as e:
             log.exception("session %d did not start", session_id)
             with contextlib.suppress(Exception):
-                self.store.add_event(session_id, t=0.0, kind="system", text=f"session failed to start: {e}")
-            with contextlib.suppress(Exception):
                 runtime.stop_recording()
-            self.store.set_session_state(session_id, "failed")
+            runtime.unsaved_events.append(
+                {"session_id": session_id, "t": 0.0, "kind": "system", "text": f"session failed to start: {e}"}
+            )
+            self._finish(runtime, "failed", f"session failed to start: {e}")
+            if is_disk_full(e) and not isinstance(e, DiskFull):
+                raise disk_full(f"session {session_id} did not start", e) from e
             raise
         self.runtimes[session_id] = runtime
         return session
 
     async def _ended(self, runtime: SessionRuntime, state: schema.SessionState, reason: str) -> None:
-        """A session ended by itself: forget its runtime and store its final state."""
+        """A session ended by itself: forget its runtime and store its final state (later if it cannot now)."""
         if self.runtimes.get(runtime.session.id) is runtime:
             del self.runtimes[runtime.session.id]
+        self._finish(runtime, state, reason)
+
+    def _finish(self, runtime: SessionRuntime, state: schema.SessionState, reason: str) -> schema.Session:
+        """Store a session's end: its trials' final rows and events that its runtime could not store, then its
+        state. What the database refuses (a full disk) is kept in :attr:`unsaved`, shown by the API as it is,
+        and retried every ``RETRY_S`` until stored. Never raises; returns the session as it now is."""
+        sid = runtime.session.id
+        stamp = dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
+        ended = runtime.session.model_copy(update={"state": state, "stopped_utc": stamp})
+        unsaved = self.unsaved.setdefault(sid, Unsaved(ended, reason))
+        unsaved.trials.update(runtime.unsaved_trials)
+        unsaved.events += runtime.unsaved_events
+        runtime.unsaved_trials, runtime.unsaved_events = {}, []
+        if self._store(sid) is None:
+            return self.store.get_session(sid)
+        log.error("session %d ended (%s) but the database refused it (%s): retried every %g s",
+                  sid, reason, unsaved.error, RETRY_S)  # fmt: skip
+        with contextlib.suppress(RuntimeError):  # no running loop (start-up): retried by the next call
+            if self._retrying is None or self._retrying.done():
+                self._retrying = asyncio.get_running_loop().create_task(self._retry(), name="store-unsaved")
+        return unsaved.session
+
+    def _store(self, session_id: int) -> Exception | None:
+        """Store what :attr:`unsaved` keeps of one session, in order (trials, events, state); stops at the first
+        failure, which it returns (None: all stored and forgotten)."""
+        unsaved = self.unsaved[session_id]
         try:
-            self.store.set_session_state(runtime.session.id, state)
-        except Exception:
-            log.exception("session %d ended (%s) but its state could not be stored", runtime.session.id, reason)
+            for trial_id, trial in list(unsaved.trials.items()):
+                self.store.finish_trial(trial_id, trial.status, trial.samples, trial.duration_s)
+                del unsaved.trials[trial_id]
+            while unsaved.events:
+                self.store.add_event(**unsaved.events[0])
+                unsaved.events.pop(0)
+            self.store.set_session_state(session_id, unsaved.session.state)
+        except Exception as e:
+            unsaved.error = e
+            return e
+        del self.unsaved[session_id]
+        return None
+
+    def reconcile(self) -> bool:
+        """Try again to store every session's end that the database refused; True when nothing is left."""
+        for session_id in list(self.unsaved):
+            if self._store(session_id) is None:
+                log.warning("session %d: its end is stored now", session_id)
+        return not self.unsaved
+
+    async def _retry(self) -> None:
+        while not self.reconcile():
+            await asyncio.sleep(RETRY_S)
+
+    def shown(self, session: schema.Session) -> schema.Session:
+        """``session`` as it is: its final state if it ended here and the database does not have it yet."""
+        unsaved = self.unsaved.get(session.id)
+        return session if unsaved is None else unsaved.session
+
+    def shown_trial(self, trial: schema.Trial) -> schema.Trial:
+        """``trial`` as it is: its final row if it ended here and the database does not have it yet."""
+        runtime = self.runtimes.get(trial.session_id)
+        if runtime is not None and trial.id in runtime.unsaved_trials:  # stored when its session ends
+            return runtime.unsaved_trials[trial.id]
+        unsaved = self.unsaved.get(trial.session_id)
+        return trial if unsaved is None else unsaved.trials.get(trial.id, trial)
 
     async def stop(self, session_id: int) -> schema.Session:
-        """Stop a running session: the recording is finished and the session stopped, whatever fails."""
-        session = self.store.get_session(session_id)
+        """Stop a running session: the recording is finished and the session stopped, whatever fails.
+
+        Raises:
+            SessionStateError: not running (here).
+            sessions.errors.DiskFull: it stopped, but the database could not store that (its disk full):
+                stored later (:meth:`reconcile`); or it had ended already and that is still not stored.
+        """
+        session = self.shown(self.store.get_session(session_id))
         runtime = self.runtimes.pop(session_id, None)
         if runtime is None:
+            if session_id in self.unsaved:  # it ended here: try to store that again
+                self.reconcile()
+                if (unsaved := self.unsaved.get(session_id)) is not None:
+                    raise self._not_stored(session_id, f"session {session_id} is already {session.state} "
+                                           f"({unsaved.reason})", unsaved.error)  # fmt: skip
+                raise SessionStateError(f"session {session_id} is {session.state}, not running")
             if session.state == "running" and session.node not in (None, self.node):
                 raise SessionStateError(f"session {session_id} runs on {session.node}: stop it there")
             if session.state == "running":  # running in the database but not here: a stale record
-                return self.store.set_session_state(session_id, "stopped")
+                try:
+                    return self.store.set_session_state(session_id, "stopped")
+                except Exception as e:
+                    raise self._not_stored(session_id, f"session {session_id} could not be stopped", e) from e
             raise SessionStateError(f"session {session_id} is {session.state}, not running")
         try:
             await runtime.stop()
         finally:
-            session = self.store.set_session_state(session_id, "stopped")
+            session = self._finish(runtime, "stopped", "stopped by the API")
+        if (unsaved := self.unsaved.get(session_id)) is not None:
+            raise self._not_stored(session_id, f"session {session_id} stopped", unsaved.error)
         return session
+
+    def _not_stored(self, session_id: int, what: str, error: Exception | None) -> Exception:
+        """The error for a session's end the database did not take: :class:`DiskFull` when its disk is full."""
+        if not is_disk_full(error):
+            return error or RuntimeError(f"{what}: not stored")
+        later = " (stored as soon as there is room; the API shows it meanwhile)" if session_id in self.unsaved else ""
+        return disk_full(f"{what}, but the database could not store that{later}", error)
 
     def get(self, session_id: int) -> SessionRuntime | None:
         return self.runtimes.get(session_id)
@@ -211,23 +331,14 @@ class SessionManager:
                 await self.stop(session_id)
             except Exception:
                 log.exception("session %d: stop at shutdown failed", session_id)
+        if self._retrying is not None:
+            self._retrying.cancel()
+        if not self.reconcile():  # left to the next start-up's recovery (recover_after_crash)
+            log.error("sessions %s ended, but the database could not store that", sorted(self.unsaved))
         try:
             await asyncio.to_thread(self.gp_trainer.shutdown)
         except Exception:
             log.exception("the GP fit worker did not stop cleanly")
-
-
-def _count(path: Path) -> tuple[int, float, float]:
-    """Number of gait states in a recording, the time they span, and the last one's ``t`` (0 if none)."""
-    first = last = None
-    n = 0
-    for _, _, msg in read_messages(path, ["/gait_state"]):
-        first = msg["t"] if first is None else first
-        last = msg["t"]
-        n += 1
-    if first is None or last is None:
-        return 0, 0.0, 0.0
-    return n, last - first, last
 
 
 def _last_event_t(store: Store, session_id: int) -> float:

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import datetime as dt
 import logging
 import math
 import time
@@ -44,8 +45,9 @@ from numpy.typing import NDArray
 
 from estimators.pipeline import TrainedModel
 from sessions import schema
+from sessions.errors import FREE_SPACE_HINT, DiskFull, disk_full, is_disk_full
 from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused, torque_json
-from sessions.formats.mcap_io import recover
+from sessions.formats.mcap_io import read_messages, recover, recover_in_place
 from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, SAMPLE_PERIOD_KEY, Recorder
 from sessions.imu_calibration import StandingCollector, applied_text, apply_calibration, front_end_segments
 from sessions.live.disk import DiskLevel
@@ -79,10 +81,6 @@ DiskState = DiskLevel
 
 class SettingRejected(ValueError):
     """A settings change that breaks a rate-of-change limit; the message says which and why."""
-
-
-class DiskFull(RuntimeError):
-    """A recording cannot start: the disk is (almost) full."""
 
 
 class ChangeNotSaved(RuntimeError):
@@ -188,6 +186,13 @@ class SessionRuntime:
         self._stopped = False
         self._last_note = -math.inf
         self._suppressed_notes = 0
+        #: What ending the session could not store (the database's disk full): each trial's final row, by id,
+        #: and the events that end a trial or the session (``Store.add_event``'s arguments, session id
+        #: included). The manager stores them once it can; the API shows the trials meanwhile.
+        self.unsaved_trials: dict[int, schema.Trial] = {}
+        self.unsaved_events: list[dict[str, Any]] = []
+        #: Why the last event that could not be stored was not (None before any)
+        self.store_error: Exception | None = None
 
     # --- lifecycle ------------------------------------------------------------------------------
     def start(self) -> None:
@@ -246,10 +251,20 @@ class SessionRuntime:
         for folder in {str(self.data_dir.resolve()), str(self.data_dir)}:  # no server paths in events
             reason = reason.replace(folder + "/", "").replace(folder, "the data folder")
         self.ended = reason
-        self._event("system", f"session {state}: {reason}")
+        self._lasting_event(f"session {state}: {reason}")
         await self.stop()
         if self.on_end is not None:
             await self.on_end(self, state, reason)
+
+    def _lasting_event(self, text: str, trial_id: int | None = None, kind: schema.EventKind = "system") -> None:
+        """An event that must reach the database (a trial's or the session's end): when it cannot be stored now
+        (a full disk), it is kept in :attr:`unsaved_events` for the manager to store later."""
+        trial_id = trial_id if trial_id is not None else self.trial.id if self.trial else None
+        if self._event(kind, text) is None:
+            self.unsaved_events.append(
+                {"session_id": self.session.id, "t": self.estimator.last_t, "kind": kind, "text": text,
+                 "trial_id": trial_id}
+            )  # fmt: skip
 
     async def _supervised(self, work: Coroutine[Any, Any, None]) -> None:
         """Run one task of the session; an error fails the session instead of vanishing."""
@@ -369,15 +384,21 @@ class SessionRuntime:
         notes.clear()
 
     def _recording_failed(self, e: Exception) -> None:
-        """A recording write failed (a full disk): finish what was recorded and stop the session."""
+        """A recording write failed (a full disk): finish what was recorded and stop the session.
+
+        The trial ends at once, readable up to its last complete chunk (:meth:`stop_recording`); the session
+        ends on the next turn of the loop, with the reason in its last event and in the device's close."""
         log.error("session %d: recording failed: %s", self.session.id, e)
         with contextlib.suppress(Exception):
             self.stop_recording()
         self.recorder, self.trial = None, None
         if self.ended is None and not self._stopped:
-            asyncio.get_running_loop().create_task(
-                self.end("stopped", f"the recording could not be written ({_describe(e)}); session stopped")
+            why = (
+                f"{_describe(e)}; {FREE_SPACE_HINT}"
+                if is_disk_full(e)
+                else f"the recording could not be written ({_describe(e)}); session stopped"
             )
+            asyncio.get_running_loop().create_task(self.end("stopped", why))
 
     def personalization_changed(self, text: str, actor: str) -> None:
         """The subject's personalization was promoted or rolled back: an event in this session's log, and the
@@ -649,7 +670,9 @@ class SessionRuntime:
     def annotate(self, text: str, actor: str) -> schema.Event:
         event = self._event("annotation", text, actor=actor)
         if event is None:
-            raise ChangeNotSaved("the annotation could not be saved")
+            if is_disk_full(self.store_error):
+                raise disk_full("the annotation was not saved", self.store_error)
+            raise ChangeNotSaved("the annotation could not be saved") from self.store_error
         return event
 
     def _event(self, kind: schema.EventKind, text: str, **fields: object) -> schema.Event | None:
@@ -665,6 +688,7 @@ class SessionRuntime:
             )
         except Exception as e:
             log.error("session %d: event %r not stored: %s", self.session.id, text, e)
+            self.store_error = e
             return None
         if self.recorder is not None:
             try:
@@ -725,21 +749,40 @@ class SessionRuntime:
         if self.trial is None or self.recorder is None:
             return None
         trial, recorder = self.trial, self.recorder
-        self._event("recording", f"recording stopped: {trial.name}")
+        self._lasting_event(f"recording stopped: {trial.name}", kind="recording")
         self.trial, self.recorder = None, None
         status: schema.TrialStatus = "finished"
+        samples, duration = recorder.samples, recorder.duration_s
         try:
             recorder.finish()
         except Exception as e:
             log.error("session %d: finishing %s failed: %s", self.session.id, recorder.path, e)
             try:
-                recover(recorder.path)
+                try:
+                    recover(recorder.path)
+                except OSError as full:
+                    if not is_disk_full(full):
+                        raise
+                    recover_in_place(recorder.path)  # no room for recover's copy: indexed where it lies
+                samples, duration, _ = count_states(recorder.path)
                 status = "recovered"
             except Exception as again:
                 log.error("session %d: %s cannot be recovered: %s", self.session.id, recorder.path, again)
                 status = "damaged"
-            self._event("system", f"the recording of {trial.name} could not be finished ({_describe(e)}): {status}")
-        return self.store.finish_trial(trial.id, status, recorder.samples, recorder.duration_s)
+            kept = f", {duration:.1f} s kept" if status == "recovered" else ""
+            self._lasting_event(
+                f"the recording of {trial.name} could not be finished ({_describe(e)}): {status}{kept}", trial.id
+            )
+        try:
+            return self.store.finish_trial(trial.id, status, samples, duration)
+        except Exception as e:  # the database's disk full: the manager stores it later, the API shows it meanwhile
+            log.error("session %d: trial %d ended %s but could not be stored: %s", self.session.id, trial.id, status, e)
+            stamp = dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
+            ended = trial.model_copy(
+                update={"status": status, "samples": samples, "duration_s": float(duration), "stopped_utc": stamp}
+            )
+            self.unsaved_trials[trial.id] = ended
+            return ended
 
     @property
     def settings(self) -> SessionSettings:
@@ -749,6 +792,19 @@ class SessionRuntime:
     def last_t(self) -> float:
         """Session time of the last sample processed."""
         return self.estimator.last_t
+
+
+def count_states(path: Path) -> tuple[int, float, float]:
+    """Number of gait states in a recording, the time they span, and the last one's ``t`` (0 if none)."""
+    first = last = None
+    n = 0
+    for _, _, msg in read_messages(path, ["/gait_state"]):
+        first = msg["t"] if first is None else first
+        last = msg["t"]
+        n += 1
+    if first is None or last is None:
+        return 0, 0.0, 0.0
+    return n, last - first, last
 
 
 def _shown(value: object) -> str:

@@ -212,7 +212,7 @@ def test_a_change_the_database_refuses_is_not_applied(client: TestClient, monkey
     with monkeypatch.context() as m:
         m.setattr(store, "change_settings", full)
         r = client.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 0.5})
-        assert r.status_code == 503 and "not applied" in r.json()["detail"]
+        assert r.status_code == 507 and "not applied" in r.json()["detail"] and "disk is full" in r.json()["detail"]
     assert runtime.estimator.settings.torque_gain == 1.0
     assert client.get(f"/api/sessions/{sid}").json()["settings"]["torque_gain"] == 1.0
     assert not [e for e in client.get(f"/api/sessions/{sid}/events").json() if e["kind"] == "setting"]
