@@ -179,7 +179,10 @@ def device_token(conn: HTTPConnection) -> str | None:
 
 
 def _device(conn: HTTPConnection) -> int:
-    session_id = int(conn.path_params["session_id"])
+    raw = str(conn.path_params["session_id"])
+    session_id = int(raw) if raw.isascii() and raw.isdigit() and len(raw) <= 19 else 0
+    if not 0 < session_id <= schema.INT64_MAX:
+        raise _refuse(conn, 404, f"no session {raw[:40]!r}: a session id is a whole number from 1 to 2**63-1")
     token = device_token(conn)
     if token is None:
         raise _refuse(conn, 401, f"session {session_id}: no device token (issue one for this session)")

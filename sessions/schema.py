@@ -282,14 +282,14 @@ class SimulatedSource(_Strict):
     rate_hz: float = Field(default=200.0, ge=20.0, le=1000.0)
     cohort_subject: int = Field(default=0, ge=0, le=9)
     loop: bool = True
-    seed: int = Field(default=7, ge=0)
+    seed: int = Field(default=7, ge=0, le=INT64_MAX)
 
 
 class ReplaySource(_Strict):
     """A stored trial (recorded, or uploaded MCAP / replay CSV / LocoHub file) played back."""
 
     kind: Literal["replay"] = "replay"
-    trial_id: int = Field(ge=1)
+    trial_id: int = Field(ge=1, le=INT64_MAX)
     speed: float = Field(default=1.0, ge=1.0, le=50.0, description="1x real time or faster")
     loop: bool = False
 
@@ -333,7 +333,7 @@ SourceSpec = Annotated[SimulatedSource | ReplaySource | DeviceSource | UploadSou
 
 
 class SessionCreate(_Strict):
-    subject_id: int = Field(ge=1)
+    subject_id: int = Field(ge=1, le=INT64_MAX)
     source: SourceSpec = Field(default_factory=SimulatedSource)
     settings: SessionSettings = Field(default_factory=SessionSettings)
     start: bool = True
@@ -412,10 +412,12 @@ class UploadCreate(_Strict):
         max_length=200,
         # no folder separators, no control characters (C0, DEL, C1), no line or paragraph separators and
         # no bidirectional controls ("x\u202egpj.csv" displays as "xvsc.jpg")
-        pattern=r"^[^/\\\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069]+\.(mcap|csv|parquet)$",
+        # the extension in any case ("x.CSV"), spelled out: the browser's RegExp has no inline (?i)
+        pattern=r"^[^/\\\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069]+"
+        r"\.([Mm][Cc][Aa][Pp]|[Cc][Ss][Vv]|[Pp][Aa][Rr][Qq][Uu][Ee][Tt])$",
     )
-    size: int = Field(ge=1, description="bytes; refused above the server's limit")
-    subject_id: int = Field(ge=1)
+    size: int = Field(ge=1, le=INT64_MAX, description="bytes; refused above the server's limit")
+    subject_id: int = Field(ge=1, le=INT64_MAX)
 
 
 class Upload(BaseModel):
@@ -542,7 +544,7 @@ class PersonalizationExport(_Strict):
     fingerprint: list[FingerprintValue] = Field(min_length=1, max_length=MAX_FINGERPRINT)
     fit_rmse_avg_deg: float = Field(ge=0, allow_inf_nan=False)
     fit_rmse_personal_deg: float = Field(ge=0, allow_inf_nan=False)
-    strides_used: int = Field(ge=0)
+    strides_used: int = Field(ge=0, le=INT64_MAX)
     seconds_used: float = Field(ge=0, allow_inf_nan=False)
     created_utc: str = Field(max_length=40)
     note: str = Field(default="", max_length=500)
@@ -774,14 +776,14 @@ class ModelInfo(BaseModel):
 class ViewerFocus(BaseModel):
     """Which running session the leg view follows (``POST /api/viewer/focus``)."""
 
-    session_id: int = Field(ge=1)
+    session_id: int = Field(ge=1, le=INT64_MAX)
 
 
 class ViewerShow(BaseModel):
     """Pose the leg view at time ``t`` (s) of a trial: the review page's cursor (``POST /api/viewer/show``)."""
 
-    trial_id: int = Field(ge=1)
-    t: float
+    trial_id: int = Field(ge=1, le=INT64_MAX)
+    t: float = Field(ge=-1e9, le=1e9, allow_inf_nan=False, description="session time (s), finite, within 30 years")
 
 
 # --- per-sample messages (websocket and MCAP) ----------------------------------------------------

@@ -6,6 +6,7 @@
 // another port), loads a fresh iframe, and tells the server again what to follow.
 
 import { api, errorText } from "./api.js";
+import { may } from "./auth.js";
 import { onServerChange } from "./server_status.js";
 import { h } from "./ui.js";
 
@@ -85,7 +86,8 @@ export function legView(focus, { onReload } = {}) {
       fit();
       legend.hidden = false;
       if (mine > 1 && onReload) onReload();
-      return focus && api("POST", "/api/viewer/focus", focus);
+      // The view is everyone's: choosing what it follows takes `run` (a viewer watches what others chose).
+      return focus && may("run") && api("POST", "/api/viewer/focus", focus);
     }).catch((err) => {
       if (mine === loads) msg.textContent = `The leg view is unavailable: ${errorText(err)}`;
     });

@@ -3,6 +3,7 @@
 // A job that takes more than a second shows a progress bar with what it is doing.
 
 import { api } from "./api.js";
+import { fence } from "./auth.js";
 import { errorBox, h, runAction } from "./ui.js";
 
 const POLL_MS = 250;
@@ -71,5 +72,6 @@ export function exportCard(sessionId) {
     h("h2", { text: "Take it away" }),
     h("p", { class: "hint", text: "The report holds this page's figures and tables; the CSV every estimate, one row per sample." }),
     h("div", { class: "buttons" }, ...buttons), progress, done, error);
+  fence(el, "run"); // an export is made on the server: a viewer reads the page instead
   return { el, stop() { alive = false; } };
 }

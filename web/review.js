@@ -11,7 +11,7 @@
 // named re-runs (review_ab.js); a trial still recording opens with a link to its live session.
 
 import { api, errorText, query } from "./api.js";
-import { fence } from "./auth.js";
+import { fence, may } from "./auth.js";
 import { EstimatorPicker, estimatorLabel, estimatorOverlay, listText, overlayLegend, rerunEstimators } from "./estimators.js";
 import { EventList } from "./events.js";
 import { legView } from "./leg_view.js";
@@ -360,6 +360,7 @@ export function mountReview(root, trialId) {
   let showBusy = false;
   let showNext = null;
   async function postShow(t) {
+    if (!may("run")) return; // posing the shared view takes `run`: a viewer watches what others chose
     if (showBusy) {
       showNext = t;
       return;

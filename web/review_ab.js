@@ -4,6 +4,7 @@
 // figures (peak torque, mean phase rate, stride length; errors when the trial's ground truth is known).
 
 import { api, query } from "./api.js";
+import { fence } from "./auth.js";
 import { COLORS, Plot } from "./plots.js";
 import { SettingsEditor } from "./settings.js";
 import { errorBox, fmt, h, runAction, ValidationError } from "./ui.js";
@@ -184,6 +185,7 @@ export function abCard(trialId, hooks) {
       throw err;
     }
   }));
+  fence(el, "run"); // a comparison re-runs the trial, as a re-run does
 
   return {
     el,

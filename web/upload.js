@@ -6,7 +6,7 @@ import { api, ApiError, authFetch, describeDetail, putChunk } from "./api.js";
 import { fence } from "./auth.js";
 import { errorBox, field, h, runAction, showError, ValidationError } from "./ui.js";
 
-const NAME_RE = /^[^/\\]+\.(mcap|csv|parquet)$/; // UploadCreate.filename
+const NAME_RE = /^[^/\\]+\.(mcap|csv|parquet)$/i; // UploadCreate.filename: the extension in any case
 const RETRIES = 3; // per chunk, for network failures and 5xx only
 const RECOVERABLE_HEADER = "X-Gaitscope-Recoverable"; // server/routes/uploads.py
 

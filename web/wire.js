@@ -29,7 +29,7 @@
 
 /**
  * @typedef {object} SessionCreate
- * @property {number} subject_id (>= 1)
+ * @property {number} subject_id (1..9223372036854775807)
  * @property {SimulatedSource | ReplaySource | DeviceSource | UploadSource} [source]
  * @property {SessionSettings} [settings]
  * @property {boolean} [start=true]
@@ -118,8 +118,8 @@
 /**
  * @typedef {object} UploadCreate
  * @property {string} filename
- * @property {number} size bytes; refused above the server's limit (>= 1)
- * @property {number} subject_id (>= 1)
+ * @property {number} size bytes; refused above the server's limit (1..9223372036854775807)
+ * @property {number} subject_id (1..9223372036854775807)
  */
 
 /**
@@ -170,14 +170,14 @@
 /**
  * Which running session the leg view follows (``POST /api/viewer/focus``).
  * @typedef {object} ViewerFocus
- * @property {number} session_id (>= 1)
+ * @property {number} session_id (1..9223372036854775807)
  */
 
 /**
  * Pose the leg view at time ``t`` (s) of a trial: the review page's cursor (``POST /api/viewer/show``).
  * @typedef {object} ViewerShow
- * @property {number} trial_id (>= 1)
- * @property {number} t
+ * @property {number} trial_id (1..9223372036854775807)
+ * @property {number} t session time (s), finite, within 30 years (-1e+09..1e+09)
  */
 
 /**
@@ -498,7 +498,7 @@
  * @property {Array<number>} fingerprint
  * @property {number} fit_rmse_avg_deg (>= 0)
  * @property {number} fit_rmse_personal_deg (>= 0)
- * @property {number} strides_used (>= 0)
+ * @property {number} strides_used (0..9223372036854775807)
  * @property {number} seconds_used (>= 0)
  * @property {string} created_utc
  * @property {string} [note=""]
@@ -942,7 +942,7 @@
  * A stored trial (recorded, or uploaded MCAP / replay CSV / LocoHub file) played back.
  * @typedef {object} ReplaySource
  * @property {"replay"} [kind="replay"]
- * @property {number} trial_id (>= 1)
+ * @property {number} trial_id (1..9223372036854775807)
  * @property {number} [speed=1.0] 1x real time or faster (1..50)
  * @property {boolean} [loop=false]
  */
@@ -976,7 +976,7 @@
  * @property {number} [rate_hz=200.0] (20..1000)
  * @property {number} [cohort_subject=0] (0..9)
  * @property {boolean} [loop=true]
- * @property {number} [seed=7] (>= 0)
+ * @property {number} [seed=7] (0..9223372036854775807)
  */
 
 /**
@@ -1279,7 +1279,7 @@ export const FIELD_LIMITS = deepFreeze({
     mass_kg: { min: 20.0, max: 250.0 },
     notes: { maxLength: 2000 },
   },
-  SessionCreate: { subject_id: { min: 1 } },
+  SessionCreate: { subject_id: { min: 1, max: 9223372036854775807 } },
   SessionSettings: {
     torque_gain: { min: 0.0, max: 3.0 },
     max_torque_Nm: { min: 0.0, max: 80.0 },
@@ -1306,14 +1306,14 @@ export const FIELD_LIMITS = deepFreeze({
     filename: {
       minLength: 1,
       maxLength: 200,
-      pattern: "^[^/\\\\\\x00-\\x1f\\x7f-\\x9f\\u2028\\u2029\\u200e\\u200f\\u202a-\\u202e\\u2066-\\u2069]+\\.(mcap|csv|parquet)$",
+      pattern: "^[^/\\\\\\x00-\\x1f\\x7f-\\x9f\\u2028\\u2029\\u200e\\u200f\\u202a-\\u202e\\u2066-\\u2069]+\\.([Mm][Cc][Aa][Pp]|[Cc][Ss][Vv]|[Pp][Aa][Rr][Qq][Uu][Ee][Tt])$",
     },
-    size: { min: 1 },
-    subject_id: { min: 1 },
+    size: { min: 1, max: 9223372036854775807 },
+    subject_id: { min: 1, max: 9223372036854775807 },
   },
   RerunRequest: { estimators: { maxItems: 16 }, personalization_id: { min: 1, max: 9223372036854775807 } },
-  ViewerFocus: { session_id: { min: 1 } },
-  ViewerShow: { trial_id: { min: 1 } },
+  ViewerFocus: { session_id: { min: 1, max: 9223372036854775807 } },
+  ViewerShow: { trial_id: { min: 1, max: 9223372036854775807 }, t: { min: -1000000000.0, max: 1000000000.0 } },
   SensorFrame: { seq: { min: 0, max: 9223372036854775807 }, sent_ns: { min: 0, max: 9223372036854775807 } },
   ModelProvenance: {
     n_samples: { min: 1 },
@@ -1337,7 +1337,7 @@ export const FIELD_LIMITS = deepFreeze({
     fingerprint: { minItems: 1, maxItems: 16 },
     fit_rmse_avg_deg: { min: 0 },
     fit_rmse_personal_deg: { min: 0 },
-    strides_used: { min: 0 },
+    strides_used: { min: 0, max: 9223372036854775807 },
     seconds_used: { min: 0 },
     created_utc: { maxLength: 40 },
     note: { maxLength: 500 },
@@ -1424,12 +1424,12 @@ export const FIELD_LIMITS = deepFreeze({
     incline_deg: { min: -15.0, max: 15.0 },
     strides: { min: 1, max: 2000 },
   },
-  ReplaySource: { trial_id: { min: 1 }, speed: { min: 1.0, max: 50.0 } },
+  ReplaySource: { trial_id: { min: 1, max: 9223372036854775807 }, speed: { min: 1.0, max: 50.0 } },
   SimulatedSource: {
     protocol: { minItems: 1, maxItems: 200 },
     rate_hz: { min: 20.0, max: 1000.0 },
     cohort_subject: { min: 0, max: 9 },
-    seed: { min: 0 },
+    seed: { min: 0, max: 9223372036854775807 },
   },
   UploadSource: { filename: { maxLength: 200 } },
 });

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Final, TypeVar
 
 from fastapi import Depends, FastAPI, HTTPException, Query, Request, status
+from fastapi import Path as PathParam
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel
@@ -29,6 +30,7 @@ __all__ = [
     "ERROR_STATUS",
     "LIMITED_SETTINGS",
     "Ctx",
+    "Id",
     "OptionalId",
     "by",
     "check_assistance",
@@ -46,6 +48,8 @@ def ctx(request: Request) -> AppContext:
 Ctx = Annotated["AppContext", Depends(ctx)]
 #: An id in a query filter: a positive signed 64-bit integer (what SQLite can hold).
 OptionalId = Annotated[int | None, Query(ge=1, le=schema.INT64_MAX)]
+#: An id in a path, bounded so: 2**63 is a 422 naming the parameter, not the database's overflow (a 500).
+Id = Annotated[int, PathParam(ge=1, le=schema.INT64_MAX)]
 
 
 #: Domain errors and the HTTP status each becomes (the message is the ``detail``).

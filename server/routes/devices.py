@@ -13,7 +13,7 @@ from typing import Annotated
 from fastapi import APIRouter, Path
 
 from server.auth import Runner, allow
-from server.routes.common import Ctx, audit
+from server.routes.common import Ctx, Id, audit
 from sessions import schema
 from sessions.live.sources import LiveDevice
 
@@ -23,7 +23,7 @@ _TokenId = Annotated[int, Path(ge=1, le=schema.INT64_MAX)]
 
 
 @router.post("/sessions/{session_id}/device-tokens", status_code=201)
-def issue_token(session_id: int, c: Ctx, who: Runner) -> schema.DeviceToken:
+def issue_token(session_id: Id, c: Ctx, who: Runner) -> schema.DeviceToken:
     session = c.store.get_session(session_id)
     if session.source.kind != "device":
         from sessions.store import Conflict
@@ -34,13 +34,13 @@ def issue_token(session_id: int, c: Ctx, who: Runner) -> schema.DeviceToken:
 
 
 @router.get("/sessions/{session_id}/device-tokens", dependencies=[allow("read")])
-def list_tokens(session_id: int, c: Ctx) -> list[schema.DeviceToken]:
+def list_tokens(session_id: Id, c: Ctx) -> list[schema.DeviceToken]:
     c.store.get_session(session_id)
     return c.accounts.list_device_tokens(session_id)
 
 
 @router.delete("/sessions/{session_id}/device-tokens/{token_id}")
-def revoke_token(session_id: int, token_id: _TokenId, c: Ctx, who: Runner) -> schema.DeviceToken:
+def revoke_token(session_id: Id, token_id: _TokenId, c: Ctx, who: Runner) -> schema.DeviceToken:
     audit(c, who, "device_token.revoke", f"session {session_id} token {token_id}")
     revoked = c.accounts.revoke_device_token(session_id, token_id, by=who.name)
     runtime = c.manager.get(session_id)

@@ -12,7 +12,7 @@ from fastapi.responses import JSONResponse
 
 from estimators.fingerprint import FingerprintMap
 from server.auth import Promoter, Reader, Runner, Uploader, allow
-from server.routes.common import Ctx, audit, reviewable_trial
+from server.routes.common import Ctx, Id, audit, reviewable_trial
 from sessions import schema
 from sessions.errors import DataFormatError
 from sessions.personalization.calibration import CalibrationRefused, calibrate, read_walk
@@ -55,7 +55,7 @@ def _listing(c: Ctx, subject_id: int, model: str) -> schema.Fingerprints:
 
 
 @router.get("/subjects/{subject_id}/fingerprints", dependencies=[allow("read")])
-def list_fingerprints(subject_id: int, c: Ctx, model: str = "default") -> schema.Fingerprints:
+def list_fingerprints(subject_id: Id, c: Ctx, model: str = "default") -> schema.Fingerprints:
     """The subject's personalizations of ``model``, newest first, the active one, and the training
     subjects' fingerprints (where this subject sits among them)."""
     c.store.get_subject(subject_id)
@@ -64,7 +64,7 @@ def list_fingerprints(subject_id: int, c: Ctx, model: str = "default") -> schema
 
 @router.post("/subjects/{subject_id}/fingerprints", status_code=201)
 async def calibrate_fingerprint(
-    subject_id: int, body: schema.CalibrationRequest, c: Ctx, who: Runner
+    subject_id: Id, body: schema.CalibrationRequest, c: Ctx, who: Runner
 ) -> schema.Personalization:
     """Fit a fingerprint from one of the subject's trials, in a worker thread (live streams go on); stored
     as a ``candidate``: nothing runs it until it is promoted. 422 with the reason when the walk cannot serve."""
@@ -73,6 +73,7 @@ async def calibrate_fingerprint(
     if c.store.get_session(trial.session_id).subject_id != subject_id:
         raise HTTPException(422, f"trial {trial.id} is not of subject {subject_id}")
     fmap, _ = _map(c, body.model)
+    audit(c, who, "fingerprint.calibrate", f"subject {subject_id}", after=body.model_dump(mode="json"))
 
     def fit() -> schema.Personalization:
         cal = calibrate(fmap, read_walk(path))
@@ -114,7 +115,7 @@ def _announce(c: Ctx, subject_id: int, text: str, actor: str) -> None:
 
 @router.post("/subjects/{subject_id}/fingerprints/{personalization_id}/promote")
 def promote_fingerprint(
-    subject_id: int, personalization_id: int, body: schema.PersonalizationChange, c: Ctx, who: Promoter
+    subject_id: Id, personalization_id: Id, body: schema.PersonalizationChange, c: Ctx, who: Promoter
 ) -> schema.Personalization:
     """Make it the subject's active personalization; running sessions take it at their next heel strike."""
     p = c.store.get_personalization(personalization_id)
@@ -133,7 +134,7 @@ def promote_fingerprint(
 
 @router.post("/subjects/{subject_id}/fingerprints/rollback")
 def rollback_fingerprint(
-    subject_id: int, body: schema.PersonalizationChange, c: Ctx, who: Promoter, model: str = "default"
+    subject_id: Id, body: schema.PersonalizationChange, c: Ctx, who: Promoter, model: str = "default"
 ) -> schema.Fingerprints:
     """Retire the active personalization; the one it replaced is active again (none: the average model)."""
     active = c.store.active_personalization(subject_id, model)
@@ -147,7 +148,7 @@ def rollback_fingerprint(
 
 
 @router.get("/subjects/{subject_id}/fingerprints/{personalization_id}/export")
-def export_fingerprint(subject_id: int, personalization_id: int, c: Ctx, who: Reader) -> JSONResponse:
+def export_fingerprint(subject_id: Id, personalization_id: Id, c: Ctx, who: Reader) -> JSONResponse:
     """The personalization as a file another gaitscope can import (with the same model)."""
     p = c.store.get_personalization(personalization_id)
     if p.subject_id != subject_id:
@@ -173,7 +174,7 @@ def export_fingerprint(subject_id: int, personalization_id: int, c: Ctx, who: Re
 
 @router.post("/subjects/{subject_id}/fingerprints/import", status_code=201)
 def import_fingerprint(
-    subject_id: int, body: schema.PersonalizationExport, c: Ctx, who: Uploader
+    subject_id: Id, body: schema.PersonalizationExport, c: Ctx, who: Uploader
 ) -> schema.Personalization:
     """A personalization exported elsewhere, as a new ``candidate``; refused (422) when its model's map is
     not this machine's (another training-data hash, or another number of components)."""
@@ -187,6 +188,7 @@ def import_fingerprint(
         raise HTTPException(
             422, f"the fingerprint has {len(body.fingerprint)} components; model {body.model!r} has {fmap.n_components}"
         )
+    audit(c, who, "fingerprint.import", f"subject {subject_id}", after=body.model_dump(mode="json"))
     return c.store.add_personalization(
         schema.Personalization(
             id=0,

@@ -10,7 +10,7 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Query
 
 from server.auth import Runner, allow
-from server.routes.common import Ctx, audit, by, not_running_here
+from server.routes.common import Ctx, Id, audit, by, not_running_here
 from sessions import schema
 from sessions.gp_models import GP_EKF
 from sessions.live.gp_learning import GPLearning
@@ -33,7 +33,7 @@ def _running(c: Ctx, session_id: int) -> tuple[SessionRuntime, GPLearning]:
 
 @router.get("/sessions/{session_id}/gp-learning", dependencies=[allow("read")])
 async def gp_learning(
-    session_id: int, c: Ctx, version: Annotated[int | None, Query(ge=0, le=schema.INT64_MAX)] = None
+    session_id: Id, c: Ctx, version: Annotated[int | None, Query(ge=0, le=schema.INT64_MAX)] = None
 ) -> schema.GPLearningState:
     """The GP-EKF's learning: the version in use, the one waiting for the next heel strike, a fit under way,
     the kept versions (training window, held-out RMSE, install times), frozen or not, and the learned mean of
@@ -45,7 +45,7 @@ async def gp_learning(
 
 @router.post("/sessions/{session_id}/gp-learning")
 async def control_gp_learning(
-    session_id: int, body: schema.GPLearningControl, c: Ctx, who: Runner
+    session_id: Id, body: schema.GPLearningControl, c: Ctx, who: Runner
 ) -> schema.GPLearningState:
     """Freeze or unfreeze the learning, or roll back to a kept version (installed at the next heel strike);
     logged as an event with the actor and recorded. 409: not running, no GP-EKF, or it failed; 422: a bad

@@ -7,7 +7,7 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException
 
 from server.auth import Runner, allow
-from server.routes.common import Ctx, audit, by, not_running_here
+from server.routes.common import Ctx, Id, audit, by, not_running_here
 from sessions import schema
 
 router = APIRouter(prefix="/api")
@@ -15,7 +15,7 @@ router = APIRouter(prefix="/api")
 
 @router.post("/sessions/{session_id}/imu-calibration", status_code=202)
 async def start_imu_calibration(
-    session_id: int, c: Ctx, who: Runner, body: schema.ImuCalibrationRequest | None = None
+    session_id: Id, c: Ctx, who: Runner, body: schema.ImuCalibrationRequest | None = None
 ) -> schema.ImuCalibrationStatus:
     """Collect ``duration_s`` of the running session's raw IMU samples, then calibrate and, when every
     sensor was still, apply; follow it with the GET. 409: not running, no IMU front end, one collecting."""
@@ -37,7 +37,7 @@ async def start_imu_calibration(
 
 
 @router.get("/sessions/{session_id}/imu-calibration", dependencies=[allow("read")])
-def imu_calibration(session_id: int, c: Ctx) -> schema.ImuCalibrationStatus:
+def imu_calibration(session_id: Id, c: Ctx) -> schema.ImuCalibrationStatus:
     """The running session's calibration: idle, collecting (progress), done or refused (each sensor's
     outcome), and what its front ends run; a session not running: idle, with its latest stored one."""
     runtime = c.manager.get(session_id)
@@ -51,7 +51,7 @@ def imu_calibration(session_id: int, c: Ctx) -> schema.ImuCalibrationStatus:
 
 
 @router.get("/subjects/{subject_id}/imu-calibrations", dependencies=[allow("read")])
-def subject_imu_calibrations(subject_id: int, c: Ctx) -> list[schema.ImuCalibration]:
+def subject_imu_calibrations(subject_id: Id, c: Ctx) -> list[schema.ImuCalibration]:
     """The subject's accepted calibrations, newest first: the first is their current one (their next
     session's front ends start with it)."""
     return c.store.list_imu_calibrations(subject_id=subject_id)

@@ -14,8 +14,8 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Path, Request
 from fastapi.responses import FileResponse
 
-from server.auth import Reader, allow
-from server.routes.common import Ctx, audit
+from server.auth import Reader, Runner, allow
+from server.routes.common import Ctx, Id, audit
 from sessions import schema
 from sessions.formats.models import gaitscope_version
 from sessions.reports.jobs import ExportJobs, ExportNotReady
@@ -39,7 +39,7 @@ def _exports(request: Request, c: Ctx) -> ExportJobs:
 
 
 @router.get("/sessions/{session_id}/summary", dependencies=[allow("read")])
-async def summary(session_id: int, request: Request, c: Ctx) -> schema.SessionSummary:
+async def summary(session_id: Id, request: Request, c: Ctx) -> schema.SessionSummary:
     """Duration, strides, speed and incline profile, settings history, per-condition stride curves, data
     health and events of a session (its trials still recording are left out).
 
@@ -67,7 +67,7 @@ async def summary(session_id: int, request: Request, c: Ctx) -> schema.SessionSu
 
 
 @router.post("/sessions/{session_id}/exports", status_code=202)
-def start_export(session_id: int, body: schema.ExportCreate, request: Request, c: Ctx, who: Reader) -> schema.ExportJob:
+def start_export(session_id: Id, body: schema.ExportCreate, request: Request, c: Ctx, who: Runner) -> schema.ExportJob:
     audit(c, who, f"export.{body.kind}", f"session {session_id}")
     return _exports(request, c).start(session_id, body.kind)
 

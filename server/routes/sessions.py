@@ -6,7 +6,7 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException
 
 from server.auth import Annotator, Assistant, Runner, allow
-from server.routes.common import Ctx, OptionalId, audit, by, check_assistance, not_running_here, trained_model
+from server.routes.common import Ctx, Id, OptionalId, audit, by, check_assistance, not_running_here, trained_model
 from sessions import schema
 from sessions.live.manager import SessionStateError
 from sessions.store import Conflict
@@ -22,6 +22,9 @@ def list_sessions(c: Ctx, subject_id: OptionalId = None) -> list[schema.Session]
 @router.post("/sessions", status_code=201)
 async def create_session(body: schema.SessionCreate, c: Ctx, who: Runner) -> schema.Session:
     trained_model(c, body.settings.model)
+    default_primary = schema.SessionSettings.model_fields["primary"].default
+    if body.settings.primary != default_primary:  # choosing it is switching it: refused to an experimenter
+        check_assistance(c, who, body.subject_id, {"primary": body.settings.primary})
     if isinstance(body.source, schema.DeviceSource):  # a person wears it: the settings are assistance
         check_assistance(c, who, body.subject_id, body.settings.model_dump(exclude={"primary"}))
     audit(c, who, "session.create", f"subject {body.subject_id}", after=body.model_dump(mode="json"))
@@ -35,26 +38,26 @@ async def create_session(body: schema.SessionCreate, c: Ctx, who: Runner) -> sch
 
 
 @router.get("/sessions/{session_id}", dependencies=[allow("read")])
-def get_session(session_id: int, c: Ctx) -> schema.Session:
+def get_session(session_id: Id, c: Ctx) -> schema.Session:
     return c.manager.shown(c.store.get_session(session_id))
 
 
 @router.post("/sessions/{session_id}/start")
-async def start_session(session_id: int, c: Ctx, who: Runner) -> schema.Session:
+async def start_session(session_id: Id, c: Ctx, who: Runner) -> schema.Session:
     before = c.store.get_session(session_id)
     audit(c, who, "session.start", f"session {session_id}", before=before.state, after="running")
     return c.manager.start(session_id)
 
 
 @router.post("/sessions/{session_id}/stop")
-async def stop_session(session_id: int, c: Ctx, who: Runner) -> schema.Session:
+async def stop_session(session_id: Id, c: Ctx, who: Runner) -> schema.Session:
     before = c.store.get_session(session_id)
     audit(c, who, "session.stop", f"session {session_id}", before=before.state, after="stopped")
     return await c.manager.stop(session_id)
 
 
 @router.patch("/sessions/{session_id}/settings")
-async def change_settings(session_id: int, body: schema.SettingsChange, c: Ctx, who: Assistant) -> schema.Session:
+async def change_settings(session_id: Id, body: schema.SettingsChange, c: Ctx, who: Assistant) -> schema.Session:
     runtime = c.manager.get(session_id)
     if runtime is None:
         c.store.get_session(session_id)
@@ -68,13 +71,14 @@ async def change_settings(session_id: int, body: schema.SettingsChange, c: Ctx, 
 
 
 @router.get("/sessions/{session_id}/events", dependencies=[allow("read")])
-def session_events(session_id: int, c: Ctx) -> list[schema.Event]:
+def session_events(session_id: Id, c: Ctx) -> list[schema.Event]:
     c.store.get_session(session_id)
     return c.store.list_events(session_id)
 
 
 @router.post("/sessions/{session_id}/annotations", status_code=201)
-async def annotate(session_id: int, body: schema.AnnotationCreate, c: Ctx, who: Annotator) -> schema.Event:
+async def annotate(session_id: Id, body: schema.AnnotationCreate, c: Ctx, who: Annotator) -> schema.Event:
+    audit(c, who, "session.annotate", f"session {session_id}", after={"text": body.text})
     runtime = c.manager.get(session_id)
     if runtime is not None:
         return runtime.annotate(body.text, who.name)
@@ -83,7 +87,7 @@ async def annotate(session_id: int, body: schema.AnnotationCreate, c: Ctx, who: 
 
 
 @router.post("/sessions/{session_id}/recording")
-async def recording(session_id: int, body: schema.RecordingControl, c: Ctx, who: Runner) -> schema.Trial:
+async def recording(session_id: Id, body: schema.RecordingControl, c: Ctx, who: Runner) -> schema.Trial:
     audit(c, who, f"recording.{body.action}", f"session {session_id}", after=body.model_dump())
     runtime = c.manager.get(session_id)
     if runtime is None:

@@ -23,7 +23,7 @@ from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
 
 from server.auth import Assistant, Who, allow, device
-from server.routes.common import Ctx, audit, check_assistance, not_running_here
+from server.routes.common import Ctx, Id, audit, check_assistance, not_running_here
 from sessions import schema
 from sessions.estimation import FrameRefused
 from sessions.live.manager import SessionStateError
@@ -76,7 +76,7 @@ async def _runtime(ws: WebSocket, session_id: int) -> SessionRuntime | None:
 @router.websocket("/ws/sessions/{session_id}", dependencies=[allow("read")])
 async def session_stream(
     ws: WebSocket,
-    session_id: int,
+    session_id: Id,
     max_rate_hz: float = Query(default=60.0, ge=0.0, le=2000.0),
     batch_ms: float = Query(default=33.0, ge=0.0, le=1000.0),
 ) -> None:
@@ -219,7 +219,7 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
 
 
 @router.post("/api/sessions/{session_id}/settings/undo")
-async def undo_settings(session_id: int, body: schema.SettingsUndo, c: Ctx, who: Assistant) -> schema.Session:
+async def undo_settings(session_id: Id, body: schema.SettingsUndo, c: Ctx, who: Assistant) -> schema.Session:
     """Undo the session's last applied settings change (409 with the reason when it cannot be, now)."""
     runtime = c.manager.get(session_id)
     if runtime is None:
@@ -238,7 +238,7 @@ async def undo_settings(session_id: int, body: schema.SettingsUndo, c: Ctx, who:
 
 
 @router.websocket("/ws/devices/{session_id}")
-async def device_ingest(ws: WebSocket, session_id: int, token_id: Annotated[int, device()]) -> None:
+async def device_ingest(ws: WebSocket, session_id: Id, token_id: Annotated[int, device()]) -> None:
     """A live device: ``SensorFrame`` in, ``TorqueCommand`` out, one for one.
 
     A frame that is refused gets a :class:`~sessions.schema.DeviceNotice` instead of a torque:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from server.auth import LimitSetter, Runner, allow
-from server.routes.common import Ctx, audit
+from server.routes.common import Ctx, Id, audit
 from sessions import schema
 
 router = APIRouter(prefix="/api")
@@ -23,12 +23,12 @@ def create_subject(body: schema.SubjectCreate, c: Ctx, who: Runner) -> schema.Su
 
 
 @router.get("/subjects/{subject_id}", dependencies=[allow("read")])
-def get_subject(subject_id: int, c: Ctx) -> schema.Subject:
+def get_subject(subject_id: Id, c: Ctx) -> schema.Subject:
     return c.store.get_subject(subject_id)
 
 
 @router.get("/subjects/{subject_id}/assistance-limits", dependencies=[allow("read")])
-def assistance_limits(subject_id: int, c: Ctx) -> schema.SubjectLimits | None:
+def assistance_limits(subject_id: Id, c: Ctx) -> schema.SubjectLimits | None:
     """The most assistance an experimenter may set for the subject; null: none set (an experimenter may not
     change assistance at all, nor start a device session)."""
     c.store.get_subject(subject_id)
@@ -37,7 +37,7 @@ def assistance_limits(subject_id: int, c: Ctx) -> schema.SubjectLimits | None:
 
 @router.put("/subjects/{subject_id}/assistance-limits")
 def set_assistance_limits(
-    subject_id: int, body: schema.AssistanceLimits, c: Ctx, who: LimitSetter
+    subject_id: Id, body: schema.AssistanceLimits, c: Ctx, who: LimitSetter
 ) -> schema.SubjectLimits:
     """Set the experimenters' limits for the subject (clinicians and admins)."""
     old = c.accounts.limits(subject_id)

@@ -14,7 +14,7 @@ from fastapi.responses import FileResponse
 
 from estimators.pipeline import TrainedModel
 from server.auth import Annotator, Reader, allow
-from server.routes.common import Ctx, OptionalId, audit, by, reviewable_trial, trained_model
+from server.routes.common import Ctx, Id, OptionalId, audit, by, reviewable_trial, trained_model
 from sessions import schema
 from sessions.store import NotAllowed
 
@@ -37,19 +37,19 @@ def list_trials(c: Ctx, session_id: OptionalId = None) -> list[schema.Trial]:
 
 
 @router.get("/trials/{trial_id}", dependencies=[allow("read")])
-def get_trial(trial_id: int, c: Ctx) -> schema.Trial:
+def get_trial(trial_id: Id, c: Ctx) -> schema.Trial:
     return c.manager.shown_trial(c.store.get_trial(trial_id))
 
 
 @router.get("/trials/{trial_id}/events", dependencies=[allow("read")])
-def trial_events(trial_id: int, c: Ctx) -> list[schema.Event]:
+def trial_events(trial_id: Id, c: Ctx) -> list[schema.Event]:
     c.store.get_trial(trial_id)
     return c.store.trial_events(trial_id)
 
 
 @router.get("/trials/{trial_id}/series", dependencies=[allow("read")])
 async def trial_series(
-    trial_id: int, c: Ctx, t0: _SeriesTime = None, t1: _SeriesTime = None, max_points: _MaxPoints = 2000
+    trial_id: Id, c: Ctx, t0: _SeriesTime = None, t1: _SeriesTime = None, max_points: _MaxPoints = 2000
 ) -> dict[str, list[Any]]:
     from sessions.formats.mcap_io import read_series
 
@@ -59,7 +59,7 @@ async def trial_series(
 
 @router.get("/trials/{trial_id}/intent", dependencies=[allow("read")])
 async def trial_intent(
-    trial_id: int, c: Ctx, t0: _SeriesTime = None, t1: _SeriesTime = None, max_points: _MaxPoints = 2000
+    trial_id: Id, c: Ctx, t0: _SeriesTime = None, t1: _SeriesTime = None, max_points: _MaxPoints = 2000
 ) -> schema.IntentSeries:
     """The speed-change intent over the trial (desired and actual speed, decimated as ``/series``) as its
     ``intent`` estimator recorded it, or the channels that estimator needs and the trial lacks."""
@@ -70,14 +70,14 @@ async def trial_intent(
 
 
 @router.get("/trials/{trial_id}/download")
-def download(trial_id: int, c: Ctx, who: Reader) -> FileResponse:
+def download(trial_id: Id, c: Ctx, who: Reader) -> FileResponse:
     trial, path = reviewable_trial(c, trial_id)
     audit(c, who, "trial.download", f"trial {trial_id}")
     return FileResponse(path, media_type="application/octet-stream", filename=f"gaitscope_trial{trial.id}.mcap")
 
 
 @router.get("/trials/{trial_id}/settings", dependencies=[allow("read")])
-async def trial_settings(trial_id: int, c: Ctx) -> schema.SessionSettings:
+async def trial_settings(trial_id: Id, c: Ctx) -> schema.SessionSettings:
     """The settings in force at the trial's first frame, as recorded (its changes are on ``/events``)."""
     from sessions.review.rerun import recorded_settings
 
@@ -86,7 +86,7 @@ async def trial_settings(trial_id: int, c: Ctx) -> schema.SessionSettings:
 
 
 @router.get("/trials/{trial_id}/estimators", dependencies=[allow("read")])
-async def trial_estimators(trial_id: int, c: Ctx) -> schema.RerunChoices:
+async def trial_estimators(trial_id: Id, c: Ctx) -> schema.RerunChoices:
     """Which estimators a re-run of the trial can run: its recorded stack and those its channels feed."""
     from sessions.review.rerun import rerun_choices
 
@@ -96,7 +96,7 @@ async def trial_estimators(trial_id: int, c: Ctx) -> schema.RerunChoices:
 
 @router.post("/trials/{trial_id}/rerun", dependencies=[allow("run")])
 async def rerun(
-    trial_id: int,
+    trial_id: Id,
     c: Ctx,
     body: Annotated[schema.RerunRequest | None, Body()] = None,
     t0: _SeriesTime = None,
@@ -150,9 +150,9 @@ def _fingerprint(c: AppContext, trial: schema.Trial, path: Path, personalization
     return p.fingerprint
 
 
-@router.post("/trials/{trial_id}/compare", dependencies=[allow("read")])
+@router.post("/trials/{trial_id}/compare", dependencies=[allow("run")])  # re-runs the trial: as /rerun
 async def compare(
-    trial_id: int,
+    trial_id: Id,
     c: Ctx,
     body: schema.CompareRequest,
     t0: _SeriesTime = None,
@@ -190,14 +190,14 @@ _AnnotationId = Annotated[int, PathParam(ge=1, le=schema.INT64_MAX)]
 
 
 @router.get("/trials/{trial_id}/annotations", dependencies=[allow("read")])
-def list_annotations(trial_id: int, c: Ctx) -> list[schema.ReviewAnnotation]:
+def list_annotations(trial_id: Id, c: Ctx) -> list[schema.ReviewAnnotation]:
     """The notes added to the trial in review, by time."""
     return c.store.list_review_annotations(trial_id)
 
 
 @router.post("/trials/{trial_id}/annotations", status_code=201)
 async def add_annotation(
-    trial_id: int, c: Ctx, body: schema.ReviewAnnotationCreate, who: Annotator
+    trial_id: Id, c: Ctx, body: schema.ReviewAnnotationCreate, who: Annotator
 ) -> schema.ReviewAnnotation:
     """A note at a time (``t``) or over a span (``t`` to ``t_end``) of the trial, saved with it; 422 when it
     lies outside the recording."""
@@ -214,12 +214,14 @@ async def add_annotation(
                 raise HTTPException(
                     422, f"the note's {where} ({value:g} s) is outside the trial ({lo:.2f} to {hi:.2f} s)"
                 )
+    audit(c, who, "review_note.add", f"trial {trial_id}", after=by(body, who))
     return c.store.add_review_annotation(trial_id, by(body, who))
 
 
 @router.delete("/trials/{trial_id}/annotations/{annotation_id}", status_code=204)
-def delete_annotation(trial_id: int, annotation_id: _AnnotationId, c: Ctx, who: Annotator) -> Response:
+def delete_annotation(trial_id: Id, annotation_id: _AnnotationId, c: Ctx, who: Annotator) -> Response:
     """Delete a note; only whoever wrote it may (403 for anyone else)."""
+    audit(c, who, "review_note.delete", f"trial {trial_id} note {annotation_id}")
     try:
         c.store.delete_review_annotation(trial_id, annotation_id, who.name)
     except NotAllowed as exc:

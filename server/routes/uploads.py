@@ -354,7 +354,9 @@ async def create_upload(body: schema.UploadCreate, c: Ctx, who: Uploader) -> sch
 
 
 @router.put("/uploads/{upload_id}", dependencies=[allow("upload")])
-async def upload_chunk(upload_id: str, request: Request, c: Ctx, offset: Annotated[int, Query(ge=0)]) -> schema.Upload:
+async def upload_chunk(
+    upload_id: str, request: Request, c: Ctx, offset: Annotated[int, Query(ge=0, le=schema.INT64_MAX)]
+) -> schema.Upload:
     return await c.uploads.receive(upload_id, offset, request)
 
 
@@ -365,7 +367,8 @@ async def finish_upload(upload_id: str, c: Ctx, who: Uploader, recover: bool = F
     return await c.uploads.finish(upload_id, c, recover=recover)
 
 
-@router.delete("/uploads/{upload_id}", status_code=204, dependencies=[allow("upload")])
-async def cancel_upload(upload_id: str, c: Ctx) -> Response:
+@router.delete("/uploads/{upload_id}", status_code=204)
+async def cancel_upload(upload_id: str, c: Ctx, who: Uploader) -> Response:
+    audit(c, who, "upload.cancel", f"upload {upload_id[:64]}")
     c.uploads.cancel(upload_id)
     return Response(status_code=204)

@@ -1,5 +1,11 @@
 """``/api/viewer``: the 3D leg view (viser, its own port): where it is, which session it follows, and
-posing it at a time of a trial."""
+posing it at a time of a trial.
+
+The view is one for everyone watching it, so choosing what it shows is a change of shared state: it takes
+``run`` (a viewer watches what others chose) and a change of the session it follows is audited
+(``leg_view.focus``). Posing it at a trial's time, many times a second while a reviewer drags the cursor, is
+not (it stores nothing); the focus that posing drops is.
+"""
 
 from __future__ import annotations
 
@@ -7,8 +13,8 @@ import asyncio
 
 from fastapi import APIRouter, HTTPException
 
-from server.auth import allow
-from server.routes.common import Ctx, reviewable_trial
+from server.auth import Runner, Who, allow
+from server.routes.common import Ctx, audit, reviewable_trial
 from sessions import schema
 
 router = APIRouter(prefix="/api")
@@ -20,14 +26,21 @@ def viewer(c: Ctx) -> dict[str, str | None]:
     return {"url": None if view is None else view.url}
 
 
-@router.post("/viewer/focus", dependencies=[allow("read")])
-def viewer_focus(body: schema.ViewerFocus, c: Ctx) -> dict[str, int | None]:
-    c.focus = body.session_id
+def _focus(c: Ctx, who: Who, session_id: int | None) -> None:
+    """Make the view follow ``session_id`` (None: nothing; the review page poses it), audited if it changes."""
+    if c.focus != session_id:
+        audit(c, who, "leg_view.focus", "leg view", before=c.focus, after=session_id)
+        c.focus = session_id
+
+
+@router.post("/viewer/focus")
+def viewer_focus(body: schema.ViewerFocus, c: Ctx, who: Runner) -> dict[str, int | None]:
+    _focus(c, who, body.session_id)
     return {"session_id": c.focus}
 
 
-@router.post("/viewer/show", dependencies=[allow("read")])
-async def viewer_show(body: schema.ViewerShow, c: Ctx) -> dict[str, float]:
+@router.post("/viewer/show")
+async def viewer_show(body: schema.ViewerShow, c: Ctx, who: Runner) -> dict[str, float]:
     """Pose the leg view at time ``t`` of a trial (the review page's cursor)."""
     from sessions.formats.mcap_io import read_series
 
@@ -39,6 +52,6 @@ async def viewer_show(body: schema.ViewerShow, c: Ctx) -> dict[str, float]:
     state = schema.GaitState.model_validate({k: v[i] for k, v in series.items()})
     if c.leg_view is not None:
         subject = c.store.get_subject(c.store.get_session(trial.session_id).subject_id)
-        c.focus = None
+        _focus(c, who, None)
         c.leg_view.show(state, subject.leg_length_m, None)
     return {"t": state.t}
