@@ -22,8 +22,11 @@ site can reach a server on 127.0.0.1 without rebinding: body-less POSTs (``/stop
 no CORS preflight, and websockets are not covered by CORS at all, so such a page could stop a session
 or push sensor frames that drive the torque command. Browsers always send ``Origin`` on those
 requests; every method but GET, HEAD and OPTIONS, and every websocket, whose ``Origin`` is not the
-server's own (the ``Host`` it was reached at) is refused with 403 (close 1008). Clients that are not
-browsers (devices, scripts) send no ``Origin`` and are unaffected.
+server's own is refused with 403 (close 1008). The server's own origin is the scheme it was reached by
+(``http`` or ``https``; ``ws``/``wss`` count as those; behind a TLS proxy, the scheme the proxy forwards)
+and the ``Host`` it was reached at, a scheme's default port (80, 443) written or not: a page served
+over plain HTTP under the same name (one a network attacker injected) is another origin than the
+HTTPS dashboard. Clients that are not browsers (devices, scripts) send no ``Origin`` and are unaffected.
 
 Why not starlette's ``TrustedHostMiddleware``: it does cover websockets, but refuses them with an
 HTTP denial response rather than the close code the other guard uses, answers a bare "Invalid host
@@ -135,8 +138,28 @@ def refused_host(hosts: Sequence[str], allowed: Collection[str]) -> str | None:
     return None
 
 
-def _cross_origin(origin: str | None, host: str | None) -> str | None:
-    if origin is None or (host is not None and urlsplit(origin).netloc.lower() == host.lower()):
+#: The port a scheme means when none is written.
+_DEFAULT_PORTS = {"http": ":80", "https": ":443"}
+#: The scheme of a request's origin, by the scheme of the request (ASGI ``scope["scheme"]``).
+_ORIGIN_SCHEMES = {"http": "http", "ws": "http", "https": "https", "wss": "https"}
+
+
+def _netloc(netloc: str, scheme: str) -> str:
+    text = netloc.strip().lower()
+    default = _DEFAULT_PORTS.get(scheme, "")
+    return text[: -len(default)] if default and text.endswith(default) else text
+
+
+def _cross_origin(origin: str | None, host: str | None, scheme: str = "http") -> str | None:
+    """``origin`` if it is not ``scheme://host`` (the server's own origin), else None; None without an origin.
+
+    ``scheme``: ``http`` or ``https`` (``ws``/``wss`` are read as those).
+    """
+    if origin is None:
+        return None
+    own = _ORIGIN_SCHEMES.get(scheme.lower(), scheme.lower())
+    parts = urlsplit(origin.strip())
+    if host is not None and parts.scheme.lower() == own and _netloc(parts.netloc, own) == _netloc(host, own):
         return None
     return origin
 
@@ -154,7 +177,7 @@ def cross_origin(scope: Scope) -> str | None:
     """The offending origin if this request changes state from another site, else None."""
     if scope["type"] == "http" and scope.get("method") in SAFE_METHODS:
         return None
-    return _cross_origin(_header(scope, b"origin"), _header(scope, b"host"))
+    return _cross_origin(_header(scope, b"origin"), _header(scope, b"host"), str(scope.get("scheme", "http")))
 
 
 async def _refuse(scope: Scope, send: Send, status: int, reason: str) -> None:
@@ -212,6 +235,10 @@ def websockets_guard(allowed_hosts: Iterable[str], then: ProcessRequest | None =
     Every request (the viewer's static files as well as its websocket) must name an allowed host
     (else 400); a websocket upgrade must also come from no origin or its own (else 403). Refusals
     answer the handshake with a plain-text reason; what passes goes on to ``then``, if any.
+
+    The server's own scheme is ``http`` (viser speaks no TLS), or what a TLS proxy in front says in
+    ``X-Forwarded-Proto`` (``https``): a browser's websocket cannot set that header, so a page cannot
+    claim the scheme of another origin with it.
     """
     allowed = frozenset(allowed_host(h) for h in allowed_hosts)
 
@@ -222,7 +249,8 @@ def websockets_guard(allowed_hosts: Iterable[str], then: ProcessRequest | None =
         upgrade = any("websocket" in u.lower() for u in request.headers.get_all("Upgrade"))
         if reason is None and upgrade:
             origins = request.headers.get_all("Origin")
-            origin = _cross_origin(", ".join(origins) or None, hosts[0])  # two origins never match a host
+            forwarded = request.headers.get("X-Forwarded-Proto", "http").split(",")[0].strip() or "http"
+            origin = _cross_origin(", ".join(origins) or None, hosts[0], forwarded)  # two origins never match
             if origin is not None:
                 reason, status = f"cross-origin request from {origin[:100]} refused", HTTPStatus.FORBIDDEN
         if reason is not None:

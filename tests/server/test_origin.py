@@ -18,8 +18,10 @@ from server.origin import (
     SameOriginMiddleware,
     allowed_host,
     allowed_hosts_for,
+    cross_origin,
     host_name,
     refused_host,
+    websockets_guard,
 )
 from tests.device_tokens import device_path
 
@@ -162,3 +164,72 @@ def test_close_reason_fits_a_close_frame() -> None:
     (close,) = asyncio.run(_asgi(SameOriginMiddleware, scope))
     assert close["code"] == 1008 and len(close["reason"].encode()) <= 123
     assert close["reason"].startswith("cross-origin request from http://Ã©")  # header bytes read as latin-1
+
+
+# --- the scheme is part of the origin (issue #21) -------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("scheme", "origin", "refused"),
+    [
+        ("http", "http://gaitlab.local:8000", False),
+        ("http", "https://gaitlab.local:8000", True),  # another origin: the scheme differs
+        ("https", "https://gaitlab.local:8000", False),
+        ("https", "http://gaitlab.local:8000", True),  # a plain-HTTP page (injected) under the HTTPS name
+        ("ws", "http://gaitlab.local:8000", False),
+        ("wss", "https://gaitlab.local:8000", False),
+        ("wss", "http://gaitlab.local:8000", True),
+        ("http", "HTTP://GAITLAB.LOCAL:8000", False),
+        ("http", "http://gaitlab.local:8001", True),
+        ("http", "null", True),
+    ],
+)
+def test_the_origins_scheme_must_be_the_servers(scheme: str, origin: str, refused: bool) -> None:
+    kind = "websocket" if scheme.startswith("ws") else "http"
+    scope = {"type": kind, "scheme": scheme, "method": "POST", "path": "/api/x",
+             "headers": [(b"host", b"gaitlab.local:8000"), (b"origin", origin.encode())]}  # fmt: skip
+    assert (cross_origin(scope) is not None) == refused
+
+
+@pytest.mark.parametrize(
+    ("scheme", "host", "origin"),
+    [("https", "gaitlab.local", "https://gaitlab.local:443"), ("https", "gaitlab.local:443", "https://gaitlab.local"),
+     ("http", "gaitlab.local:80", "http://gaitlab.local")],
+)  # fmt: skip
+def test_a_schemes_default_port_written_or_not_is_the_same_origin(scheme: str, host: str, origin: str) -> None:
+    scope = {"type": "http", "scheme": scheme, "method": "POST",
+             "headers": [(b"host", host.encode()), (b"origin", origin.encode())]}  # fmt: skip
+    assert cross_origin(scope) is None
+
+
+def test_an_https_page_may_change_an_https_server_and_an_http_page_may_not(client: TestClient) -> None:
+    sid = _session(client)
+    with TestClient(client.app, base_url="https://testserver") as tls:  # the scheme a TLS proxy forwards
+        r = tls.post(f"/api/sessions/{sid}/annotations", json={"text": "x"}, headers={"origin": "http://testserver"})
+        assert r.status_code == 403 and r.json()["detail"] == "cross-origin request from http://testserver refused"
+        r = tls.post(f"/api/sessions/{sid}/annotations", json={"text": "x"}, headers={"origin": "https://testserver"})
+        assert r.status_code == 201, r.text
+    r = client.post(f"/api/sessions/{sid}/annotations", json={"text": "x"}, headers={"origin": "https://testserver"})
+    assert r.status_code == 403
+
+
+def _handshake(guard: Any, headers: list[tuple[str, str]]) -> int | None:
+    """The status the leg view's guard answers a websocket handshake with (None: let through)."""
+    from websockets.datastructures import Headers
+    from websockets.http11 import Request
+
+    class _Connection:
+        def respond(self, status: Any, text: str) -> Any:
+            return int(status)
+
+    request = Request("/websocket", Headers([("Host", "gaitlab.local:8081"), ("Upgrade", "websocket"), *headers]))
+    return guard(_Connection(), request)  # type: ignore[no-any-return]
+
+
+def test_the_leg_views_guard_takes_the_scheme_a_tls_proxy_forwards() -> None:
+    guard = websockets_guard(["gaitlab.local"])
+    assert _handshake(guard, [("Origin", "http://gaitlab.local:8081")]) is None
+    assert _handshake(guard, [("Origin", "https://gaitlab.local:8081")]) == 403  # viser itself speaks no TLS
+    behind = [("Origin", "https://gaitlab.local:8081"), ("X-Forwarded-Proto", "https")]
+    assert _handshake(guard, behind) is None
+    assert _handshake(guard, [("Origin", "http://gaitlab.local:8081"), ("X-Forwarded-Proto", "https")]) == 403
