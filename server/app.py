@@ -142,6 +142,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             models,
             on_state=lambda *a: ctx.on_state(*a),
             disk_check=disk.check,
+            disk_room=disk.room,
             gp_trainer=GPTrainer(duty=settings.gp_fit_duty),
             node=settings.node,
         )

@@ -35,7 +35,9 @@ class Settings(BaseSettings):
             ``disk_warn_mb`` by default, so that an upload never makes a live session warn.
         slow_client_s: a browser that cannot take its stream for this long is disconnected (1013).
         disk_warn_mb: below this many MiB free on the data folder's disk a running session warns
-            (:class:`~sessions.live.disk.DiskGuard`); 512 MiB is about five hours of one 200 Hz session.
+            (:class:`~sessions.live.disk.DiskGuard`), saying how many minutes of recording are left at its rate;
+            512 MiB is 28 to 117 minutes of one 200 Hz session, from every channel to the walking set
+            (measured: ``python -m server.bench.disk_rate``, docs/dashboard.md "Disk space").
         disk_stop_mb: below this many MiB free the recording is finished and the session stopped;
             at most ``disk_warn_mb``. 128 MiB leaves room to finish the file's index and for crash
             recovery's copy of a recording of about an hour.

@@ -1125,6 +1125,10 @@ class Health(BaseModel):
     implausible: int = Field(default=0, description="sensor values outside SENSOR_LIMITS, treated as missing")
     faults: int = Field(default=0, description="filter restarts and resets, and torques forced to 0")
     disk: Literal["ok", "low", "critical"] = Field(default="ok", description="free space for the recording")
+    disk_minutes: float | None = Field(
+        default=None,
+        description="minutes of recording left at this session's rate before the disk guard stops it (null: unknown)",
+    )
     estimators: list[str] = Field(default_factory=list, description="the session's estimator stack")
     primary: str | None = Field(
         default=None, description="the estimator driving the torque now (null: none, the torque is 0)"

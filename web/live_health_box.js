@@ -82,7 +82,9 @@ export class HealthBox {
     f.implausible.classList.toggle("warn", (m.implausible ?? 0) > 0);
     f.faults.textContent = String(m.faults ?? 0);
     f.faults.classList.toggle("warn", (m.faults ?? 0) > 0);
-    f.disk.textContent = { ok: "ok", low: "space low: recording stops when it runs out", critical: "full: recording stopped" }[m.disk ?? "ok"];
+    const left = m.disk_minutes == null ? "" : `about ${Math.round(m.disk_minutes)} min of recording left`;
+    f.disk.textContent = { ok: left ? `ok: ${left}` : "ok",
+      low: `space low: ${left ? left + ", then " : ""}recording stops`, critical: "full: recording stopped" }[m.disk ?? "ok"];
     f.disk.classList.toggle("warn", (m.disk ?? "ok") !== "ok");
     f.tracking.textContent = { walking: "walking", standing: "standing still: phase held, torque 0",
       lost: `lost track, reset: ${m.tracking_note || ""}` }[m.tracking] || "–";

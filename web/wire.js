@@ -336,6 +336,7 @@
  * @property {number} [implausible=0] sensor values outside SENSOR_LIMITS, treated as missing
  * @property {number} [faults=0] filter restarts and resets, and torques forced to 0
  * @property {"ok" | "low" | "critical"} [disk="ok"] free space for the recording
+ * @property {number | null} [disk_minutes=null] minutes of recording left at this session's rate before the disk guard stops it (null: unknown)
  * @property {Array<string>} [estimators] the session's estimator stack
  * @property {string | null} [primary=null] the estimator driving the torque now (null: none, the torque is 0)
  * @property {Object<string, string>} [failed_estimators] failed estimators and why

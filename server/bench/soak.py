@@ -30,12 +30,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from server.bench.disk_rate import measure
 from server.bench.launch import start_server
+from sessions.errors import DataFormatError
 from sessions.formats.mcap_io import read_messages
 from sessions.synth.trials import replay_input, sensor_trial
 
-#: MCAP bytes per 200 Hz device-second (sensor, state and torque messages; measured on the cohort).
-_BYTES_PER_DEVICE_S = 55_000
+#: Session time (s) of the recording measured for the disk budget (server/bench/disk_rate.py).
+_RATE_MEASURED_S = 5.0
 MAX_TORQUE = 30.0
 #: One bad frame of each kind, in turn (``None``: a binary message).
 _BAD_FRAMES: tuple[str | bytes, ...] = (
@@ -176,30 +178,40 @@ async def _device(
             report.closed = f"refused: {e}"
 
 
-async def _flood(ws_base: str, session_id: int, token: str, start_s: float, seconds: float) -> dict[str, int]:
-    """Send as fast as the socket takes frames for ``seconds``, after ``start_s``."""
+async def _flood(ws_base: str, session_id: int, token: str, start_s: float, seconds: float) -> dict[str, Any]:
+    """Send as fast as the socket takes frames for ``seconds``, after ``start_s``. The server may end the
+    session before or during the flood (the disk guard): the refusal or the close is reported, not raised."""
     import websockets
 
-    counts = {"sent": 0, "torques": 0, "notices": 0}
+    counts: dict[str, Any] = {"sent": 0, "torques": 0, "notices": 0, "closed": ""}
     await asyncio.sleep(start_s + 2.0)  # the other process's clients take about 2 s to start
-    async with websockets.connect(f"{ws_base}/ws/devices/{session_id}?token={token}", max_queue=None) as ws:
+    try:
+        async with websockets.connect(f"{ws_base}/ws/devices/{session_id}?token={token}", max_queue=None) as ws:
 
-        async def replies() -> None:
-            async for text in ws:
-                counts["torques" if json.loads(text)["type"] == "torque" else "notices"] += 1
+            async def replies() -> None:
+                async for text in ws:
+                    counts["torques" if json.loads(text)["type"] == "torque" else "notices"] += 1
 
-        reader = asyncio.create_task(replies())
-        loop = asyncio.get_running_loop()
-        stop = loop.time() + seconds
-        k = 0
-        while loop.time() < stop:
-            for _ in range(100):
-                await ws.send(json.dumps({"type": "frame", "seq": k, "t": k * 5e-5, "foot_angle_deg": 10.0}))
-                k += 1
-            counts["sent"] = k
-            await asyncio.sleep(0)
-        await asyncio.sleep(0.3)
-        reader.cancel()
+            reader = asyncio.create_task(replies())
+            loop = asyncio.get_running_loop()
+            stop = loop.time() + seconds
+            k = 0
+            try:
+                while loop.time() < stop:
+                    for _ in range(100):
+                        await ws.send(json.dumps({"type": "frame", "seq": k, "t": k * 5e-5, "foot_angle_deg": 10.0}))
+                        k += 1
+                    counts["sent"] = k
+                    await asyncio.sleep(0)
+                await asyncio.sleep(0.3)
+            finally:
+                reader.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await reader
+    except websockets.ConnectionClosed as e:
+        counts["closed"] = f"closed by the server: {e.rcvd.code if e.rcvd else '?'} {e.rcvd.reason if e.rcvd else ''}"
+    except (OSError, websockets.InvalidStatus) as e:
+        counts["closed"] = f"refused: {e}"
     return counts
 
 
@@ -233,7 +245,7 @@ def _worker(
     return reports
 
 
-def _flood_worker(ws_base: str, flood_id: int, token: str, seconds: float) -> dict[str, int]:
+def _flood_worker(ws_base: str, flood_id: int, token: str, seconds: float) -> dict[str, Any]:
     """The flooding device, in another process, so that it does not slow the steady ones' clients."""
     import uvloop
 
@@ -245,7 +257,11 @@ def run_soak(devices: int = 4, rate: float = 200.0, seconds: float = 60.0, fault
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
 
-    expected_mb = devices * _BYTES_PER_DEVICE_S * seconds / 2**20
+    # What the devices' recordings take: measured, for the channels they send and the stack that runs for them
+    # (they do not declare their channels); the flooding one records at most 1.25 x rate for a fifth of the run.
+    walking = [k for k in _walk_frames(rate)[0] if k != "type"]
+    per_device = measure(walking, rate, _RATE_MEASURED_S, declared=False).bytes_per_s
+    expected_mb = (devices + 1.25 * 0.2) * per_device * seconds / 2**20
     stop_mb = 8
     size_mb = int(stop_mb + 0.6 * expected_mb) + 1  # the guard stops about two thirds in
     with _small_disk(size_mb) as (folder, mounted):
@@ -256,7 +272,8 @@ def run_soak(devices: int = 4, rate: float = 200.0, seconds: float = 60.0, fault
         base = server.base
         print(
             f"soak: {devices} devices at {rate:g} Hz + 1 flooding device, {seconds:g} s, a bad frame every "
-            f"{fault_every_s:g} s per device, device 0 reboots at {seconds / 2:g} s; data folder "
+            f"{fault_every_s:g} s per device, device 0 reboots at {seconds / 2:g} s; each records "
+            f"{per_device / 1000:.0f} kB/s (measured); data folder "
             + (f"on a {size_mb} MiB tmpfs (disk stop at {stop_mb} MiB free)" if mounted else "on the normal disk "
                "(no small file system could be mounted here: the full-disk fault is not injected)")
         )  # fmt: skip
@@ -282,7 +299,7 @@ def run_soak(devices: int = 4, rate: float = 200.0, seconds: float = 60.0, fault
                 r.ended = session["state"] + (f" ({endings[-1]})" if endings else " (by the API)")
                 r.trials = [t["status"] for t in trials]
                 r.bytes = sum((folder / t["path"]).stat().st_size for t in trials)
-                r.recorded = sum(sum(1 for _ in read_messages(folder / t["path"], ["/gait_state"])) for t in trials)
+                r.recorded = sum(_recorded(folder / t["path"]) for t in trials)
         finally:
             server.stop()
     _print(reports, flood)
@@ -290,7 +307,15 @@ def run_soak(devices: int = 4, rate: float = 200.0, seconds: float = 60.0, fault
     return {"devices": reports, "flood": flood, "clean": clean, "disk_fault": mounted}
 
 
-def _print(reports: list[DeviceReport], flood: dict[str, int]) -> None:
+def _recorded(path: Path) -> int:
+    """Gait states in a trial's file (0 for a file that cannot be read: its trial says ``damaged``)."""
+    try:
+        return sum(1 for _ in read_messages(path, ["/gait_state"]))
+    except (OSError, DataFormatError):
+        return 0
+
+
+def _print(reports: list[DeviceReport], flood: dict[str, Any]) -> None:
     head = ("device", "sent", "bad", "torques", "notices", "out of bounds", "recorded", "lost")
     print(" ".join(f"{h:>{w}}" for h, w in zip(head, (6, 7, 4, 8, 7, 13, 9, 5), strict=True)) + "  ended")
     for n, r in enumerate(reports):
@@ -305,6 +330,7 @@ def _print(reports: list[DeviceReport], flood: dict[str, int]) -> None:
     print(
         f"total: {total['sent']} good frames sent, {total['torques']} torque replies, {total['out_of_bounds']} out of "
         f"bounds, {total['recorded']} recorded, {total['lost']} lost; flooding device sent {flood['sent']}, got "
-        f"{flood['torques']} torques and {flood['notices']} notices; {total['bytes'] / max(total['recorded'], 1):.0f} "
-        "recorded bytes per sample"
+        f"{flood['torques']} torques and {flood['notices']} notices"
+        + (f" ({flood['closed']})" if flood["closed"] else "")
+        + f"; {total['bytes'] / max(total['recorded'], 1):.0f} recorded bytes per sample"
     )

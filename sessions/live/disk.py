@@ -1,22 +1,105 @@
-"""Free space on the recordings' disk, checked against two thresholds: warn, then stop.
+"""Free space on the recordings' disk, checked against two thresholds: warn, then stop; and how many
+minutes of recording that space is at a session's own rate.
 
-A 200 Hz session writes about 29 KiB/s (~100 MiB an hour) of MCAP; an hour's index adds ~1 MiB at
-:meth:`~sessions.formats.recording.Recorder.finish`, and crash recovery writes a full copy of the file
-beside it before it replaces the original. The runtime calls :meth:`DiskGuard.check` once a
-second: ``low`` warns the clinician, ``critical`` stops the recording cleanly while there is still
-room to finish it, so a full disk (:class:`~sessions.formats.recording.RecordingError`) stays the exception.
+What a recording takes depends on what the device sends and what the stack runs: each sample records
+the sensor frame, every estimator's outputs, the gait state and the torque. Measured with
+``python -m server.bench.disk_rate`` (cohort walking at 200 Hz, 60 s per row, index included)::
+
+    channels                  estimators   kB/s   MiB/hour
+    walking (7)                        3   76.6        263
+    walking, not declared             13  130.5        448
+    walking + 2 IMUs (19)              3  112.6        387
+    all (74)                           6  317.5       1090
+
+:func:`estimated_bytes_per_s` fits those rows (:data:`BYTES_PER_SAMPLE` and the two per-item figures) and is
+a recording's rate until it has grown for a while; from then on :class:`GrowthRate` measures the file's own
+growth. An hour's index adds ~1 MiB at :meth:`~sessions.formats.recording.Recorder.finish`, and crash
+recovery writes a full copy of the file beside it before it replaces the original (on a full disk
+:func:`~sessions.formats.mcap_io.recover_in_place` indexes it where it lies instead). The runtime calls
+:meth:`DiskGuard.check` once a second: ``low`` warns the clinician, ``critical`` stops the recording cleanly
+while there is still room to finish it, so a full disk (:class:`~sessions.formats.recording.RecordingError`)
+stays the exception. The thresholds are MiB (the stop one is room to finish files, whatever the rate);
+the events and data health state them as minutes of recording at the session's rate (:func:`minutes`).
 """
 
 from __future__ import annotations
 
 import shutil
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 from typing import Final, Literal
 
-__all__ = ["MIB", "DiskGuard", "DiskLevel", "free_bytes"]
+__all__ = [
+    "BYTES_PER_CHANNEL",
+    "BYTES_PER_ESTIMATOR",
+    "BYTES_PER_SAMPLE",
+    "MIB",
+    "DiskGuard",
+    "DiskLevel",
+    "GrowthRate",
+    "estimated_bytes_per_s",
+    "free_bytes",
+    "minutes",
+]
 
 MIB: Final = 1024 * 1024
+#: MCAP bytes per sample whatever is sent: gait state, torque command, chunk and index overhead (measured, above).
+BYTES_PER_SAMPLE: Final = 187.0
+#: More bytes per sample for each channel the device sends (a float in the sensor frame's JSON, compressed).
+BYTES_PER_CHANNEL: Final = 16.5
+#: More bytes per sample for each estimator of the session's stack (its outputs' JSON, compressed).
+BYTES_PER_ESTIMATOR: Final = 27.0
+#: Channels assumed for a device that does not declare them: the walking set.
+UNDECLARED_CHANNELS: Final = 7
+
+
+def estimated_bytes_per_s(rate_hz: float, channels: int | None, estimators: int) -> float:
+    """What a recording of ``channels`` (None: not declared) and a stack of ``estimators`` at ``rate_hz`` takes
+    (bytes/s), from the measurement in the module docstring (within 10 % of each of its rows)."""
+    n = UNDECLARED_CHANNELS if channels is None else channels
+    return rate_hz * (BYTES_PER_SAMPLE + BYTES_PER_CHANNEL * n + BYTES_PER_ESTIMATOR * estimators)
+
+
+def minutes(room_bytes: float, bytes_per_s: float) -> float:
+    """Minutes of recording ``room_bytes`` holds at ``bytes_per_s`` (0 for no room; inf for a rate of 0)."""
+    if room_bytes <= 0:
+        return 0.0
+    return float("inf") if bytes_per_s <= 0 else room_bytes / bytes_per_s / 60.0
+
+
+class GrowthRate:
+    """A recording's bytes per second: the estimate until its file has grown for ``window_s``, then the growth
+    measured over the last ``window_s`` (so a device that sends more or fewer channels than it declared, or a
+    stack that changes, is followed).
+
+    Args:
+        estimate: the rate before there is a measurement (:func:`estimated_bytes_per_s`).
+        window_s: how long a growth is measured over (s).
+    """
+
+    def __init__(self, estimate: float, window_s: float = 10.0):
+        self.estimate = estimate
+        self.window_s = window_s
+        self._seen: deque[tuple[float, int]] = deque()
+
+    def update(self, size: int, now: float) -> float:
+        """Note the file's ``size`` (bytes) at ``now`` (s, monotonic) and return the rate. A smaller size than
+        before (a new trial's file) starts the measurement again."""
+        if self._seen and size < self._seen[-1][1]:
+            self._seen.clear()
+        self._seen.append((now, size))
+        while len(self._seen) > 2 and now - self._seen[1][0] >= self.window_s:
+            self._seen.popleft()
+        return self.bytes_per_s
+
+    @property
+    def bytes_per_s(self) -> float:
+        """The measured growth once it spans ``window_s``, else the estimate."""
+        if len(self._seen) < 2:
+            return self.estimate
+        (t0, s0), (t1, s1) = self._seen[0], self._seen[-1]
+        return self.estimate if t1 - t0 < self.window_s else (s1 - s0) / (t1 - t0)
 
 #: ``ok``; ``low``: below the warning threshold; ``critical``: below the stop threshold, or unknown.
 DiskLevel = Literal["ok", "low", "critical"]
@@ -107,3 +190,7 @@ class DiskGuard:
     def free_mb(self) -> float | None:
         """MiB free at the last check (None before the first or when it failed)."""
         return None if self.free is None else self.free / MIB
+
+    def room(self) -> int | None:
+        """Bytes that can still be recorded before the stop threshold, at the last check (None: unknown)."""
+        return None if self.free is None else self.free - self.stop_bytes

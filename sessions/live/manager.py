@@ -86,6 +86,7 @@ class SessionManager:
         disk_check: Callable[[], DiskState] | None = None,
         gp_trainer: GPTrainer | None = None,
         node: str | None = None,
+        disk_room: Callable[[], int | None] | None = None,
     ):
         self.store = store
         self.node = node  # this process's name in the shared database (Settings.node)
@@ -93,6 +94,7 @@ class SessionManager:
         self.models = models
         self.on_state = on_state
         self.disk_check = disk_check
+        self.disk_room = disk_room  # bytes left before the disk guard stops (DiskGuard.room)
         self.runtimes: dict[int, SessionRuntime] = {}
         self.gp_trainer = gp_trainer or GPTrainer()
         #: Sessions that ended here whose end is not stored yet, by id: retried every ``RETRY_S`` (:meth:`reconcile`)
@@ -179,6 +181,7 @@ class SessionManager:
                 self.data_dir,
                 self.on_state,
                 disk_check=self.disk_check,
+                disk_room=self.disk_room,
                 on_end=self._ended,
                 gp_trainer=self.gp_trainer,
             )

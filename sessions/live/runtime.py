@@ -50,7 +50,7 @@ from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused, to
 from sessions.formats.mcap_io import read_messages, recover, recover_in_place
 from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, SAMPLE_PERIOD_KEY, Recorder
 from sessions.imu_calibration import StandingCollector, applied_text, apply_calibration, front_end_segments
-from sessions.live.disk import DiskLevel
+from sessions.live.disk import DiskLevel, GrowthRate, estimated_bytes_per_s, minutes
 from sessions.live.gp_learning import GPLearning, GPTrainer, Note
 from sessions.live.imu_events import ImuWatch
 from sessions.live.intent_events import IntentOnsets
@@ -105,6 +105,8 @@ class SessionRuntime:
         store: the database.
         data_dir: where recordings go (``recordings/`` below it).
         on_state: called with every gait state (the leg view takes what it needs).
+        disk_room: bytes that can still be recorded before the disk guard stops (None: unknown), read after
+            each ``disk_check`` to state what is left as minutes of this session's recording.
         disk_check: returns the state of the recording's disk (``ok``, ``low``, ``critical``); called
             before a recording starts and once a second.
         on_end: called once when the session ends by itself (source finished, fault, disk full), after
@@ -127,6 +129,7 @@ class SessionRuntime:
         data_dir: Path,
         on_state: Callable[[int, GaitState, float], None] | None = None,
         disk_check: Callable[[], DiskState] | None = None,
+        disk_room: Callable[[], int | None] | None = None,
         on_end: Callable[[SessionRuntime, schema.SessionState, str], Awaitable[None]] | None = None,
         gp_trainer: GPTrainer | None = None,
     ):
@@ -179,6 +182,13 @@ class SessionRuntime:
         self.disk_check = disk_check
         self.on_end = on_end
         self.disk: DiskState = "ok"
+        self.disk_room = disk_room
+        #: this session's recording rate (bytes/s): estimated from its channels, rate and stack, then measured
+        declared = getattr(source, "channels", None)
+        n_channels = None if declared is None else len(declared)
+        self.disk_rate = GrowthRate(estimated_bytes_per_s(1.0 / period, n_channels, len(self.estimator.stack.names)))
+        #: minutes of recording left at that rate before the disk guard stops it (None: unknown)
+        self.disk_minutes: float | None = None
         self.torque_faults = 0
         #: The JSON of the last sample's torque command (what the device is sent, as recorded).
         self.last_command = ""
@@ -296,19 +306,34 @@ class SessionRuntime:
             self.broadcast_health()
 
     def check_disk(self) -> DiskState:
-        """Look at the disk; warn once when low, stop cleanly when critical."""
+        """Look at the disk; warn once when low, stop cleanly when critical; say what is left as minutes of this
+        session's recording (:attr:`disk_minutes`, data health)."""
         if self.disk_check is None:
             return "ok"
         state = self.disk_check()
+        if self.recorder is not None:
+            with contextlib.suppress(OSError):
+                self.disk_rate.update(self.recorder.path.stat().st_size, time.monotonic())
+        room = self.disk_room() if self.disk_room is not None else None
+        self.disk_minutes = None if room is None else round(minutes(room, self.disk_rate.bytes_per_s), 1)
         if state != self.disk:
             if state == "low":
-                self._event("system", "disk space is low: the recording stops when it runs out")
+                left = "" if self.disk_minutes is None else f"about {self.disk_minutes:.0f} min of recording left "
+                self._event("system", f"disk space is low: {left}at this session's {self._rate_text()}; the recording "
+                            f"stops when it runs out; {FREE_SPACE_HINT}")  # fmt: skip
             elif state == "critical" and self.ended is None:
                 asyncio.get_running_loop().create_task(
                     self.end("stopped", "the disk is almost full: recording finished and session stopped")
                 )
         self.disk = state
         return state
+
+    def _rate_text(self) -> str:
+        """This session's recording rate in words: "305 kB/s (74 channels at 200 Hz, 6 estimators)"."""
+        channels = getattr(self.source, "channels", None)
+        what = "undeclared channels" if channels is None else f"{len(channels)} channels"
+        return (f"{self.disk_rate.bytes_per_s / 1000:.0f} kB/s ({what} at {1.0 / self.sample_period:g} Hz, "
+                f"{len(self.estimator.stack.names)} estimators)")  # fmt: skip
 
     # --- per sample -----------------------------------------------------------------------------
     def process(self, frame: SensorFrame, recv_ns: int) -> GaitState:
@@ -548,6 +573,7 @@ class SessionRuntime:
             implausible=self.estimator.implausible,
             faults=self.estimator.faults + self.torque_faults,
             disk=self.disk,
+            disk_minutes=self.disk_minutes,
             estimators=list(self.estimator.stack.names),
             primary=self.estimator.primary,
             failed_estimators=dict(self.estimator.stack.failed),

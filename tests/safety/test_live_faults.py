@@ -263,16 +263,19 @@ def test_ids_beyond_sqlite_are_a_clear_4xx(client: TestClient, url: str) -> None
 
 def test_a_disk_running_out_warns_then_stops_cleanly(client: TestClient) -> None:
     """Reproduces: with the disk full a session's task died, it stayed "running" and lost its last seconds."""
-    sid = _device_session(client)
+    sid = _device_session(client, rate_hz=200.0)
     runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
     level = {"now": "low"}
     runtime.disk_check = lambda: level["now"]
+    runtime.disk_room = lambda: 100 * 2**20  # 100 MiB until the stop
     with _device(client, sid) as ws:
         _walk_torques(ws, 0.0, 100)
         deadline = time.monotonic() + 5
         while runtime.disk != "low" and time.monotonic() < deadline:
             time.sleep(0.05)
         assert runtime.health().disk == "low"
+        left = 100 * 2**20 / runtime.disk_rate.bytes_per_s / 60  # the session's rate: its stack and 200 Hz
+        assert runtime.health().disk_minutes == pytest.approx(left, abs=0.1) and 5 < left < 30
         level["now"] = "critical"
         deadline = time.monotonic() + 5
         while _state(client, sid) == "running" and time.monotonic() < deadline:
@@ -283,7 +286,10 @@ def test_a_disk_running_out_warns_then_stops_cleanly(client: TestClient) -> None
                 json.loads(ws.receive_text())
     assert _state(client, sid) == "stopped"
     texts = [e["text"] for e in client.get(f"/api/sessions/{sid}/events").json()]
-    assert any("disk space is low" in t for t in texts) and any("almost full" in t for t in texts)
+    assert any("almost full" in t for t in texts)
+    [low] = [t for t in texts if t.startswith("disk space is low")]
+    assert low.startswith(f"disk space is low: about {left:.0f} min of recording left at this session's ")
+    assert "(undeclared channels at 200 Hz, " in low and "free space on the server's data disk" in low
     trial = client.get(f"/api/trials?session_id={sid}").json()[0]
     assert trial["status"] == "finished" and trial["samples"] == 100
     r = client.post(f"/api/sessions/{sid}/recording", json={"action": "start"})

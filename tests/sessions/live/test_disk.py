@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from sessions.live.disk import MIB, DiskGuard, free_bytes
+from server.bench.disk_rate import CHANNEL_SETS, measure
+from sessions.live.disk import MIB, DiskGuard, GrowthRate, estimated_bytes_per_s, free_bytes, minutes
 
 
 class FakeDisk:
@@ -117,3 +118,44 @@ def test_a_check_is_cheap_enough_for_once_a_second(tmp_path: Path) -> None:
         guard.check()
     per_check = (time.perf_counter() - start) / n
     assert per_check < 1e-3  # a few microseconds in practice: a statvfs and two stats
+
+
+# --- what a recording takes, in minutes --------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", list(CHANNEL_SETS))
+def test_the_estimate_is_what_the_recorder_writes(name: str) -> None:
+    """The constants of sessions.live.disk against the real pipeline and recorder (server/bench/disk_rate.py)."""
+    measured = measure(CHANNEL_SETS[name], 200.0, 15.0)
+    estimate = estimated_bytes_per_s(200.0, measured.channels, len(measured.estimators))
+    assert estimate == pytest.approx(measured.bytes_per_s, rel=0.15), (name, measured.bytes_per_s)
+    assert measured.bytes_per_s > 60_000  # twice the 29 KiB/s once assumed, at the least
+
+
+def test_an_undeclared_device_is_estimated_as_the_walking_set() -> None:
+    assert estimated_bytes_per_s(200.0, None, 13) == estimated_bytes_per_s(200.0, 7, 13)
+    assert estimated_bytes_per_s(100.0, 7, 3) == pytest.approx(estimated_bytes_per_s(200.0, 7, 3) / 2)
+
+
+def test_growth_is_the_estimate_until_measured_over_its_window() -> None:
+    rate = GrowthRate(estimate=100_000.0, window_s=10.0)
+    assert rate.bytes_per_s == 100_000.0
+    for s in range(10):  # 300 kB/s for 9 s: not yet a window
+        rate.update(300_000 * s, float(s))
+    assert rate.bytes_per_s == 100_000.0
+    assert rate.update(300_000 * 10, 10.0) == pytest.approx(300_000.0)
+    for s in range(11, 40):  # it slows to 50 kB/s: followed within a window
+        rate.update(3_000_000 + 50_000 * (s - 10), float(s))
+    assert rate.bytes_per_s == pytest.approx(50_000.0)
+    rate.update(1000, 40.0)  # a new trial's file: measured again from there
+    assert rate.bytes_per_s == 100_000.0
+
+
+def test_minutes_of_recording() -> None:
+    assert minutes(60 * 300_000, 300_000.0) == pytest.approx(1.0)
+    assert minutes(0, 300_000.0) == minutes(-5, 1.0) == 0.0
+    assert minutes(1, 0.0) == float("inf")
+    guard = DiskGuard(".", warn_mb=512, stop_mb=128, free=FakeDisk(free_mb=640))
+    assert guard.room() is None
+    guard.check()
+    assert guard.room() == 512 * MIB
