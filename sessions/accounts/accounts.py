@@ -17,9 +17,10 @@ Choices:
   The database keeps the account's failed logins in a row and until when failing addresses wait (what the
   admins see); an admin's unlock clears both.
 - Hashing never runs inside a database transaction: a login reads the account, verifies outside any
-  transaction, then writes; at most ``hash_slots`` hashes run at once in the process (each takes 64 MiB
-  and tens of milliseconds of every core), and :meth:`Accounts.login_async` runs them on a small pool of
-  its own, never on the event loop nor in the threads the other routes share.
+  transaction, then writes; at most ``hash_slots`` hashes run at once in the process (one by default: each
+  takes 64 MiB, and its 4 lanes about 0.12 s of both cores of a 2-core machine), and
+  :meth:`Accounts.login_async` runs them in threads of their own, never on the event loop nor in the
+  threads the other routes share.
 - Login sessions: a 256-bit random token in the cookie, stored as its SHA-256; each has its own CSRF token
   (the synchronizer-token pattern, OWASP) and ends ``login_hours`` after it began (a clinic's day), or at
   logout, or when the password changes (every login of the user ends). The sockets opened with a login
@@ -126,7 +127,8 @@ class Accounts:
         login_hours: how long a login session lasts.
         hasher: the password hasher (argon2-cffi's defaults unless given; tests may pass a cheaper one).
         throttle: the failed-login throttle (made from ``lockout_after`` and ``lockout_minutes`` unless given).
-        hash_slots: argon2 hashes or verifications running at once in this process, at most.
+        hash_slots: argon2 hashes or verifications running at once in this process, at most (argon2-cffi's
+            4 lanes make one use every core of a small machine; more slots take the cores from the sessions).
     """
 
     def __init__(
@@ -138,7 +140,7 @@ class Accounts:
         login_hours: float = 12.0,
         hasher: PasswordHasher | None = None,
         throttle: LoginThrottle | None = None,
-        hash_slots: int = 2,
+        hash_slots: int = 1,
     ) -> None:
         if lockout_after < 1 or lockout_minutes <= 0 or login_hours <= 0 or hash_slots < 1:
             raise ValueError("lockout_after, lockout_minutes, login_hours and hash_slots must be positive")
@@ -257,10 +259,11 @@ class Accounts:
     async def login_async(
         self, name: str, password: str, address: str = "unknown", now: dt.datetime | None = None
     ) -> Login:
-        """:meth:`login` for the event loop: the database's read and write in the shared worker threads, the
-        verification in a pool of its own of ``hash_slots`` threads (one of them, for the attempts the
-        throttle holds back, so that a flood of those does not queue ahead of the others). A flood of logins
-        thus never blocks the loop nor takes the threads the other routes need."""
+        """:meth:`login` for the event loop: the database's read and write in the shared worker threads (short),
+        the verification in a pool of its own of ``hash_slots`` threads, or of one thread for the attempts the
+        throttle holds back (so that a flood of those queues behind itself, not ahead of the others); every
+        hash takes one of the process's ``hash_slots``. A flood of logins thus never blocks the loop, takes
+        more than its share of the cores, nor the threads the other routes need."""
         if self._pools is None:
             self._pools = (CapacityLimiter(self._hash_slot_count), CapacityLimiter(1))
         attempt = await anyio.to_thread.run_sync(self._begin_login, name, address)
