@@ -64,7 +64,9 @@ class FrameEstimator:
     Soft start (``soft_start``): the torque gain and bound ramp from 0 to the session's values at the
     rate limits of :data:`~sessions.schema.SETTING_LIMITS` (0.5 gain/s, 10 N m/s), from the first frame
     and again after every restart or reset of the primary, so that assistance never starts as a step.
-    Deterministic in session time, so a re-run reproduces it.
+    The intent boost (:mod:`sessions.intent_boost`) stays within the same ramp: the effective gain
+    ``gain x (1 + boost)`` never exceeds the ramp's ``0.5 gain/s x time since it started``, nor the
+    torque the ramped bound. Deterministic in session time, so a re-run reproduces it.
 
     Attributes:
         stack: the estimators and the torque.
@@ -305,7 +307,8 @@ class FrameEstimator:
         s = self.settings
         if self.intent_boost.active(s.intent_gain_boost):  # one comparison while it is off
             self.intent_boost.update(t, e.outputs, s.intent_gain_boost, s.torque_gain)
-            torque = self.intent_boost.torque(torque, s.max_torque_Nm)
+            headroom, bound = self._ramp_limits(t)
+            torque = self.intent_boost.torque(torque, bound, headroom)
         return GaitState(
             seq=frame.seq,
             t=t,
@@ -333,6 +336,18 @@ class FrameEstimator:
         if name is None or name not in self.stack.names:
             return "lost track"
         return str(getattr(self.stack.estimators[self.stack.names.index(name)], "lost_reason", "") or "lost track")
+
+    def _ramp_limits(self, t: float) -> tuple[float, float]:
+        """What the soft start allows the intent boost at session time ``t``: the factor over the stack's torque
+        (the ramp's gain over the gain the stack runs at: 1 while the gain itself ramps, then growing at
+        0.5/gain per second, so that the boost comes in as a ramp too, never as a step) and the torque bound."""
+        s = self.settings
+        if not self.soft_start:
+            return math.inf, s.max_torque_Nm
+        elapsed = max(0.0, t - self._ramp_t0)
+        ramp_gain = schema.SETTING_LIMITS["torque_gain"][2] * elapsed
+        headroom = max(1.0, ramp_gain / s.torque_gain) if s.torque_gain > 0.0 else math.inf
+        return headroom, min(s.max_torque_Nm, schema.SETTING_LIMITS["max_torque_Nm"][2] * elapsed)
 
     def _apply_ramp(self, t: float) -> None:
         """Cap gain and bound at their rate limits times the time since the ramp started."""
@@ -435,7 +450,8 @@ def frame_json(frame: SensorFrame, t: float) -> bytes:
 def torque_json(seq: int, t: float, torque_Nm: float) -> str:
     """The JSON of ``TorqueCommand(seq=seq, t=t, torque_Nm=torque_Nm)``, sent to a device and recorded
     once per sample: a format string is a fifth of the model's cost (``tests/sessions/test_estimation.py``
-    reads it back as the model)."""
+    reads it back as the model). A torque of -0.0 is sent as 0.0 (``+ 0.0``): a device need not know signed zeros."""
+    torque_Nm = torque_Nm + 0.0
     if math.isfinite(t) and math.isfinite(torque_Nm):  # %r of a finite float is valid JSON
         return _TORQUE % (seq, t, torque_Nm)
     return schema.TorqueCommand(seq=seq, t=t, torque_Nm=torque_Nm).model_dump_json()

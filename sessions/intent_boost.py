@@ -15,10 +15,12 @@ largest fraction by which the gain moves. The rule, per sample:
   change (``SETTING_LIMITS["torque_gain"]``'s 0.5 gain/s): ``|db/dt| <= 0.5 / max(gain, 1)``, so the
   effective gain ``gain x (1 + b)`` never moves faster than 0.5/s on account of intent, and a sudden
   intent never steps the torque. Times are session times (deterministic: a re-run can reproduce it).
-- **torque** ``clamp(torque x (1 + b), 0, max_torque_Nm)``: the stack's torque is already within the bound
-  and ``1 + b`` is within ``[0.7, 1.3]``, so the command stays finite and within the bound whatever the
-  intent says. The stack's torque is linear in the gain below the bound, so this is the torque at the
-  gain ``gain x (1 + b)``.
+- **torque** ``clamp(torque x min(1 + b, headroom), 0, bound)``: the stack's torque is already within the
+  bound and ``1 + b`` is within ``[0.7, 1.3]``, so the command stays finite and within the bound whatever
+  the intent says. The stack's torque is linear in the gain below the bound, so this is the torque at the
+  gain ``gain x (1 + b)``. During the soft start (:class:`sessions.estimation.FrameEstimator`) ``bound`` is
+  the ramped bound and ``headroom`` what the ramp allows over the ramped gain (1 while the gain itself
+  ramps): the boost never lifts the torque above the soft start's ramp.
 
 Pure computation, a few float operations per sample (nothing at all while the setting and ``b`` are 0).
 """
@@ -98,9 +100,10 @@ class IntentBoost:
             self.value = 0.0
         return self.value
 
-    def torque(self, torque: float, bound: float) -> float:
-        """``torque x (1 + value)`` within ``[0, bound]``; 0 when anything is not a finite number."""
-        out = torque * (1.0 + self.value)
+    def torque(self, torque: float, bound: float, headroom: float = math.inf) -> float:
+        """``torque x min(1 + value, headroom)`` within ``[0, bound]``; 0 when anything is not a finite number.
+        ``headroom``: the most the factor may be (the soft start's, while it ramps; at least 1)."""
+        out = torque * min(1.0 + self.value, headroom)
         if not (math.isfinite(out) and math.isfinite(bound)):
             return 0.0
         return min(max(out, 0.0), max(bound, 0.0))

@@ -88,10 +88,11 @@ class ChangeNotSaved(RuntimeError):
 
 
 def safe_torque(value: float, bound: float) -> float:
-    """``value`` clamped to ``[0, bound]``; 0 when it (or the bound) is not a finite number."""
+    """``value`` clamped to ``[0, bound]``; 0 when it (or the bound) is not a finite number. Never -0.0 (a zero
+    torque times a negative profile, at the soft start's first sample): ``+ 0.0`` makes it +0.0."""
     if not (math.isfinite(value) and math.isfinite(bound)):
         return 0.0
-    return min(max(value, 0.0), max(bound, 0.0))
+    return min(max(value, 0.0), max(bound, 0.0)) + 0.0
 
 
 class SessionRuntime:

@@ -211,3 +211,48 @@ def test_the_setting_is_validated_and_rate_limited_like_every_other(client: Test
     ctx = client.app.state.ctx  # type: ignore[attr-defined]
     [event] = [e for e in ctx.store.list_events(runtime.session.id) if e.kind == "setting"]
     assert (event.field, event.before, event.after) == ("intent_gain_boost", 0.0, 0.1)
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    boost=st.floats(0.01, LIMITS["intent_gain_boost"][1]),
+    gain=st.floats(0.2, LIMITS["torque_gain"][1]),
+    bound=st.floats(*LIMITS["max_torque_Nm"][:2]),
+    confidence=st.floats(0.5, 20.0),
+)
+def test_the_boost_stays_within_the_soft_starts_ramp(
+    client: TestClient, monkeypatch: pytest.MonkeyPatch, boost: float, gain: float, bound: float, confidence: float
+) -> None:
+    """A walker speeding up from the first frame (issue #21: 1.26x the unboosted torque during the 3 s ramp):
+    while the soft start ramps the gain, the boosted torque never exceeds the unboosted one (the ramp's), then
+    comes in as a ramp of its own: the effective gain within ``0.5/s x t``, the torque within the ramped bound."""
+    monkeypatch.setitem(registry.ESTIMATORS, "intent", lambda ctx: SaysAnything())
+    SaysAnything.rows = [[1.2, 0.3, 1.0, confidence, 1.2]]
+    stack: dict[str, Any] = {"estimators": ["phase_ekf", "intent"], "torque_gain": gain, "max_torque_Nm": bound}
+    boosted, plain = _runtime(client, intent_gain_boost=boost, **stack), _runtime(client, **stack)
+    _check_within_the_ramp(boosted, plain, gain, bound)
+
+
+def _check_within_the_ramp(boosted: SessionRuntime, plain: SessionRuntime, gain: float, bound: float) -> int:
+    """Both runtimes through :data:`FRAMES`, the soft start's limits checked on every sample; how many samples
+    the boost raised the torque."""
+    pushed = 0
+    for frame in FRAMES:
+        now = time.time_ns()
+        a, b = boosted.process(frame, now), plain.process(frame, now)
+        ramp_gain = GAIN_RATE * a.t
+        assert a.torque_Nm <= min(bound, LIMITS["max_torque_Nm"][2] * a.t) + 1e-9
+        if ramp_gain < gain:  # the soft start still ramps the gain: the ramped, unboosted torque is the most
+            assert a.torque_Nm <= b.torque_Nm + 1e-9, (a.t, a.torque_Nm, b.torque_Nm)
+        elif b.torque_Nm > 0.0:  # then the effective gain follows the ramp: gain x factor <= 0.5/s x t
+            assert a.torque_Nm / b.torque_Nm * gain <= max(gain, ramp_gain) + 1e-9
+        pushed += a.torque_Nm > b.torque_Nm + 1e-9
+    return pushed
+
+
+def test_once_the_ramp_allows_it_the_boost_comes_in(client: TestClient, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(registry.ESTIMATORS, "intent", lambda ctx: SaysAnything())
+    SaysAnything.rows = [[1.2, 0.3, 1.0, 10.0, 1.2]]
+    stack: dict[str, Any] = {"estimators": ["phase_ekf", "intent"], "torque_gain": 0.5, "max_torque_Nm": 80.0}
+    boosted, plain = _runtime(client, intent_gain_boost=0.3, **stack), _runtime(client, **stack)
+    assert _check_within_the_ramp(boosted, plain, 0.5, 80.0) > 50  # the gain ramp ends at 1 s of 3

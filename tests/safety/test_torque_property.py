@@ -10,15 +10,21 @@ The live websocket and the replay command are driven the same way in ``test_live
 from __future__ import annotations
 
 import itertools
+import json
 import math
 
 import numpy as np
+from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
-from sessions.estimation import FrameEstimator, FrameRefused
+from sessions.estimation import FrameEstimator, FrameRefused, torque_json
+from sessions.live.runtime import safe_torque
+from sessions.live.sources import frames_from_table
 from sessions.schema import SENSOR_LIMITS, SensorFrame, SessionSettings
+from sessions.synth.trials import sensor_trial
+from tests.device_tokens import device_path
 from tests.estimator_doubles import Scripted
 
 ANY_FLOAT = st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True)
@@ -202,3 +208,20 @@ def test_a_diverged_filter_is_reset_with_zero_torque(small_model: TrainedModel) 
     assert e.fault == "diverged" and e.torque_Nm == 0.0 and math.isfinite(e.phase_rate)
     assert np.all(np.isfinite(pipe.ekf.P)) and pipe.resets == 1
     assert pipe.step(0.02, np.full(6, np.nan)).fault == ""
+
+
+def test_a_zero_torque_is_never_negative_zero_on_the_wire(client: TestClient) -> None:
+    """The soft start's first sample is 0 N m times the profile, which is -0.0 where the profile is negative
+    (issue #21): the device is sent 0.0, never -0.0."""
+    assert math.copysign(1.0, safe_torque(-0.0, 30.0)) == 1.0
+    assert math.copysign(1.0, safe_torque(-1e-300, 30.0)) == 1.0
+    assert torque_json(3, 0.5, -0.0) == '{"type":"torque","seq":3,"t":0.5,"torque_Nm":0.0}'
+    subject = client.post("/api/subjects", json={"code": "Z0", "leg_length_m": 0.9, "mass_kg": 70}).json()["id"]
+    session = client.post("/api/sessions", json={"subject_id": subject, "source": {"kind": "device"}}).json()["id"]
+    sensors, _, _ = sensor_trial([(1.0, 0.0, 2)], rate_hz=100.0)
+    with client.websocket_connect(device_path(client, session)) as ws:
+        for frame in frames_from_table(sensors)[:40]:
+            ws.send_text(frame.model_dump_json(exclude_none=True))
+            reply = ws.receive_text()
+            assert '"torque_Nm":-0.0' not in reply, reply
+            assert math.copysign(1.0, json.loads(reply)["torque_Nm"]) == 1.0
