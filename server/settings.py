@@ -53,7 +53,10 @@ class Settings(BaseSettings):
         behind_tls_proxy: a TLS-terminating proxy (nginx, caddy, the hospital's) is in front: the login cookie
             is marked Secure and the server trusts the proxy's forwarded scheme and client address.
         login_hours: a login lasts this long (a clinic's day).
-        lockout_after, lockout_minutes: this many failed logins in a row lock an account for that long.
+        lockout_after, lockout_minutes: failed logins are throttled, never locked out: after ``lockout_after``
+            failures of one address at one name (4 x that of one address at any names, or at one name from
+            any addresses that failed at it) the next attempt waits 1 s, doubling with each failure up to
+            ``lockout_minutes`` (:mod:`sessions.accounts.throttle`; ``docs/api.md``).
         node: this process's name in a shared database (several gaitscope processes on one PostgreSQL):
             stored with each session it runs; at start-up it recovers only its own sessions after a crash, and
             it refuses to stop another's. Default ``<host name>:<port>``: stable across restarts, distinct for

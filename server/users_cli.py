@@ -72,8 +72,9 @@ def cmd_user(a: argparse.Namespace) -> int:
     try:
         if a.user_command == "list":
             for u in accounts.list_users():
-                locked = f"locked until {u.locked_until_utc}" if u.locked_until_utc else "ok"
-                state = "disabled" if u.disabled else locked
+                failed = f"{u.failed_logins} failed logins" if u.failed_logins else "ok"
+                held = f"{failed}, failing addresses wait until {u.locked_until_utc}" if u.locked_until_utc else failed
+                state = "disabled" if u.disabled else held
                 print(f"{u.name:<24} {u.role:<13} {state:<30} last login {u.last_login_utc or 'never'}")
             return 0
         try:
@@ -113,6 +114,8 @@ def register(sub: Any) -> None:
     q = users.add_parser("reset-password", help="set a new password (and unlock)")
     q.add_argument("name")
     q.add_argument("--password-stdin", action="store_true")
-    q = users.add_parser("unlock", help="end a lockout after failed logins")
+    q = users.add_parser(
+        "unlock", help="forget the account's failed logins (a running server forgets its count at the next attempt)"
+    )
     q.add_argument("name")
     p.set_defaults(func=cmd_user)

@@ -25,7 +25,8 @@ def add_user(body: schema.UserCreate, c: Ctx, who: Admin) -> schema.User:
 
 @router.patch("/users/{name}")
 def change_user(name: str, body: schema.UserChange, c: Ctx, who: Admin) -> schema.User:
-    """Change a role, disable or enable, unlock, or reset the password; the account's logins end when its role
+    """Change a role, disable or enable, unlock (forget its failed logins and the throttle's counts at its
+    name), or reset the password; the account's logins end, and their open sockets close, when its role
     changes, it is disabled or its password reset. 409 for the last admin."""
     current = c.accounts.get_user(name)
     after = body.model_dump(exclude={"password"}, exclude_defaults=True)
