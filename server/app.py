@@ -35,6 +35,7 @@ from sessions.live.gp_learning import GPTrainer
 from sessions.live.manager import ModelStore, SessionManager
 from sessions.live.warmup import warm_up
 from sessions.store import Store
+from sessions.store_writer import StoreWriter
 
 log = logging.getLogger("gaitscope")
 WEB_DIR = Path(__file__).resolve().parent.parent / "web"
@@ -53,6 +54,8 @@ class AppContext:
     uploads: Uploads
     accounts: Accounts
     audit: AuditLog
+    #: the thread that makes the event loop's database writes (sessions' events and trials, async routes' audit)
+    writer: StoreWriter
     leg_view: LegView | None = None
     focus: int | None = None
     _last_view: float = 0.0
@@ -136,6 +139,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         store = Store(settings.database_url)
         models = ModelStore(settings.data_dir / "models")
         disk = DiskGuard(settings.data_dir, settings.disk_warn_mb, settings.disk_stop_mb)
+        writer = StoreWriter()
         manager = SessionManager(
             store,
             settings.data_dir,
@@ -145,6 +149,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             disk_room=disk.room,
             gp_trainer=GPTrainer(duty=settings.gp_fit_duty),
             node=settings.node,
+            writer=writer,
         )
         accounts = Accounts(
             store, lockout_after=settings.lockout_after, lockout_minutes=settings.lockout_minutes,
@@ -154,7 +159,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         audit.ensure_keyed()  # a trail from before the key: its keyed part starts here; another key: refused
         ctx = AppContext(
             settings=settings, store=store, models=models, manager=manager, uploads=Uploads(settings),
-            accounts=accounts, audit=audit,
+            accounts=accounts, audit=audit, writer=writer,
         )  # fmt: skip
         ctx.uploads.clear_leftovers()  # uploads live in memory: a restart ends them
         for trial in ctx.manager.recover_after_crash():
@@ -179,6 +184,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             await ctx.manager.stop_all()
+            await asyncio.to_thread(writer.close)  # every write the sessions queued is made before the store closes
             ctx.uploads.shutdown()
             if (exports := getattr(app.state, "exports", None)) is not None:
                 exports.shutdown()  # the report exports' worker (server/routes/reports.py)

@@ -3,6 +3,7 @@ HTTP statuses, and the two lookups that turn a missing model or an unreadable tr
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Awaitable, Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Final, TypeVar
@@ -179,6 +180,19 @@ def audit(
     c.audit.record(
         user=who.name, role=who.role, action=action, target=target, before=before, after=after, detail=detail
     )
+
+
+async def audited(
+    c: AppContext, who: Who, action: str, target: str, *, before: Any = None, after: Any = None, detail: str = ""
+) -> None:
+    """:func:`audit` for an ``async`` route: the entry is written by the database writer (``c.writer``,
+    :mod:`sessions.store_writer`) while the route waits, so the event loop and the sessions on it do not;
+    written before the change takes effect, and a failure to write it refuses the change, as there."""
+    record = functools.partial(
+        c.audit.record, user=who.name, role=who.role, action=action, target=target, before=before, after=after,
+        detail=detail,
+    )  # fmt: skip
+    await c.writer.run(record, f"audit entry {action} {target}")
 
 
 def not_running_here(c: AppContext, session_id: int, what: str = "") -> str:

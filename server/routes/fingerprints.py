@@ -12,7 +12,7 @@ from fastapi.responses import JSONResponse
 
 from estimators.fingerprint import FingerprintMap
 from server.auth import Promoter, Reader, Runner, Uploader, allow
-from server.routes.common import Ctx, Id, audit, reviewable_trial
+from server.routes.common import Ctx, Id, audit, audited, reviewable_trial
 from sessions import schema
 from sessions.errors import DataFormatError
 from sessions.personalization.calibration import CalibrationRefused, calibrate, read_walk
@@ -73,7 +73,7 @@ async def calibrate_fingerprint(
     if c.store.get_session(trial.session_id).subject_id != subject_id:
         raise HTTPException(422, f"trial {trial.id} is not of subject {subject_id}")
     fmap, _ = _map(c, body.model)
-    audit(c, who, "fingerprint.calibrate", f"subject {subject_id}", after=body.model_dump(mode="json"))
+    await audited(c, who, "fingerprint.calibrate", f"subject {subject_id}", after=body.model_dump(mode="json"))
 
     def fit() -> schema.Personalization:
         cal = calibrate(fmap, read_walk(path))

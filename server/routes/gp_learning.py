@@ -10,7 +10,7 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Query
 
 from server.auth import Runner, allow
-from server.routes.common import Ctx, Id, audit, by, not_running_here
+from server.routes.common import Ctx, Id, audited, by, not_running_here
 from sessions import schema
 from sessions.gp_models import GP_EKF
 from sessions.live.gp_learning import GPLearning
@@ -54,5 +54,5 @@ async def control_gp_learning(
     failed = runtime.estimator.stack.failed.get(GP_EKF)
     if failed is not None:
         raise HTTPException(409, f"session {session_id}'s GP-EKF has failed ({failed}); it learns no more")
-    audit(c, who, "gp_learning.control", f"session {session_id}", after=body.model_dump(exclude={"actor"}))
+    await audited(c, who, "gp_learning.control", f"session {session_id}", after=body.model_dump(exclude={"actor"}))
     return runtime.gp_control(by(body, who))

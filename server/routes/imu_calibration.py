@@ -7,7 +7,7 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException
 
 from server.auth import Runner, allow
-from server.routes.common import Ctx, Id, audit, by, not_running_here
+from server.routes.common import Ctx, Id, audited, by, not_running_here
 from sessions import schema
 
 router = APIRouter(prefix="/api")
@@ -32,7 +32,7 @@ async def start_imu_calibration(
     if runtime.imu_collector is not None:
         raise HTTPException(409, f"session {session_id} is calibrating its IMUs already; wait for it to finish")
     request = by(body or schema.ImuCalibrationRequest(), who)
-    audit(c, who, "imu_calibration.start", f"session {session_id}", after=request.model_dump(exclude={"actor"}))
+    await audited(c, who, "imu_calibration.start", f"session {session_id}", after=request.model_dump(exclude={"actor"}))
     return runtime.calibrate_imus(request)
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException
 
 from server.auth import Annotator, Assistant, Runner, allow
-from server.routes.common import Ctx, Id, OptionalId, audit, by, check_assistance, not_running_here, trained_model
+from server.routes.common import Ctx, Id, OptionalId, audited, by, check_assistance, not_running_here, trained_model
 from sessions import schema
 from sessions.live.manager import SessionStateError
 from sessions.store import Conflict
@@ -27,7 +27,7 @@ async def create_session(body: schema.SessionCreate, c: Ctx, who: Runner) -> sch
         check_assistance(c, who, body.subject_id, {"primary": body.settings.primary})
     if isinstance(body.source, schema.DeviceSource):  # a person wears it: the settings are assistance
         check_assistance(c, who, body.subject_id, body.settings.model_dump(exclude={"primary"}))
-    audit(c, who, "session.create", f"subject {body.subject_id}", after=body.model_dump(mode="json"))
+    await audited(c, who, "session.create", f"subject {body.subject_id}", after=body.model_dump(mode="json"))
     if isinstance(body.source, schema.ReplaySource):
         trial = c.manager.shown_trial(c.store.get_trial(body.source.trial_id))
         if trial.status in ("recording", "damaged"):
@@ -45,14 +45,14 @@ def get_session(session_id: Id, c: Ctx) -> schema.Session:
 @router.post("/sessions/{session_id}/start")
 async def start_session(session_id: Id, c: Ctx, who: Runner) -> schema.Session:
     before = c.store.get_session(session_id)
-    audit(c, who, "session.start", f"session {session_id}", before=before.state, after="running")
+    await audited(c, who, "session.start", f"session {session_id}", before=before.state, after="running")
     return c.manager.start(session_id)
 
 
 @router.post("/sessions/{session_id}/stop")
 async def stop_session(session_id: Id, c: Ctx, who: Runner) -> schema.Session:
     before = c.store.get_session(session_id)
-    audit(c, who, "session.stop", f"session {session_id}", before=before.state, after="stopped")
+    await audited(c, who, "session.stop", f"session {session_id}", before=before.state, after="stopped")
     return await c.manager.stop(session_id)
 
 
@@ -66,8 +66,10 @@ async def change_settings(session_id: Id, body: schema.SettingsChange, c: Ctx, w
     check_assistance(c, who, runtime.session.subject_id, requested)
     current = runtime.session.settings.model_dump()
     before = {k: current[k] for k in requested}
-    audit(c, who, "settings.change", f"session {session_id}", before=before, after=requested, detail=body.reason)
-    return runtime.change_settings(by(body, who))
+    await audited(
+        c, who, "settings.change", f"session {session_id}", before=before, after=requested, detail=body.reason
+    )
+    return await runtime.change_settings_async(by(body, who))  # stored (off the loop) before it is applied
 
 
 @router.get("/sessions/{session_id}/events", dependencies=[allow("read")])
@@ -78,7 +80,7 @@ def session_events(session_id: Id, c: Ctx) -> list[schema.Event]:
 
 @router.post("/sessions/{session_id}/annotations", status_code=201)
 async def annotate(session_id: Id, body: schema.AnnotationCreate, c: Ctx, who: Annotator) -> schema.Event:
-    audit(c, who, "session.annotate", f"session {session_id}", after={"text": body.text})
+    await audited(c, who, "session.annotate", f"session {session_id}", after={"text": body.text})
     runtime = c.manager.get(session_id)
     if runtime is not None:
         return runtime.annotate(body.text, who.name)
@@ -88,7 +90,7 @@ async def annotate(session_id: Id, body: schema.AnnotationCreate, c: Ctx, who: A
 
 @router.post("/sessions/{session_id}/recording")
 async def recording(session_id: Id, body: schema.RecordingControl, c: Ctx, who: Runner) -> schema.Trial:
-    audit(c, who, f"recording.{body.action}", f"session {session_id}", after=body.model_dump())
+    await audited(c, who, f"recording.{body.action}", f"session {session_id}", after=body.model_dump())
     runtime = c.manager.get(session_id)
     if runtime is None:
         raise HTTPException(409, not_running_here(c, session_id))

@@ -308,6 +308,8 @@ async def device_ingest(ws: WebSocket, session_id: Id, token_id: Annotated[int, 
                     return
                 continue
             bad = 0
+            if runtime.saving_settings:  # its settings change is being stored: it applies first (the others go on)
+                await runtime.settings_applied()
             try:
                 runtime.process(frame, recv)
             except FrameRefused as e:

@@ -14,7 +14,7 @@ from fastapi.responses import FileResponse
 
 from estimators.pipeline import TrainedModel
 from server.auth import Annotator, Reader, allow
-from server.routes.common import Ctx, Id, OptionalId, audit, by, reviewable_trial, trained_model
+from server.routes.common import Ctx, Id, OptionalId, audit, audited, by, reviewable_trial, trained_model
 from sessions import schema
 from sessions.store import NotAllowed
 
@@ -214,7 +214,7 @@ async def add_annotation(
                 raise HTTPException(
                     422, f"the note's {where} ({value:g} s) is outside the trial ({lo:.2f} to {hi:.2f} s)"
                 )
-    audit(c, who, "review_note.add", f"trial {trial_id}", after=by(body, who))
+    await audited(c, who, "review_note.add", f"trial {trial_id}", after=by(body, who))
     return c.store.add_review_annotation(trial_id, by(body, who))
 
 

@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING, Annotated, Final
 from fastapi import APIRouter, HTTPException, Query, Request, Response
 
 from server.auth import Uploader, allow
-from server.routes.common import Ctx, audit
+from server.routes.common import Ctx, audited
 from server.settings import Settings
 from sessions import schema
 from sessions.formats.imports import ImportJob, ImportRefused, ImportResult, run_import
@@ -349,7 +349,7 @@ def _safe_stem(filename: str) -> str:
 @router.post("/uploads", status_code=201)
 async def create_upload(body: schema.UploadCreate, c: Ctx, who: Uploader) -> schema.Upload:
     c.store.get_subject(body.subject_id)
-    audit(c, who, "upload.create", f"subject {body.subject_id}", after=body.model_dump())
+    await audited(c, who, "upload.create", f"subject {body.subject_id}", after=body.model_dump())
     return c.uploads.create(body)
 
 
@@ -363,12 +363,12 @@ async def upload_chunk(
 @router.post("/uploads/{upload_id}/finish", status_code=201)
 async def finish_upload(upload_id: str, c: Ctx, who: Uploader, recover: bool = False) -> schema.Trial:
     """Import the upload; ``recover=true`` first recovers an MCAP recording that was never finished."""
-    audit(c, who, "upload.finish", f"upload {upload_id[:64]}", after={"recover": recover})
+    await audited(c, who, "upload.finish", f"upload {upload_id[:64]}", after={"recover": recover})
     return await c.uploads.finish(upload_id, c, recover=recover)
 
 
 @router.delete("/uploads/{upload_id}", status_code=204)
 async def cancel_upload(upload_id: str, c: Ctx, who: Uploader) -> Response:
-    audit(c, who, "upload.cancel", f"upload {upload_id[:64]}")
+    await audited(c, who, "upload.cancel", f"upload {upload_id[:64]}")
     c.uploads.cancel(upload_id)
     return Response(status_code=204)

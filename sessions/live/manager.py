@@ -21,6 +21,7 @@ from sessions.live.runtime import DiskState, SessionRuntime, count_states
 from sessions.live.sources import FrameSource, LiveDevice, ReplayDevice, SimulatedDevice
 from sessions.live.subscribers import attach_history
 from sessions.store import Store
+from sessions.store_writer import StoreWriter
 
 log = logging.getLogger("gaitscope")
 
@@ -87,6 +88,7 @@ class SessionManager:
         gp_trainer: GPTrainer | None = None,
         node: str | None = None,
         disk_room: Callable[[], int | None] | None = None,
+        writer: StoreWriter | None = None,
     ):
         self.store = store
         self.node = node  # this process's name in the shared database (Settings.node)
@@ -97,6 +99,7 @@ class SessionManager:
         self.disk_room = disk_room  # bytes left before the disk guard stops (DiskGuard.room)
         self.runtimes: dict[int, SessionRuntime] = {}
         self.gp_trainer = gp_trainer or GPTrainer()
+        self.writer = writer  # the sessions' database writer (sessions.store_writer); None: each starts its own
         #: Sessions that ended here whose end is not stored yet, by id: retried every ``RETRY_S`` (:meth:`reconcile`)
         self.unsaved: dict[int, Unsaved] = {}
         self._retrying: asyncio.Task[None] | None = None
@@ -184,6 +187,7 @@ class SessionManager:
                 disk_room=self.disk_room,
                 on_end=self._ended,
                 gp_trainer=self.gp_trainer,
+                writer=self.writer,
             )
         except ValueError as e:  # the estimator stack: unknown names, missing channels (MissingChannels)
             with contextlib.suppress(Exception):

@@ -5,7 +5,10 @@ Each sensor frame is processed synchronously (pipeline step, MCAP record, fan-ou
 that runs on the loop (a settings change, an annotation, a recording toggle) happens *between* two
 samples: a change takes effect at the next sample, and its event carries the time of the last sample
 processed before it. Subscribers never slow the pipeline: each has a bounded buffer that drops its
-oldest entries (counted) when the client does not keep up.
+oldest entries (counted) when the client does not keep up. The database writes are made by a writer
+thread (:mod:`sessions.store_writer`), never on the loop: the events the sample path raises (intent
+onsets, IMU and estimator notes, GP-EKF learning) are stored without a sample waiting for them, then
+recorded and sent, in the order they happened.
 
 Safety:
 
@@ -20,7 +23,8 @@ Safety:
 - the GP-EKF's retraining (:mod:`sessions.live.gp_learning`, when the stack runs ``gp_ekf``) fits in a worker
   process, never on the sample loop; a fit that fails is an event, and the model in use stays;
 - a change of settings is stored with its events in one transaction first and applied only then, so
-  that what runs is always what the database (and the rate limits) say;
+  that what runs is always what the database (and the rate limits) say (the settings route waits for
+  the writer without holding up the samples: :meth:`SessionRuntime.change_settings_async`);
 - every task of the session is supervised: an error ends the session as ``failed`` with an event,
   the recording finished and the browsers told; the disk is checked every second, with a warning
   when it runs low and a clean stop before it is full;
@@ -32,11 +36,13 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import datetime as dt
+import functools
 import logging
 import math
 import time
 from collections import deque
 from collections.abc import Awaitable, Callable, Coroutine, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -58,6 +64,7 @@ from sessions.live.sources import FrameSource, LiveDevice
 from sessions.live.subscribers import SUBSCRIBER_CAPACITY, Subscriber
 from sessions.schema import GaitState, SensorFrame, SessionSettings, SettingsChange
 from sessions.store import Store
+from sessions.store_writer import StoreWriter, Write
 
 __all__ = [
     "SUBSCRIBER_CAPACITY",
@@ -95,6 +102,18 @@ def safe_torque(value: float, bound: float) -> float:
     return min(max(value, 0.0), max(bound, 0.0)) + 0.0
 
 
+@dataclass(frozen=True)
+class _SettingsPlan:
+    """A checked settings change waiting to be stored: the new settings, the fields that change, their
+    events (``Store.add_event`` arguments), the session time and the monotonic time of the change."""
+
+    new: SessionSettings
+    fields: list[str]
+    events: list[dict[str, Any]]
+    t: float
+    now: float
+
+
 class SessionRuntime:
     """Runs one session.
 
@@ -114,6 +133,8 @@ class SessionRuntime:
             the runtime stopped, with the session's final state; the manager stores it.
         gp_trainer: the worker the GP-EKF's fits go to (the server's, shared); None: the session starts its
             own if its stack runs ``gp_ekf`` (and stops it with the session).
+        writer: the thread that makes the session's database writes (:mod:`sessions.store_writer`; the
+            server's, shared); None: the session starts its own (and closes it when it stops).
 
     Raises:
         ValueError: the settings name an unknown estimator, or a primary the stack cannot run.
@@ -133,12 +154,18 @@ class SessionRuntime:
         disk_room: Callable[[], int | None] | None = None,
         on_end: Callable[[SessionRuntime, schema.SessionState, str], Awaitable[None]] | None = None,
         gp_trainer: GPTrainer | None = None,
+        writer: StoreWriter | None = None,
     ):
         self.session = session
         self.subject = subject
         self.model = model
         self.source = source
         self.store = store
+        self._own_writer = writer is None
+        self.writer = writer or StoreWriter(name=f"writer-session-{session.id}")
+        #: events submitted to the writer and not yet recorded and broadcast, in order, each with the
+        #: recorder that was recording when it happened (:meth:`_event_soon`)
+        self._pending_events: deque[tuple[Write[schema.Event], Recorder | None]] = deque()
         self.data_dir = data_dir
         self.on_state = on_state
         period = 1.0 / source.rate_hz if source.rate_hz else DEFAULT_PERIOD
@@ -175,6 +202,10 @@ class SessionRuntime:
         self.samples = 0
         self.dropped_input = 0
         self._last_change: dict[str, float] = {}
+        #: a settings change is being stored (:meth:`change_settings_async`): the session's samples wait for it
+        #: (:meth:`settings_applied`), so that it applies at the sample its events name; another change is refused
+        self.saving_settings = False
+        self._applied = asyncio.Event()
         self._recent_recv: deque[int] = deque(maxlen=4096)
         self._recent_latency: deque[float] = deque(maxlen=4096)
         self._task: asyncio.Task[None] | None = None
@@ -252,6 +283,11 @@ class SessionRuntime:
             self.stop_recording()
         except Exception:
             log.exception("session %d: finishing the recording failed", self.session.id)
+        with contextlib.suppress(Exception):  # events still being stored: sent before the streams close
+            await asyncio.to_thread(self.writer.flush)
+        self._settle_events()
+        if self._own_writer:
+            await asyncio.to_thread(self.writer.close)
         for sub in self.subscribers:
             sub.close()
 
@@ -291,6 +327,8 @@ class SessionRuntime:
         async for frame in self.source.frames():
             if self._stopped:
                 return
+            if self.saving_settings:
+                await self.settings_applied()
             try:
                 self.process(frame, time.time_ns())
             except FrameRefused:
@@ -358,7 +396,7 @@ class SessionRuntime:
             self._intent_event(outputs)
         if self.imu_watch.active:
             for imu in self.imu_watch.update(state.t, outputs):
-                self._event("system", imu.text, field=imu.field, before=imu.before, after=imu.after)
+                self._event_soon("system", imu.text, field=imu.field, before=imu.before, after=imu.after)
         t = state.t
         self.samples += 1
         self._recent_recv.append(recv_ns)
@@ -386,7 +424,7 @@ class SessionRuntime:
         """Estimator failures and primary switches: each one a system event (they are rare: each estimator
         fails at most once)."""
         for text in self.estimator.events:
-            self._event("system", text)
+            self._event_soon("system", text)
         self.estimator.events.clear()
 
     def _intent_event(self, outputs: Sequence[NDArray[np.float64] | None]) -> None:
@@ -395,7 +433,7 @@ class SessionRuntime:
         onset = self.intent_onsets.update(outputs)
         if onset is not None:
             before, after = round(onset.desired_before_m_s, 3), round(onset.desired_m_s, 3)
-            self._event("intent", onset.text, field="desired_speed_m_s", before=before, after=after)
+            self._event_soon("intent", onset.text, field="desired_speed_m_s", before=before, after=after)
 
     def _notes(self) -> None:
         """Turn the estimator's notes into system events, at most one per NOTE_INTERVAL_S."""
@@ -405,7 +443,7 @@ class SessionRuntime:
             self._suppressed_notes += len(notes)
         else:
             more = len(notes) - 1 + self._suppressed_notes
-            self._event("system", notes[0] + (f" (and {more} more since the last such event)" if more else ""))
+            self._event_soon("system", notes[0] + (f" (and {more} more since the last such event)" if more else ""))
             self._last_note, self._suppressed_notes = now, 0
         notes.clear()
 
@@ -481,7 +519,10 @@ class SessionRuntime:
         result = collector.result(self.subject.id, self.session.id, self.trial.id if self.trial else None)
         if result.ok:
             try:
-                result = self.store.add_imu_calibration(result)
+                result = self.writer.call(
+                    functools.partial(self.store.add_imu_calibration, result),
+                    f"session {self.session.id}: IMU calibration",
+                )
             except Exception as e:
                 log.error("session %d: IMU calibration not saved: %s", self.session.id, e)
                 why = f"the calibration could not be saved ({_describe(e)}), so it was not applied"
@@ -504,7 +545,8 @@ class SessionRuntime:
         """A GP-EKF learning note: recorded (``/gp_models``), and its event (field ``gp_ekf``) if it has one."""
         self._gp_record(note.record)
         if note.text:
-            self._gp_event(note)
+            self._event_soon(note.kind, note.text, field="gp_ekf", before=note.before, after=note.after,
+                             actor=note.record.actor)  # fmt: skip
 
     def _gp_event(self, note: Note) -> schema.Event | None:
         return self._event(note.kind, note.text, field="gp_ekf", before=note.before, after=note.after,
@@ -603,12 +645,77 @@ class SessionRuntime:
     # --- clinician actions (between samples) --------------------------------------------------
     def change_settings(self, change: SettingsChange) -> schema.Session:
         """Validate bounds (done by the schema) and rates of change against the settings in effect,
-        store the change and its events in one transaction, and only then apply them.
+        store the change and its events in one transaction, and only then apply them. This thread waits for
+        the database writer; a coroutine uses :meth:`change_settings_async`, which lets the loop run meanwhile.
 
         Raises:
-            SettingRejected: a rate-of-change limit; nothing changed.
+            SettingRejected: a rate-of-change limit, or another change still being stored; nothing changed.
             ChangeNotSaved: the database refused the write; nothing changed.
         """
+        plan = self._plan_settings(change)
+        if plan is None:
+            return self.session
+        self.saving_settings = True
+        try:
+            stored = self._store_settings(plan).result()
+        except Exception as e:
+            raise self._not_saved(e) from e
+        finally:
+            self.saving_settings = False
+            self._settle_events()  # the events stored before it are recorded and sent first
+        return self._apply_settings(plan, stored)
+
+    async def change_settings_async(self, change: SettingsChange) -> schema.Session:
+        """:meth:`change_settings` for a coroutine (the settings route): the samples go on while the database
+        writer stores the change, and it is applied once stored, never before. A caller cancelled meanwhile
+        does not undo it: the change, stored, is applied when the write completes.
+
+        Raises:
+            SettingRejected: a rate-of-change limit, or another change still being stored; nothing changed.
+            ChangeNotSaved: the database refused the write; nothing changed.
+        """
+        plan = self._plan_settings(change)
+        if plan is None:
+            return self.session
+        try:
+            future = self._store_settings(plan).future
+        except Exception as e:  # the writer is closed
+            raise self._not_saved(e) from e
+        assert future is not None  # submitted from this loop
+        self.saving_settings = True
+        self._applied.clear()
+        try:
+            stored = await asyncio.shield(future)
+        except asyncio.CancelledError:
+            future.add_done_callback(lambda f: self._settings_stored_late(plan, f))
+            raise
+        except Exception as e:
+            self._settings_done()
+            raise self._not_saved(e) from e
+        try:
+            return self._apply_settings(plan, stored)
+        finally:
+            self._settings_done()
+
+    async def settings_applied(self) -> None:
+        """Wait until the settings change being stored is applied (or refused): the session's next sample runs
+        with the settings the database holds, at the time its events name. The other sessions do not wait."""
+        while self.saving_settings:
+            await self._applied.wait()
+
+    def _settings_done(self) -> None:
+        self._settle_events()  # the events stored before it are recorded and sent first
+        self.saving_settings = False
+        self._applied.set()
+
+    def _plan_settings(self, change: SettingsChange) -> _SettingsPlan | None:
+        """The new settings and their events, checked against the limits (None: nothing changes).
+
+        Raises:
+            SettingRejected: why not; nothing changed.
+        """
+        if self.saving_settings:
+            raise SettingRejected("another settings change is being saved; try again in a moment")
         current = self.session.settings
         updates = {
             k: v
@@ -635,7 +742,7 @@ class SessionRuntime:
                     f"{step / per_second:.2f} s between changes (try again in {wait:.2f} s)"
                 )
         if not updates:
-            return self.session
+            return None
         new = current.model_copy(update=updates)
         t, reason = self.estimator.last_t, change.reason
         events = [
@@ -652,26 +759,46 @@ class SessionRuntime:
             }
             for name, value in updates.items()
         ]
+        return _SettingsPlan(new, list(updates), events, t, now)
+
+    def _store_settings(self, plan: _SettingsPlan) -> Write[tuple[schema.Session, list[schema.Event]]]:
+        write = functools.partial(
+            self.store.change_settings, self.session.id, plan.new, plan.events,
+            trial_id=self.trial.id if self.trial else None,
+        )  # fmt: skip
+        return self.writer.submit(write, f"session {self.session.id}: settings change")
+
+    def _not_saved(self, e: Exception) -> ChangeNotSaved:
+        log.error("session %d: settings change not saved: %s", self.session.id, e)
+        return ChangeNotSaved(f"the change could not be saved ({_describe(e)}), so it was not applied")
+
+    def _settings_stored_late(self, plan: _SettingsPlan, future: asyncio.Future[Any]) -> None:
+        """A change whose caller was cancelled while it was being stored: applied if it was stored."""
         try:
-            session, stored = self.store.change_settings(
-                self.session.id, new, events, trial_id=self.trial.id if self.trial else None
-            )
-        except Exception as e:
-            log.error("session %d: settings change not saved: %s", self.session.id, e)
-            raise ChangeNotSaved(f"the change could not be saved ({_describe(e)}), so it was not applied") from e
+            if not future.cancelled() and future.exception() is None:
+                self._settle_events()
+                self._apply_settings(plan, future.result())
+        finally:
+            self._settings_done()
+
+    def _apply_settings(
+        self, plan: _SettingsPlan, stored: tuple[schema.Session, list[schema.Event]]
+    ) -> schema.Session:
+        """Apply a stored change: the estimator retuned, the settings and their events recorded and sent."""
+        session, events = stored
         self.session = session
-        self.estimator.retune(new)
-        for name in updates:
-            self._last_change[name] = now
+        self.estimator.retune(plan.new)
+        for name in plan.fields:
+            self._last_change[name] = plan.now
         if self.recorder is not None:
             try:
-                self.recorder.write("/settings", t, new)
-                for event in stored:
+                self.recorder.write("/settings", plan.t, plan.new)
+                for event in events:
                     self.recorder.write_event(event)
             except (OSError, ValueError) as e:
                 self._recording_failed(e)
-        self._broadcast(schema.SettingsMessage(session_id=self.session.id, settings=new))
-        for event in stored:
+        self._broadcast(schema.SettingsMessage(session_id=self.session.id, settings=plan.new))
+        for event in events:
             self._broadcast(schema.EventMessage(event=event))
         return self.session
 
@@ -703,27 +830,72 @@ class SessionRuntime:
         return event
 
     def _event(self, kind: schema.EventKind, text: str, **fields: object) -> schema.Event | None:
-        """Store, record and broadcast an event; a failure to store it is logged, not raised (None)."""
+        """Store an event (waiting for the writer: what must be stored before it counts), then record and
+        broadcast it; a failure to store it is logged, not raised (None)."""
         try:
-            event = self.store.add_event(
-                self.session.id,
-                t=self.estimator.last_t,
-                kind=kind,
-                text=text,
-                trial_id=self.trial.id if self.trial else None,
-                **fields,  # type: ignore[arg-type]
-            )
+            event = self._submit_event(kind, text, fields).result()
         except Exception as e:
             log.error("session %d: event %r not stored: %s", self.session.id, text, e)
             self.store_error = e
             return None
-        if self.recorder is not None:
+        finally:
+            self._settle_events()  # the writes queued before it are made too: they are published first
+        self._publish(event, self.recorder)
+        return event
+
+    def _event_soon(self, kind: schema.EventKind, text: str, **fields: object) -> None:
+        """Store an event without waiting for the database (the sample path's events: intent onsets, IMU
+        and estimator notes, GP-EKF learning), then record and broadcast it once stored, in the order
+        they happened. With no running event loop (a caller driving :meth:`process` itself) it waits."""
+        try:
+            write = self._submit_event(kind, text, fields)
+        except Exception as e:  # the writer is closed: the session is stopping
+            log.error("session %d: event %r not stored: %s", self.session.id, text, e)
+            self.store_error = e
+            return
+        self._pending_events.append((write, self.recorder))
+        if write.future is None:
+            self._settle_events(wait=True)
+        else:
+            write.future.add_done_callback(lambda _: self._settle_events())
+
+    def _submit_event(self, kind: schema.EventKind, text: str, fields: dict[str, object]) -> Write[schema.Event]:
+        """Queue an event's write (at the last sample's time, in the trial recording now)."""
+        store = functools.partial(
+            self.store.add_event,
+            self.session.id,
+            t=self.estimator.last_t,
+            kind=kind,
+            text=text,
+            trial_id=self.trial.id if self.trial else None,
+            **fields,  # type: ignore[arg-type]
+        )
+        return self.writer.submit(store, f"session {self.session.id}: event {text[:80]!r}")
+
+    def _settle_events(self, wait: bool = False) -> None:
+        """Record and broadcast the queued events the writer has stored, oldest first, up to the first one not
+        stored yet (``wait``: all of them, waiting for the writer). One it could not store was logged by the
+        writer and is left out (:attr:`store_error` says why)."""
+        while self._pending_events:
+            write, recorder = self._pending_events[0]
+            if not (wait or write.done()):
+                return
+            self._pending_events.popleft()
             try:
-                self.recorder.write_event(event)
+                event = write.result()
+            except Exception as e:
+                self.store_error = e
+                continue
+            self._publish(event, recorder)
+
+    def _publish(self, event: schema.Event, recorder: Recorder | None) -> None:
+        """Record a stored event in the trial it happened in (if that is still recording) and broadcast it."""
+        if recorder is not None and recorder is self.recorder:
+            try:
+                recorder.write_event(event)
             except (OSError, ValueError) as e:
                 self._recording_failed(e)
         self._broadcast(schema.EventMessage(event=event))
-        return event
 
     def start_recording(self, name: str = "") -> schema.Trial:
         """Start a new trial's recording (or return the one recording).
@@ -751,7 +923,10 @@ class SessionRuntime:
             channels=self.estimator.recorded_channels(),
         )
         try:
-            self.trial = self.store.create_trial(self.session.id, name or f"trial {number}", rel)
+            self.trial = self.writer.call(
+                functools.partial(self.store.create_trial, self.session.id, name or f"trial {number}", rel),
+                f"session {self.session.id}: trial {number}",
+            )
         except BaseException:
             recorder, self.recorder = self.recorder, None
             with contextlib.suppress(Exception):
@@ -801,7 +976,10 @@ class SessionRuntime:
                 f"the recording of {trial.name} could not be finished ({_describe(e)}): {status}{kept}", trial.id
             )
         try:
-            return self.store.finish_trial(trial.id, status, samples, duration)
+            return self.writer.call(
+                functools.partial(self.store.finish_trial, trial.id, status, samples, duration),
+                f"session {self.session.id}: end of trial {trial.id}",
+            )
         except Exception as e:  # the database's disk full: the manager stores it later, the API shows it meanwhile
             log.error("session %d: trial %d ended %s but could not be stored: %s", self.session.id, trial.id, status, e)
             stamp = dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
