@@ -142,13 +142,14 @@ class _LoginEnded:
             self._reason.set_result(reason)
 
     async def wait(self) -> str:
-        """The reason, once the login has ended (never, with accounts off)."""
+        """The reason, once the login has ended (never, with accounts off). Asks the database at once too:
+        the login may have ended between the socket's check and its watch."""
         login_id = self._login_id
         while login_id is not None:
-            with contextlib.suppress(TimeoutError):
-                return await asyncio.wait_for(asyncio.shield(self._reason), timeout=LOGIN_CHECK_S)
             if login_id not in await asyncio.to_thread(self._c.accounts.open_logins, [login_id]):
                 self._set("login ended")
+            with contextlib.suppress(TimeoutError):
+                return await asyncio.wait_for(asyncio.shield(self._reason), timeout=LOGIN_CHECK_S)
         return await self._reason
 
     def close(self) -> None:

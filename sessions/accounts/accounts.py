@@ -389,13 +389,6 @@ class Accounts:
             if ended is None and not disabled and dt.datetime.fromisoformat(expires) > now
         }  # fmt: skip
 
-    def sweep(self) -> int:
-        """Tell the sockets of logins that ended without this process ending them (another process, e.g.
-        ``gaitscope user reset-password``, or their expiry); returns how many sockets were told."""
-        watched = self.watch.open_ids()
-        gone = set(watched) - self.open_logins(watched)
-        return self.watch.end(gone, "login ended") if gone else 0
-
     @staticmethod
     def _end_logins(s: orm.Session, user_id: int) -> list[int]:
         """End every open login of the user; their ids (the caller tells their sockets after the commit)."""

@@ -8,8 +8,8 @@ at once: the socket closes within moments, not at its next poll. A callback is c
 ended the login, so it must only hand the close to the socket's own event loop (``call_soon_threadsafe``).
 
 Logins ended by another process on the same database (``gaitscope user reset-password``) or by their expiry are
-not seen here: :meth:`LoginWatch.open_ids` lists the watched logins so that a periodic check can ask the
-database about them (:meth:`~sessions.accounts.Accounts.sweep`).
+not seen here: a socket asks the database about its login now and then too
+(:meth:`~sessions.accounts.Accounts.open_logins`). :meth:`LoginWatch.open_ids` lists the watched logins.
 """
 
 from __future__ import annotations
