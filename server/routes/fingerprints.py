@@ -5,6 +5,7 @@ history (who, when) and, for each running session of the subject, an event in it
 from __future__ import annotations
 
 import asyncio
+import functools
 import math
 
 from fastapi import APIRouter, HTTPException
@@ -103,7 +104,8 @@ async def calibrate_fingerprint(
         raise HTTPException(422, f"trial {trial.id} cannot calibrate a fingerprint: {e}") from None
     if not all(math.isfinite(x) for x in draft.fingerprint):
         raise HTTPException(422, f"trial {trial.id} gave no finite fingerprint")
-    return c.store.add_personalization(draft)
+    add = functools.partial(c.store.add_personalization, draft)
+    return await c.writer.run(add, f"subject {subject_id}: fingerprint")
 
 
 def _announce(c: Ctx, subject_id: int, text: str, actor: str) -> None:

@@ -3,6 +3,8 @@ events, annotations and recordings. Thin: validation by the schema, logic in ``s
 
 from __future__ import annotations
 
+import functools
+
 from fastapi import APIRouter, HTTPException
 
 from server.auth import Annotator, Assistant, Runner, allow
@@ -33,7 +35,7 @@ async def create_session(body: schema.SessionCreate, c: Ctx, who: Runner) -> sch
         if trial.status in ("recording", "damaged"):
             why = "is still recording" if trial.status == "recording" else "has a damaged recording"
             raise SessionStateError(f"trial {trial.id} {why}; it cannot be replayed")
-    session = c.store.create_session(body)
+    session = await c.writer.run(functools.partial(c.store.create_session, body), "create session")
     return c.manager.start(session.id) if body.start else session
 
 
@@ -85,7 +87,8 @@ async def annotate(session_id: Id, body: schema.AnnotationCreate, c: Ctx, who: A
     if runtime is not None:
         return runtime.annotate(body.text, who.name)
     c.store.get_session(session_id)
-    return c.store.add_event(session_id, t=0.0, kind="annotation", text=body.text, actor=who.name)
+    add = functools.partial(c.store.add_event, session_id, t=0.0, kind="annotation", text=body.text, actor=who.name)
+    return await c.writer.run(add, f"session {session_id}: annotation")
 
 
 @router.post("/sessions/{session_id}/recording")

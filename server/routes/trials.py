@@ -5,6 +5,7 @@ re-runs (``/compare``) and the notes added in review (``/annotations``)."""
 from __future__ import annotations
 
 import asyncio
+import functools
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -215,7 +216,8 @@ async def add_annotation(
                     422, f"the note's {where} ({value:g} s) is outside the trial ({lo:.2f} to {hi:.2f} s)"
                 )
     await audited(c, who, "review_note.add", f"trial {trial_id}", after=by(body, who))
-    return c.store.add_review_annotation(trial_id, by(body, who))
+    add = functools.partial(c.store.add_review_annotation, trial_id, by(body, who))
+    return await c.writer.run(add, f"trial {trial_id}: review note")
 
 
 @router.delete("/trials/{trial_id}/annotations/{annotation_id}", status_code=204)
