@@ -39,6 +39,7 @@ import datetime as dt
 import functools
 import logging
 import math
+import threading
 import time
 from collections import deque
 from collections.abc import Awaitable, Callable, Coroutine, Sequence
@@ -166,6 +167,7 @@ class SessionRuntime:
         #: events submitted to the writer and not yet recorded and broadcast, in order, each with the
         #: recorder that was recording when it happened (:meth:`_event_soon`)
         self._pending_events: deque[tuple[Write[schema.Event], Recorder | None]] = deque()
+        self._settling = threading.RLock()  # a sync route's thread may settle them too (personalization_changed)
         self.data_dir = data_dir
         self.on_state = on_state
         period = 1.0 / source.rate_hz if source.rate_hz else DEFAULT_PERIOD
@@ -876,17 +878,18 @@ class SessionRuntime:
         """Record and broadcast the queued events the writer has stored, oldest first, up to the first one not
         stored yet (``wait``: all of them, waiting for the writer). One it could not store was logged by the
         writer and is left out (:attr:`store_error` says why)."""
-        while self._pending_events:
-            write, recorder = self._pending_events[0]
-            if not (wait or write.done()):
-                return
-            self._pending_events.popleft()
-            try:
-                event = write.result()
-            except Exception as e:
-                self.store_error = e
-                continue
-            self._publish(event, recorder)
+        with self._settling:
+            while self._pending_events:
+                write, recorder = self._pending_events[0]
+                if not (wait or write.done()):
+                    return
+                self._pending_events.popleft()
+                try:
+                    event = write.result()
+                except Exception as e:
+                    self.store_error = e
+                    continue
+                self._publish(event, recorder)
 
     def _publish(self, event: schema.Event, recorder: Recorder | None) -> None:
         """Record a stored event in the trial it happened in (if that is still recording) and broadcast it."""
