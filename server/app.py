@@ -25,6 +25,7 @@ from server.leg_view import LegView
 from server.origin import AllowedHostsMiddleware, SameOriginMiddleware
 from server.routes import ROUTERS, Uploads, install_error_handlers
 from server.settings import Settings
+from server.ws_close import ServerSendMiddleware
 from sessions import schema
 from sessions.accounts import Accounts
 from sessions.audit import AuditLog
@@ -89,6 +90,30 @@ def _audit_key(settings: Settings) -> bytes:
     key = settings_key(settings, create=True)
     assert key is not None  # created if missing
     return key
+
+
+def _api_docs(app: FastAPI) -> None:
+    """``/openapi.json``, ``/docs`` and ``/redoc``, as FastAPI serves them, but only to who may read (with accounts
+    on: a login): the API's description names every route and field, which is no one's business before logging in.
+    Left out of the OpenAPI document itself, as FastAPI's own are."""
+    from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
+    from fastapi.responses import HTMLResponse, JSONResponse
+
+    from server.auth import allow
+
+    read = [allow("read")]
+
+    @app.get("/openapi.json", include_in_schema=False, dependencies=read)
+    def openapi() -> JSONResponse:
+        return JSONResponse(app.openapi())
+
+    @app.get("/docs", include_in_schema=False, dependencies=read)
+    def docs() -> HTMLResponse:
+        return get_swagger_ui_html(openapi_url="/openapi.json", title=f"{app.title} - API")
+
+    @app.get("/redoc", include_in_schema=False, dependencies=read)
+    def redoc() -> HTMLResponse:
+        return get_redoc_html(openapi_url="/openapi.json", title=f"{app.title} - API")
 
 
 def _api_docs(app: FastAPI) -> None:
@@ -203,10 +228,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.add_middleware(SameOriginMiddleware)
     app.add_middleware(AuditMiddleware)  # inside the host check: records the same-origin rule's 403s too
-    app.add_middleware(AllowedHostsMiddleware, allowed_hosts=settings.allowed_hosts)  # outermost: runs first
+    app.add_middleware(AllowedHostsMiddleware, allowed_hosts=settings.allowed_hosts)
+    app.add_middleware(ServerSendMiddleware)  # outermost: keeps the server's own send (server/ws_close.py)
     install_error_handlers(app)
     for router in ROUTERS:
         app.include_router(router)
+    _api_docs(app)
     _api_docs(app)
     if WEB_DIR.is_dir():
         app.mount("/", StaticFiles(directory=WEB_DIR, html=True), name="web")

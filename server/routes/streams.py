@@ -24,6 +24,7 @@ from pydantic import ValidationError
 
 from server.auth import Assistant, Who, allow, device
 from server.routes.common import Ctx, Id, audit, check_assistance, not_running_here
+from server.ws_close import close_stuck
 from sessions import schema
 from sessions.estimation import FrameRefused
 from sessions.live.manager import SessionStateError
@@ -215,8 +216,9 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
             last_dropped = sub.dropped
     except _SlowClient as e:
         runtime.unsubscribe(sub)
-        with contextlib.suppress(Exception):
-            await asyncio.wait_for(ws.close(code=TRY_AGAIN, reason=str(e)[:120]), timeout=1.0)
+        # a client that stopped reading has filled the buffers: the close goes past them (server.ws_close), or
+        # the connection would end later in a keepalive timeout's 1011 instead
+        await close_stuck(ws, TRY_AGAIN, str(e))
 
 
 @router.post("/api/sessions/{session_id}/settings/undo")

@@ -70,3 +70,38 @@ def test_slow_client_is_dropped_without_slowing_anyone(tmp_path: Path) -> None:
     rates = [h["rate_hz"] for h in health[1:]]
     assert min(rates) >= 950  # the pipeline kept its 1 kHz throughout
     assert health[-1]["dropped_client"] == 0  # the reading client lost nothing
+
+
+async def _stop_reading(port: int, sid: int, seconds: float) -> websockets.ConnectionClosed:
+    """A client that stops reading for ``seconds`` (its socket's buffers fill), then reads to the end."""
+    sock = socket.socket()
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    sock.connect(("127.0.0.1", port))
+    url = f"ws://127.0.0.1:{port}/ws/sessions/{sid}?max_rate_hz=0&batch_ms=0"
+    client = await websockets.connect(url, sock=sock, max_queue=1, max_size=None)
+    client.transport.pause_reading()
+    await asyncio.sleep(seconds)
+    client.transport.resume_reading()
+    with pytest.raises(websockets.ConnectionClosed) as closed:
+        while True:
+            await asyncio.wait_for(client.recv(), 30.0)
+    return closed.value
+
+
+def test_a_client_that_stopped_reading_is_closed_with_1013_and_the_reason(tmp_path: Path) -> None:
+    """Issue #21: its close was held back with the data it did not read, and the connection ended in a keepalive
+    timeout's 1011; the close now goes past the buffers (server/ws_close.py), and the client finds it, after
+    what it had not read, once it reads again."""
+    env = {**os.environ, "GAITSCOPE_SLOW_CLIENT_S": "2"}
+    server = start_server(tmp_path, "--no-leg-view", "--no-demo", env=env)
+    try:
+        base = f"http://127.0.0.1:{server.port}/api"
+        subject = _post(f"{base}/subjects", {"code": "S2", "leg_length_m": 0.9, "mass_kg": 70})
+        source = {"kind": "simulated", "rate_hz": 1000,
+                  "protocol": [{"speed_m_s": 1.2, "incline_deg": 0, "strides": 60}]}  # fmt: skip
+        sid = _post(f"{base}/sessions", {"subject_id": subject["id"], "source": source})["id"]
+        closed = asyncio.run(_stop_reading(server.port, sid, 10.0))
+    finally:
+        server.stop()
+    assert closed.rcvd is not None, closed  # the server's close arrived (not the client's own keepalive 1011)
+    assert closed.rcvd.code == 1013 and closed.rcvd.reason.startswith("client too slow: "), closed.rcvd
