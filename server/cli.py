@@ -333,6 +333,7 @@ def cmd_serve(a: argparse.Namespace) -> int:
         log_level=a.log_level,
         ws="websockets-sansio",
         ws_per_message_deflate=False,
+        ws_max_size=settings.ws_max_kb * 1024,  # a device's 5 MB frame is refused by its header, never read
         ssl_certfile=settings.tls_cert,
         ssl_keyfile=settings.tls_key,
         proxy_headers=settings.behind_tls_proxy,

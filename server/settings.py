@@ -12,6 +12,7 @@ from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from server.origin import LOOPBACK_HOSTS, allowed_host, allowed_hosts_for
 from sessions.live.gp_learning import DUTY
+from sessions.schema import MAX_FRAME_BYTES
 
 
 class Settings(BaseSettings):
@@ -34,6 +35,11 @@ class Settings(BaseSettings):
             than this many MiB free once every open upload and running import is written; at least
             ``disk_warn_mb`` by default, so that an upload never makes a live session warn.
         slow_client_s: a browser that cannot take its stream for this long is disconnected (1013).
+        ws_max_kb: the largest message (KiB) a websocket reads: a longer one closes the socket (1009) as soon
+            as its header arrives, before it is read whole. At least a device's largest frame
+            (:data:`~sessions.schema.MAX_FRAME_BYTES`, 16 KiB: four times a frame of every channel); the
+            64 KiB default leaves a frame between the two refused with a short notice instead. Browsers
+            send the server nothing larger.
         disk_warn_mb: below this many MiB free on the data folder's disk a running session warns
             (:class:`~sessions.live.disk.DiskGuard`), saying how many minutes of recording are left at its rate;
             512 MiB is 28 to 117 minutes of one 200 Hz session, from every channel to the walking set
@@ -86,6 +92,7 @@ class Settings(BaseSettings):
     upload_idle_s: float = Field(default=900.0, gt=0.0, le=86400.0)
     upload_min_free_mb: int = Field(default=512, ge=0)
     slow_client_s: float = Field(default=10.0, gt=0.0, le=300.0)
+    ws_max_kb: int = Field(default=64, ge=MAX_FRAME_BYTES // 1024, le=16 * 1024)
     disk_warn_mb: int = Field(default=512, ge=1)
     disk_stop_mb: int = Field(default=128, ge=1)
     gp_fit_duty: float = Field(default=DUTY, gt=0.0, le=1.0)

@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Annotated, Any, Final, Literal, NamedTuple
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 # --- LocoHub table: metadata columns -------------------------------------------------------------
 SUBJECT: Final = "subject"
@@ -294,16 +294,27 @@ class ReplaySource(_Strict):
     loop: bool = False
 
 
+#: The largest sample rate a device may declare (Hz): exoskeleton controllers and lab IMUs sample at
+#: 100-500 Hz, 1 kHz at most; beyond that a device's frames are only load on the server.
+MAX_DEVICE_RATE_HZ: Final = 1000.0
+
+
 class DeviceSource(_Strict):
     """A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames.
 
-    ``rate_hz`` is the device's declared sample rate: the server takes up to ``1.25 x rate_hz``
-    frames per second (with a burst of two seconds' worth) and drops the rest, counted and reported to
-    the device, so that a flooding device cannot starve the other sessions.
+    ``rate_hz`` is the device's declared sample rate, at most :data:`MAX_DEVICE_RATE_HZ`: the server
+    takes up to ``1.25 x rate_hz`` frames per second (with a burst of two seconds' worth) and drops the
+    rest, counted and reported to the device, so that a flooding device cannot starve the other sessions.
+    A session stored before that limit with a higher rate reads as the limit (its row is unchanged).
     """
 
     kind: Literal["device"] = "device"
-    rate_hz: float = Field(default=200.0, ge=1.0, le=2000.0, description="declared sample rate (Hz)")
+    rate_hz: float = Field(
+        default=200.0,
+        ge=1.0,
+        le=MAX_DEVICE_RATE_HZ,
+        description=f"declared sample rate (Hz), at most {MAX_DEVICE_RATE_HZ:g}",
+    )
     channels: list[str] | None = Field(
         default=None,
         max_length=256,
@@ -320,6 +331,15 @@ class DeviceSource(_Strict):
         if unknown:
             raise ValueError(f"unknown channel {', '.join(unknown[:5])}; see GET /api/schema (SensorFrame)")
         return list(dict.fromkeys(v))
+
+    @field_validator("rate_hz", mode="before")
+    @classmethod
+    def _stored_rate(cls, v: Any, info: ValidationInfo) -> Any:
+        """A stored session (``context={"stored": True}``) that declared more than the limit reads as the limit."""
+        stored = isinstance(info.context, dict) and info.context.get("stored")
+        if stored and isinstance(v, int | float) and v > MAX_DEVICE_RATE_HZ:
+            return MAX_DEVICE_RATE_HZ
+        return v
 
 
 class UploadSource(_Strict):
@@ -1043,6 +1063,25 @@ class SensorFrame(_Strict):
         return (self.model_copy(update=bad), len(bad)) if bad else (self, 0)
 
 
+def _longest_frame_bytes() -> int:
+    """Bytes of the longest frame of every field of :class:`SensorFrame`: each value as long as a JSON
+    number gets (``-1.2345678901234567e-308``; booleans and ``"frame"`` are shorter), a space after each
+    separator (about 4 kB)."""
+    number = "-1.2345678901234567e-308"
+    return len("{" + ", ".join(f'"{name}": {number}' for name in SensorFrame.model_fields) + "}")
+
+
+#: Largest device frame the server parses, in characters of its JSON text (bytes: a frame is ASCII): four
+#: times the longest frame of every channel (:func:`_longest_frame_bytes`), room for indentation and for
+#: channels to come, rounded up to KiB (16 KiB). A longer frame is refused unparsed (a ``too_large``
+#: :class:`DeviceNotice`); the websocket itself refuses a message over the server's ``ws_max_kb`` before
+#: it is read whole.
+MAX_FRAME_BYTES: Final = -(-4 * _longest_frame_bytes() // 1024) * 1024
+#: Most keys a frame may have: one per field of :class:`SensorFrame`. A frame with more is refused unparsed
+#: (a ``too_large`` notice), so that a frame of thousands of unknown keys costs no validation.
+MAX_FRAME_KEYS: Final = len(SensorFrame.model_fields)
+
+
 class GaitState(BaseModel):
     """The estimate at one sample, as streamed to browsers and recorded (``/gait_state``)."""
 
@@ -1153,19 +1192,27 @@ class Health(BaseModel):
     )
 
 
+#: An ``invalid`` :class:`DeviceNotice` lists at most this many of the frame's errors (``errors`` counts them all).
+MAX_NOTICE_ERRORS: Final = 5
+
+
 class DeviceNotice(BaseModel):
     """Server -> device, instead of a torque command: why a frame was refused or dropped.
 
-    ``kind``: ``invalid`` (the frame failed validation; ``detail`` lists the errors), ``order`` (its
-    time does not follow the last frame's), ``rate`` (frames over the declared rate were dropped;
-    ``dropped`` counts them since the last notice), ``binary`` (a binary message; frames are JSON text).
+    ``kind``: ``invalid`` (the frame failed validation; ``detail`` lists the first
+    :data:`MAX_NOTICE_ERRORS` errors, without the input, and ``errors`` counts them all), ``too_large``
+    (a frame longer than :data:`MAX_FRAME_BYTES`, or with more keys than a frame has: refused unparsed;
+    ``detail`` gives its size and the limit), ``order`` (its time does not follow the last frame's),
+    ``rate`` (frames over the declared rate were dropped; ``dropped`` counts them since the last notice),
+    ``binary`` (a binary message; frames are JSON text). A notice never carries what the device sent.
     """
 
     type: Literal["error"] = "error"
-    kind: Literal["invalid", "order", "rate", "binary"]
+    kind: Literal["invalid", "too_large", "order", "rate", "binary"]
     detail: str | list[dict[str, Any]]
     seq: int | None = None
     dropped: int = 0
+    errors: int = Field(default=0, description="invalid: how many errors the frame had (detail lists the first few)")
 
 
 class EventMessage(BaseModel):

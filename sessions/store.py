@@ -224,7 +224,7 @@ def _session(row: _SessionRow) -> schema.Session:
         {
             "id": row.id,
             "subject_id": row.subject_id,
-            "source": _SOURCE.validate_json(row.source),
+            "source": _SOURCE.validate_json(row.source, context={"stored": True}),  # an old rate reads as the limit
             "settings": schema.SessionSettings.model_validate_json(row.settings),
             "state": row.state,
             "created_utc": row.created_utc,

@@ -397,15 +397,19 @@
 /**
  * Server -> device, instead of a torque command: why a frame was refused or dropped.
  *
- * ``kind``: ``invalid`` (the frame failed validation; ``detail`` lists the errors), ``order`` (its
- * time does not follow the last frame's), ``rate`` (frames over the declared rate were dropped;
- * ``dropped`` counts them since the last notice), ``binary`` (a binary message; frames are JSON text).
+ * ``kind``: ``invalid`` (the frame failed validation; ``detail`` lists the first
+ * :data:`MAX_NOTICE_ERRORS` errors, without the input, and ``errors`` counts them all), ``too_large``
+ * (a frame longer than :data:`MAX_FRAME_BYTES`, or with more keys than a frame has: refused unparsed;
+ * ``detail`` gives its size and the limit), ``order`` (its time does not follow the last frame's),
+ * ``rate`` (frames over the declared rate were dropped; ``dropped`` counts them since the last notice),
+ * ``binary`` (a binary message; frames are JSON text). A notice never carries what the device sent.
  * @typedef {object} DeviceNotice
  * @property {"error"} [type="error"]
- * @property {"invalid" | "order" | "rate" | "binary"} kind
+ * @property {"invalid" | "too_large" | "order" | "rate" | "binary"} kind
  * @property {string | Array<Object<string, *>>} detail
  * @property {number | null} [seq=null]
  * @property {number} [dropped=0]
+ * @property {number} [errors=0] invalid: how many errors the frame had (detail lists the first few)
  */
 
 /**
@@ -896,12 +900,13 @@
 /**
  * A live device that connects to ``/ws/devices/{session_id}`` and pushes sensor frames.
  *
- * ``rate_hz`` is the device's declared sample rate: the server takes up to ``1.25 x rate_hz``
- * frames per second (with a burst of two seconds' worth) and drops the rest, counted and reported to
- * the device, so that a flooding device cannot starve the other sessions.
+ * ``rate_hz`` is the device's declared sample rate, at most :data:`MAX_DEVICE_RATE_HZ`: the server
+ * takes up to ``1.25 x rate_hz`` frames per second (with a burst of two seconds' worth) and drops the
+ * rest, counted and reported to the device, so that a flooding device cannot starve the other sessions.
+ * A session stored before that limit with a higher rate reads as the limit (its row is unchanged).
  * @typedef {object} DeviceSource
  * @property {"device"} [kind="device"]
- * @property {number} [rate_hz=200.0] declared sample rate (Hz) (1..2000)
+ * @property {number} [rate_hz=200.0] declared sample rate (Hz), at most 1000 (1..1000)
  * @property {Array<string> | null} [channels=null] the SensorFrame channels the device sends: the session's stack is chosen for them, and an estimator asked for that needs another is refused at start; null: unknown, every estimator may run
  */
 
@@ -1413,7 +1418,7 @@ export const FIELD_LIMITS = deepFreeze({
     offset: { min: 0, max: 9223372036854775807 },
   },
   ComparedRunSpec: { name: { minLength: 1, maxLength: 40 }, estimators: { maxItems: 16 } },
-  DeviceSource: { rate_hz: { min: 1.0, max: 2000.0 }, channels: { maxItems: 256 } },
+  DeviceSource: { rate_hz: { min: 1.0, max: 1000.0 }, channels: { maxItems: 256 } },
   ImuSensorCalibration: {
     segment: { pattern: "^[a-z_]{1,32}$" },
     reason: { maxLength: 500 },

@@ -17,10 +17,11 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated
 
 from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
+from starlette.types import Message
 
 from server.auth import Assistant, Who, allow, device
 from server.routes.common import Ctx, Id, audit, check_assistance, not_running_here
@@ -29,7 +30,7 @@ from sessions import schema
 from sessions.estimation import FrameRefused
 from sessions.live.manager import SessionStateError
 from sessions.live.runtime import SessionRuntime, Subscriber
-from sessions.live.sources import LiveDevice
+from sessions.live.sources import CONNECT_S, RECEIVE_S, LiveDevice, frame_refusal, invalid_notice
 from sessions.live.subscribers import SessionHistory, attach_history
 from sessions.live.undo import undo_last_change
 from sessions.store import NotFound
@@ -244,12 +245,17 @@ async def undo_settings(session_id: Id, body: schema.SettingsUndo, c: Ctx, who: 
 async def device_ingest(ws: WebSocket, session_id: Id, token_id: Annotated[int, device()]) -> None:
     """A live device: ``SensorFrame`` in, ``TorqueCommand`` out, one for one.
 
-    A frame that is refused gets a :class:`~sessions.schema.DeviceNotice` instead of a torque:
-    malformed, binary, reordered, or over the session's declared rate (those are dropped before they
-    are parsed, and reported at most once a second). A device that reconnects (after a reboot, its
-    clock restarted) is resynchronised. An error while processing a frame fails the session, with an
-    event, and closes the socket with 1011.
+    A frame that is refused gets a short :class:`~sessions.schema.DeviceNotice` instead of a torque:
+    malformed, binary, too large (refused unparsed), reordered, or over the session's declared rate
+    (those are dropped before they are parsed, and reported at most once a second). A message over the
+    server's ``ws_max_kb`` never gets here: the websocket closes with 1009. What the device's messages
+    cost the event loop is held to its share (:class:`~sessions.live.sources.DeviceBudget`): past it, its
+    socket is read late; held back for seconds on end for messages that were refused, the device is
+    disconnected (1008), as it is after :data:`MAX_BAD_FRAMES` malformed frames in a row. A device that reconnects
+    (after a reboot, its clock restarted) is resynchronised. An error while processing a frame fails the
+    session, with an event, and closes the socket with 1011.
     """
+    await _connect_turn(ws, session_id)
     await ws.accept()
     runtime = await _runtime(ws, session_id)
     if runtime is None:
@@ -265,11 +271,17 @@ async def device_ingest(ws: WebSocket, session_id: Id, token_id: Annotated[int, 
         return
     source.connected = True
     runtime.device_connected()
-    bad = 0
-    over_rate = 0
-    last_rate_notice = -math.inf
+    ingest = _Ingest(ws, runtime, source)
+    budget = source.budget
     try:
         while True:
+            pause = budget.pause()
+            if pause is not None:
+                if budget.exhausted:
+                    reason = f"refused messages over its share of the server ({budget.share:.0%}) for "
+                    await ws.close(code=POLICY, reason=f"session {session_id}: {reason}{budget.close_after_s:g} s")
+                    return
+                await asyncio.sleep(pause)  # a turn for the other sessions; longer while over its share
             message = await ws.receive()
             if message["type"] == "websocket.disconnect":
                 return
@@ -279,52 +291,12 @@ async def device_ingest(ws: WebSocket, session_id: Id, token_id: Annotated[int, 
             if token_id in source.revoked:
                 await ws.close(code=POLICY, reason=f"session {session_id}: this device's token was revoked")
                 return
-            recv = time.time_ns()
-            now = time.monotonic()
-            if not source.admit(now):
-                over_rate += 1
-                if now - last_rate_notice >= 1.0:
-                    last_rate_notice = now
-                    detail = f"over the declared rate of {source.rate_hz:g} Hz: {over_rate} frames dropped"
-                    notice = schema.DeviceNotice(kind="rate", detail=detail, dropped=over_rate)
-                    await ws.send_text(_dump(notice))
-                    over_rate = 0
-                if source.dropped % 32 == 0:
-                    await asyncio.sleep(0)  # a flood must not hold the loop
-                continue
-            text = message.get("text")
-            try:
-                if text is None:
-                    raise _Binary
-                frame = schema.SensorFrame.model_validate_json(text)
-            except (ValidationError, _Binary) as e:
-                bad += 1
-                runtime.dropped_input += 1
-                notice = (
-                    schema.DeviceNotice(kind="binary", detail="binary message: frames are JSON text")
-                    if isinstance(e, _Binary)
-                    else schema.DeviceNotice(kind="invalid", detail=_errors(e))
-                )
-                await ws.send_text(_dump(notice))
-                if bad >= MAX_BAD_FRAMES:
-                    await ws.close(code=POLICY, reason=f"{bad} malformed frames in a row")
-                    return
-                continue
-            bad = 0
-            if runtime.saving_settings:  # its settings change is being stored: it applies first (the others go on)
-                await runtime.settings_applied()
-            try:
-                runtime.process(frame, recv)
-            except FrameRefused as e:
-                runtime.dropped_input += 1
-                await ws.send_text(_dump(schema.DeviceNotice(kind="order", detail=str(e), seq=frame.seq)))
-                continue
-            except Exception as e:
-                log.exception("session %d: processing a device frame failed", session_id)
-                await runtime.end("failed", f"processing a device frame failed: {e}")
-                await ws.close(code=1011, reason=f"session {session_id} failed"[:120])
+            started = time.thread_time()
+            close = await ingest.take(message)
+            budget.charge(time.thread_time() - started + RECEIVE_S, refused=ingest.refused)
+            if close is not None:
+                await ws.close(code=close[0], reason=close[1][:120])
                 return
-            await ws.send_text(runtime.last_command)  # the TorqueCommand of this frame, as recorded
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
@@ -333,11 +305,79 @@ async def device_ingest(ws: WebSocket, session_id: Id, token_id: Annotated[int, 
             await ws.close()
 
 
-class _Binary(Exception):
-    pass
+async def _connect_turn(ws: WebSocket, session_id: int) -> None:
+    """Charge a connection to the session's device budget, and hold its handshake while the device is over
+    its share: a device that reconnects at once after each close cannot spend more than its share that way."""
+    runtime = ws.app.state.ctx.manager.get(session_id)
+    if runtime is not None and isinstance(runtime.source, LiveDevice):
+        budget = runtime.source.budget
+        budget.charge(CONNECT_S)
+        pause = budget.pause()
+        if pause:
+            await asyncio.sleep(pause)
 
 
-def _errors(e: Exception) -> list[dict[str, Any]]:
-    """Pydantic's errors without the input (which may hold NaN, which JSON cannot carry)."""
-    assert isinstance(e, ValidationError)
-    return [{"loc": list(err["loc"]), "msg": err["msg"], "type": err["type"]} for err in e.errors()]
+class _Ingest:
+    """One device connection's messages, one at a time: admitted, parsed, processed and answered."""
+
+    def __init__(self, ws: WebSocket, runtime: SessionRuntime, source: LiveDevice):
+        self.ws, self.runtime, self.source = ws, runtime, source
+        self.bad = 0  # malformed frames in a row
+        self.over_rate = 0  # frames dropped over the rate since the last rate notice
+        self.last_rate_notice = -math.inf
+        self.refused = False  # the last message taken was refused (dropped, malformed, out of order)
+
+    async def _notice(self, notice: schema.DeviceNotice) -> None:
+        self.refused = True
+        await self.ws.send_text(_dump(notice))
+
+    async def take(self, message: Message) -> tuple[int, str] | None:
+        """Answer one message; the close code and reason when the socket must close."""
+        self.refused = False
+        recv = time.time_ns()
+        now = time.monotonic()
+        source, runtime = self.source, self.runtime
+        if not source.admit(now):
+            self.refused = True
+            self.over_rate += 1
+            if now - self.last_rate_notice >= 1.0:
+                self.last_rate_notice = now
+                detail = f"over the declared rate of {source.rate_hz:g} Hz: {self.over_rate} frames dropped"
+                await self._notice(schema.DeviceNotice(kind="rate", detail=detail, dropped=self.over_rate))
+                self.over_rate = 0
+            return None
+        frame = _parse(message.get("text"))
+        if isinstance(frame, schema.DeviceNotice):
+            self.bad += 1
+            runtime.dropped_input += 1
+            await self._notice(frame)
+            return (POLICY, f"{self.bad} malformed frames in a row") if self.bad >= MAX_BAD_FRAMES else None
+        self.bad = 0
+        if runtime.saving_settings:  # its settings change is being stored: it applies first (the others go on)
+            await runtime.settings_applied()
+        try:
+            runtime.process(frame, recv)
+        except FrameRefused as e:
+            runtime.dropped_input += 1
+            await self._notice(schema.DeviceNotice(kind="order", detail=str(e), seq=frame.seq))
+            return None
+        except Exception as e:
+            session_id = runtime.session.id
+            log.exception("session %d: processing a device frame failed", session_id)
+            await runtime.end("failed", f"processing a device frame failed: {e}")
+            return 1011, f"session {session_id} failed"
+        await self.ws.send_text(runtime.last_command)  # the TorqueCommand of this frame, as recorded
+        return None
+
+
+def _parse(text: str | None) -> schema.SensorFrame | schema.DeviceNotice:
+    """The frame in a message's text, or the notice that refuses it: binary, too large (unparsed), invalid."""
+    if text is None:
+        return schema.DeviceNotice(kind="binary", detail="binary message: frames are JSON text")
+    refusal = frame_refusal(text)
+    if refusal is not None:
+        return refusal
+    try:
+        return schema.SensorFrame.model_validate_json(text)
+    except ValidationError as e:
+        return invalid_notice(e)

@@ -45,6 +45,7 @@ def _frame(k: int, t: float) -> str:
 def _flood(port: int, sid: int, stop: threading.Event, counts: dict[str, int]) -> None:
     """Send as fast as the socket takes frames, from a thread of its own; count what comes back."""
     token = issue_token(f"http://127.0.0.1:{port}", sid)
+    start = time.monotonic()
     with connect(f"ws://127.0.0.1:{port}/ws/devices/{sid}?token={token}", max_queue=None) as ws:
 
         def read() -> None:
@@ -64,6 +65,9 @@ def _flood(port: int, sid: int, stop: threading.Event, counts: dict[str, int]) -
             k += 1
             counts["sent"] = k
         time.sleep(0.5)
+    # connected this long: the server, holding the device to its share of the loop, reads the frames the
+    # socket buffers hold (megabytes) after it stopped sending, until the close handshake gets through
+    counts["seconds"] = time.monotonic() - start
 
 
 async def _steady(port: int, sid: int) -> tuple[int, int, list[float]]:
@@ -123,4 +127,4 @@ def test_a_flooding_device_does_not_starve_a_steady_one(tmp_path: Path) -> None:
     assert rtts[int(0.95 * len(rtts))] < 0.25  # p95 round trip (was 7.8 s); generous for a busy machine
     # the flooder got about its declared rate of torque and was told about the rest
     assert flood["sent"] > 5 * flood["torque"] and flood["rate"] >= 1
-    assert flood["torque"] <= 1.25 * 200 * (SECONDS + 1.5) + 1.25 * 200 * 2.0  # rate x time + the 2 s burst
+    assert flood["torque"] <= 1.25 * 200 * flood["seconds"] + 1.25 * 200 * 2.0  # rate x time + the 2 s burst

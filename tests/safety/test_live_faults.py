@@ -35,7 +35,7 @@ def _subject(client: TestClient) -> int:
     return int(r.json()["id"])
 
 
-def _device_session(client: TestClient, rate_hz: float = 2000.0, **settings: float) -> int:
+def _device_session(client: TestClient, rate_hz: float = 1000.0, **settings: float) -> int:
     body = {
         "subject_id": _subject(client),
         "source": {"kind": "device", "rate_hz": rate_hz},

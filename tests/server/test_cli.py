@@ -152,3 +152,13 @@ def test_console_script_runs_the_demo(tmp_path: Path) -> None:
     assert "phase RMSE EKF" in done.stdout
     est = pd.read_csv(tmp_path / "default_trial_estimates.csv")
     assert len(est) == len(pd.read_csv(tmp_path / "default_trial.csv")) > 10_000
+
+
+def test_serve_gives_uvicorn_the_websocket_message_limit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import uvicorn
+
+    calls: list[dict[str, object]] = []
+    monkeypatch.setattr(uvicorn, "run", lambda app, **kw: calls.append(kw))
+    monkeypatch.setenv("GAITSCOPE_WS_MAX_KB", "32")
+    assert main(["serve", "--no-demo", "--no-leg-view", "--data-dir", str(tmp_path)]) == 0
+    assert calls[0]["ws_max_size"] == 32 * 1024  # a longer message closes the socket (1009) before it is read

@@ -31,7 +31,7 @@ def _session(client: TestClient, code: str = "C01", subject_id: int | None = Non
         r = client.post("/api/subjects", json={"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
         assert r.status_code == 201, r.text
         subject_id = int(r.json()["id"])
-    source = {"kind": "device", "rate_hz": 2000.0, "channels": IMU_CHANNELS}  # as fast as the socket takes them
+    source = {"kind": "device", "rate_hz": 1000.0, "channels": IMU_CHANNELS}  # as fast as the socket takes them
     r = client.post("/api/sessions", json={"subject_id": subject_id, "source": source})
     assert r.status_code == 201, r.text
     return subject_id, int(r.json()["id"])

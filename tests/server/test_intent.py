@@ -45,7 +45,7 @@ def _onsets(outputs: list[tuple[float, dict[str, Any]]]) -> list[tuple[float, fl
 
 def test_a_walker_speeding_up_is_an_intent_event_live_in_the_recording_and_in_review(client: TestClient) -> None:
     ctx = client.app.state.ctx  # type: ignore[attr-defined]
-    source = {"kind": "device", "rate_hz": 2000.0}  # frames as fast as the socket takes them, none dropped
+    source = {"kind": "device", "rate_hz": 1000.0}  # frames as fast as the socket takes them, none dropped
     settings = {"estimators": ["phase_ekf", "intent"]}
     r = client.post("/api/sessions", json={"subject_id": _subject(client), "source": source, "settings": settings})
     assert r.status_code == 201, r.text

@@ -61,3 +61,11 @@ def test_disk_thresholds(monkeypatch: pytest.MonkeyPatch) -> None:
         Settings(disk_warn_mb=500, disk_stop_mb=600)
     with pytest.raises(ValidationError, match="disk_stop_mb"):
         Settings(disk_stop_mb=0)
+
+
+def test_the_websocket_message_limit_holds_a_device_frame(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert Settings().ws_max_kb == 64
+    monkeypatch.setenv("GAITSCOPE_WS_MAX_KB", "16")
+    assert Settings().ws_max_kb == 16  # MAX_FRAME_BYTES, 16 KiB: a frame of every channel four times over
+    with pytest.raises(ValidationError, match="ws_max_kb"):
+        Settings(ws_max_kb=15)

@@ -11,7 +11,8 @@ from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
 from sessions.live.runtime import SUBSCRIBER_CAPACITY, Subscriber
-from sessions.schema import GaitState
+from sessions.live.sources import DeviceBudget
+from sessions.schema import MAX_FRAME_BYTES, MAX_NOTICE_ERRORS, GaitState
 from sessions.synth.trials import replay_input, sensor_trial
 from tests.device_tokens import device_path
 
@@ -93,7 +94,7 @@ def test_unknown_session_is_refused(client: TestClient) -> None:
 
 
 def test_live_device_gets_torque_back_and_browsers_see_it(client: TestClient) -> None:
-    sid = _session(client, {"kind": "device", "rate_hz": 2000.0})
+    sid = _session(client, {"kind": "device", "rate_hz": 1000.0})
     sensors, _, _ = sensor_trial([(1.2, 0.0, 6)], rate_hz=100.0)
     frames = replay_input(sensors)
     with (
@@ -126,6 +127,39 @@ def test_live_device_gets_torque_back_and_browsers_see_it(client: TestClient) ->
         assert states[0]["t"] == 0.0 and states[-1]["sent_ns"] is not None
     health = client.app.state.ctx.manager.get(sid).health()  # type: ignore[attr-defined]
     assert health.dropped_input == 2 and health.samples == 300
+
+
+def test_a_device_s_oversized_or_invalid_frames_get_short_notices_and_its_next_frame_a_torque(
+    client: TestClient,
+) -> None:
+    sid = _session(client, {"kind": "device", "rate_hz": 200.0})
+    with client.websocket_connect(device_path(client, sid)) as device:
+        device.send_text('{"type": "frame", "seq": 0, "t": 0.0, "foot_angle_deg": [' + "0.5, " * 4000 + "0.5]}")
+        notice = json.loads(device.receive_text())
+        assert notice["kind"] == "too_large" and f"over the limit of {MAX_FRAME_BYTES}" in notice["detail"]
+        device.send_text(json.dumps({"type": "frame", "seq": 0, "t": 0.0, **{f"x{i}": 0 for i in range(1000)}}))
+        notice = json.loads(device.receive_text())
+        assert notice["kind"] == "too_large" and "1003 keys" in notice["detail"]
+        device.send_text(json.dumps({"type": "frame", "seq": 0, "t": 0.0, **{f"x{i}": 0.5 for i in range(70)}}))
+        text = device.receive_text()
+        notice = json.loads(text)
+        assert notice["kind"] == "invalid" and notice["errors"] == 70 and len(notice["detail"]) == MAX_NOTICE_ERRORS
+        assert len(text) < 1000 and "0.5" not in text  # never the input
+        device.send_text(json.dumps({"type": "frame", "seq": 0, "t": 0.0, "foot_angle_deg": 1.0}))
+        assert json.loads(device.receive_text())["type"] == "torque"
+
+
+def test_a_device_held_back_for_refused_messages_is_disconnected(client: TestClient) -> None:
+    sid = _session(client, {"kind": "device", "rate_hz": 1.0})  # 1.25 frames a second, a burst of 2.5
+    runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
+    runtime.source.budget = DeviceBudget(share=0.05, burst_s=0.01, close_after_s=0.3)  # 0.5 ms of credit
+    with pytest.raises(WebSocketDisconnect) as exc, client.websocket_connect(device_path(client, sid)) as device:
+        for k in range(20_000):  # over its rate: each one dropped unparsed, yet costing its read
+            device.send_text(json.dumps({"type": "frame", "seq": k, "t": k * 0.001}))
+        while True:
+            reply = json.loads(device.receive_text())
+            assert reply["type"] == "torque" or reply["kind"] == "rate"
+    assert exc.value.code == 1008 and "refused messages over its share of the server (5%) for 0.3 s" in exc.value.reason
 
 
 def test_second_device_and_device_on_simulated_session_are_refused(client: TestClient) -> None:

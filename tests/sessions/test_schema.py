@@ -128,3 +128,30 @@ def test_missing_channels_names_what_a_frame_or_a_source_lacks_in_the_order_aske
     assert schema.missing_channels([], frame) == [] and schema.missing_channels(need, schema.CHANNELS) == []
     with pytest.raises(KeyError, match="hip_angel_deg"):
         schema.missing_channels(["hip_angel_deg"], schema.CHANNELS)
+
+
+# --- a device's declared rate and frame size (issue 21) ---------------------------------------------
+
+
+def test_a_device_declares_at_most_1000_hz_and_an_older_stored_session_reads_as_the_limit() -> None:
+    assert schema.DeviceSource(rate_hz=1000).rate_hz == schema.MAX_DEVICE_RATE_HZ == 1000
+    with pytest.raises(ValidationError, match="less than or equal to 1000"):
+        schema.DeviceSource(rate_hz=1000.5)
+    with pytest.raises(ValidationError, match="less than or equal to 1000"):  # a request body
+        schema.SessionCreate.model_validate({"subject_id": 1, "source": {"kind": "device", "rate_hz": 2000}})
+    stored = TypeAdapter(schema.SourceSpec).validate_json(
+        '{"kind": "device", "rate_hz": 2000}', context={"stored": True}
+    )
+    assert isinstance(stored, schema.DeviceSource) and stored.rate_hz == 1000
+    assert "at most 1000" in schema.DeviceSource.model_json_schema()["properties"]["rate_hz"]["description"]
+
+
+def test_the_frame_size_limit_holds_every_channel_four_times_over_and_the_key_limit_every_field() -> None:
+    every = {"type": "frame", "version": 2, "seq": schema.INT64_MAX, "t": -1.2345678901234567e-308}
+    every |= {name: False if ch.unit == "bool" else -1.2345678901234567e-308 for name, ch in schema.CHANNELS.items()}
+    every["sent_ns"] = schema.INT64_MAX
+    text = json.dumps(every, indent=2)  # pretty-printed, the longest numbers
+    assert 3_000 < len(json.dumps(every)) <= schema.MAX_FRAME_BYTES / 4 and len(text) < schema.MAX_FRAME_BYTES / 3
+    assert schema.MAX_FRAME_BYTES == 16 * 1024
+    assert text.count(":") == len(every) == schema.MAX_FRAME_KEYS
+    schema.SensorFrame.model_validate_json(text)

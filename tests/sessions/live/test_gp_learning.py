@@ -61,7 +61,7 @@ def _session(client: TestClient, walk: tuple[list[dict[str, Any]], float, float]
     r = client.post("/api/subjects", json={"code": f"G{len(client.get('/api/subjects').json())}",
                                            "leg_length_m": leg, "mass_kg": mass})  # fmt: skip
     assert r.status_code == 201, r.text
-    source = {"kind": "device", "rate_hz": 2000.0, "channels": CHANNELS}  # as fast as the socket takes them
+    source = {"kind": "device", "rate_hz": 1000.0, "channels": CHANNELS}  # as fast as the socket takes them
     settings = {"estimators": stack, "primary": "gp_ekf" if "gp_ekf" in stack else "tbe"}
     r = client.post("/api/sessions", json={"subject_id": r.json()["id"], "source": source, "settings": settings})
     assert r.status_code == 201, r.text

@@ -3,16 +3,29 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import math
+import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from pydantic import ValidationError
 
 from sessions import schema
 from sessions.formats.replay_io import read_replay_csv
-from sessions.live.sources import FrameTable, SimulatedDevice, frames_from_table
+from sessions.live.sources import (
+    CONNECT_S,
+    RECEIVE_S,
+    DeviceBudget,
+    FrameTable,
+    LiveDevice,
+    SimulatedDevice,
+    frame_refusal,
+    frames_from_table,
+    invalid_notice,
+)
 from sessions.synth.trials import replay_columns, sensor_trial
 
 V1_CHANNELS = {*schema.REPLAY_SIGNALS, "heel_strike"}
@@ -81,3 +94,128 @@ def test_the_simulated_device_sends_every_channel() -> None:
     for f in frames:
         assert schema.missing_channels(schema.CHANNELS, f) == [] and f.plausible()[1] == 0
         assert f.belt_speed_m_s == 1.2
+
+
+# --- a live device's share of the event loop, and the frames refused unparsed (issue 21) ----------------
+
+
+class Clock:
+    """Monotonic seconds that move only when told."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_a_device_within_its_share_reads_on_and_hands_the_loop_back_every_slice() -> None:
+    clock = Clock()
+    budget = DeviceBudget(share=0.25, burst_s=1.0, slice_s=0.001, clock=clock)
+    pauses = []
+    for _ in range(200):  # 200 frames of 0.4 ms a second: 8 % of the loop
+        clock.now += 0.005
+        budget.charge(0.0004)
+        pauses.append(budget.pause())
+    assert set(pauses) == {None, 0.0}
+    assert pauses.count(0.0) == 200 // 3  # a turn after every 1 ms of work: every third frame
+    assert budget.used == pytest.approx(0.08) and not budget.exhausted
+
+
+def test_a_device_over_its_share_waits_until_it_has_earned_it_back() -> None:
+    clock = Clock()
+    budget = DeviceBudget(share=0.25, burst_s=1.0, clock=clock)
+    budget.charge(0.25)  # the whole burst: the credit is spent, not owed
+    assert budget.pause() == 0.0  # a turn (past the slice), no wait
+    budget.charge(0.05)
+    assert budget.pause() == pytest.approx(0.2)  # 50 ms of work at 25 %: 200 ms held back
+    clock.now += 0.1
+    assert budget.pause() == pytest.approx(0.1)
+    clock.now += 0.1
+    assert budget.pause() is None
+    clock.now += 100.0
+    budget.charge(0.2)
+    assert budget.pause() == 0.0  # the credit refilled to the burst only (0.25 s), not 100 s worth
+
+
+def test_only_a_device_held_back_for_seconds_mostly_for_refused_messages_is_exhausted() -> None:
+    def run(refused: bool) -> DeviceBudget:
+        clock = Clock()
+        budget = DeviceBudget(share=0.25, burst_s=1.0, close_after_s=5.0, clock=clock)
+        for _ in range(7_000):  # 1 ms of work per ms of time: four times its share, for 7 s
+            budget.charge(0.001, refused=refused)
+            if budget.exhausted:
+                break
+            clock.now += 0.001 + (budget.pause() or 0.0)  # the handler waits as told
+        budget.clock_s = clock.now  # type: ignore[attr-defined]
+        return budget
+
+    flood = run(refused=True)
+    # held back once its 0.25 s burst is spent (1 ms of work a ms, 0.25 ms earned back: at 1/3 s), then 5 s
+    assert flood.exhausted and flood.clock_s == pytest.approx(1 / 3 + 5.0, abs=0.01)  # type: ignore[attr-defined]
+    assert flood.used / flood.clock_s == pytest.approx(0.25, abs=0.05)  # type: ignore[attr-defined]
+    costly = run(refused=False)  # valid frames that cost a lot: held to its share, never disconnected for it
+    assert not costly.exhausted and costly.used / costly.clock_s == pytest.approx(0.25, abs=0.05)  # type: ignore[attr-defined]
+
+
+def test_a_break_within_its_share_starts_the_count_again() -> None:
+    clock = Clock()
+    budget = DeviceBudget(share=0.1, burst_s=1.0, close_after_s=5.0, clock=clock)
+    budget.charge(0.2, refused=True)
+    assert budget.pause() == pytest.approx(1.0)
+    clock.now += 4.9
+    budget.charge(0.001, refused=True)  # within its credit again: not held back any more
+    clock.now += 0.2
+    assert budget.pause() == 0.0 and not budget.exhausted  # a turn, no wait
+
+
+def test_a_budget_refuses_nonsense() -> None:
+    for share in (0.0, -0.1, 1.5):
+        with pytest.raises(ValueError, match="share"):
+            DeviceBudget(share=share)
+
+
+def test_a_device_s_share_follows_its_declared_rate_within_bounds() -> None:
+    assert LiveDevice(200.0).budget.share == pytest.approx(0.25)  # 250 frames/s of 1 ms
+    assert LiveDevice(1000.0).budget.share == 0.5
+    assert LiveDevice(1.0).budget.share == 0.05
+    assert 0 < RECEIVE_S < CONNECT_S < 0.01
+
+
+def test_a_frame_too_long_or_of_too_many_keys_is_refused_unparsed_with_its_size_and_the_limit() -> None:
+    good = json.dumps({"type": "frame", "seq": 1, "t": 0.0, **dict.fromkeys(schema.CHANNELS, 1.0)})
+    assert frame_refusal(good) is None
+    long = '{"type": "frame", "seq": 1, "t": 0.0, "foot_angle_deg": ' + " " * schema.MAX_FRAME_BYTES + "1}"
+    notice = frame_refusal(long)
+    assert notice is not None and notice.kind == "too_large"
+    assert f"{len(long)} characters, over the limit of {schema.MAX_FRAME_BYTES}" in str(notice.detail)
+    keys = json.dumps({"type": "frame", "seq": 1, "t": 0.0, **{f"x{i}": 0 for i in range(500_000)}})  # 6.9 MB
+    start = time.perf_counter()
+    notice = frame_refusal(keys)
+    assert time.perf_counter() - start < 0.05  # was 14-20 s of validation
+    assert notice is not None and notice.kind == "too_large" and len(notice.model_dump_json()) < 200
+    few_keys = json.dumps({"type": "frame", "seq": 1, "t": 0.0, **{f"x{i}": 0 for i in range(100)}})  # 1.4 kB
+    notice = frame_refusal(few_keys)
+    assert (
+        notice is not None
+        and notice.kind == "too_large"
+        and f"103 keys, more than a frame's {schema.MAX_FRAME_KEYS}" in str(notice.detail)
+    )
+
+
+def test_an_invalid_notice_lists_a_few_errors_and_counts_them_without_the_input() -> None:
+    name = "k" * 5000
+    text = json.dumps({"type": "frame", "seq": -1, "t": "soon", name: 1, **{f"x{i}": 0 for i in range(60)}})
+    assert frame_refusal(text) is None  # short enough, few enough keys: validated
+    with pytest.raises(ValidationError) as e:
+        schema.SensorFrame.model_validate_json(text)
+    notice = invalid_notice(e.value)
+    assert notice.kind == "invalid" and notice.errors == 63  # seq, t, the long key, 60 unknown keys
+    assert isinstance(notice.detail, list) and len(notice.detail) == schema.MAX_NOTICE_ERRORS
+    assert notice.detail[0] == {
+        "loc": ["seq"],
+        "msg": "Input should be greater than or equal to 0",
+        "type": "greater_than_equal",
+    }
+    reply = notice.model_dump_json()
+    assert len(reply) < 1000 and "soon" not in reply and "k" * 41 not in reply  # never the input
