@@ -49,16 +49,23 @@ def _checked(text: str, where: str) -> bytes:
 
 
 def _create(path: Path) -> None:
-    """Write a new random key to ``path`` (0600), unless another process got there first."""
+    """Write a new random key to ``path`` (0600), unless another process got there first: written whole to a
+    file of this process's own, then linked into place (which fails if the key exists), so that a process
+    starting at the same moment never reads a key half written."""
     path.parent.mkdir(parents=True, exist_ok=True)
+    draft = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}")
+    fd = os.open(draft, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     try:
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    except FileExistsError:
-        return
-    with os.fdopen(fd, "w", encoding="ascii") as f:
-        f.write(secrets.token_hex(32) + "\n")
-        f.flush()
-        os.fsync(f.fileno())
+        with os.fdopen(fd, "w", encoding="ascii") as f:
+            f.write(secrets.token_hex(32) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+        try:
+            os.link(draft, path)
+        except FileExistsError:
+            return
+    finally:
+        draft.unlink(missing_ok=True)
     log.warning("created the audit trail's key %s (0600): keep a copy apart from the database's backups", path)
 
 

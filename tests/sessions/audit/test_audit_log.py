@@ -512,3 +512,20 @@ def test_concurrent_appends_keep_the_chain_gap_free(store: Store, database_url: 
     assert logs[0].verify(chunk=50) == schema.AuditVerification(
         ok=True, entries=180, last_hash=entries[-1].hash, keyed_from=1
     )
+
+
+def test_processes_starting_together_make_one_key_and_read_it_whole(tmp_path: Path) -> None:
+    keys: list[bytes | None] = []
+    start = threading.Barrier(8)
+
+    def make() -> None:
+        start.wait()
+        keys.append(audit_key(tmp_path, None, create=True))
+
+    threads = [threading.Thread(target=make) for _ in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(set(keys)) == 1 and keys[0] is not None and len(keys[0]) == 64
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["audit.key"]  # no draft left behind
