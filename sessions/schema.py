@@ -1523,8 +1523,11 @@ class User(BaseModel):
     created_utc: str
     created_by: str
     last_login_utc: str | None = None
-    failed_logins: int = Field(default=0, description="failed logins in a row since the last good one")
-    locked_until_utc: str | None = Field(default=None, description="locked out until then after failed logins")
+    failed_logins: int = Field(default=0, description="failed logins at this name since the last good one")
+    locked_until_utc: str | None = Field(
+        default=None,
+        description="addresses that failed at this name wait until then (an address that has not failed never waits)",
+    )
 
 
 class UserCreate(_Strict):

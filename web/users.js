@@ -1,5 +1,5 @@
-// The users page (`#/users`, admins): every account with its role, state (active, disabled, locked out until
-// when) and last login; add a user; change a role; disable or enable; unlock; set a new password (a reset).
+// The users page (`#/users`, admins): every account with its role, state (active, disabled, failed logins held
+// back until when) and last login; add a user; change a role; disable or enable; unlock; set a new password (a reset).
 // Each change is one `PATCH /api/users/{name}` (UserChange); the server ends the account's logins when its role
 // changes, it is disabled or its password reset, refuses to demote or disable the last admin (409), and its
 // refusals are shown next to the row in its own words.
@@ -27,10 +27,10 @@ function checkPassword(value) {
   return value;
 }
 
-/** The account's state in words: active, disabled, or locked out until when. */
+/** The account's state in words: active, disabled, or failing addresses held back until when. */
 export function userState(u, now = Date.now()) {
   if (u.disabled) return "disabled";
-  if (u.locked_until_utc && new Date(u.locked_until_utc).getTime() > now) return `locked until ${fmtUtc(u.locked_until_utc)}`;
+  if (u.locked_until_utc && new Date(u.locked_until_utc).getTime() > now) return `failing addresses wait until ${fmtUtc(u.locked_until_utc)}`;
   if (u.failed_logins > 0) return `active (${u.failed_logins} failed login${u.failed_logins === 1 ? "" : "s"})`;
   return "active";
 }
@@ -95,7 +95,7 @@ export function mountUsers(root) {
     toggle.addEventListener("click", () => change(toggle, { disabled: !u.disabled }));
     const locked = !!u.locked_until_utc || u.failed_logins > 0;
     const unlock = h("button", { type: "button", class: "small", "data-testid": "user-unlock", text: "Unlock", hidden: !locked,
-      title: "End the lockout and forget the failed logins" });
+      title: "Forget the failed logins: addresses that failed at this name may try again at once" });
     unlock.addEventListener("click", () => change(unlock, { unlock: true }));
     const pw = h("input", { type: "password", "data-testid": "user-reset-password", autocomplete: "new-password",
       maxlength: PASSWORD_MAX, placeholder: "new password", "aria-label": `New password for ${u.name}` });

@@ -738,8 +738,8 @@
  * @property {string} created_utc
  * @property {string} created_by
  * @property {string | null} [last_login_utc=null]
- * @property {number} [failed_logins=0] failed logins in a row since the last good one
- * @property {string | null} [locked_until_utc=null] locked out until then after failed logins
+ * @property {number} [failed_logins=0] failed logins at this name since the last good one
+ * @property {string | null} [locked_until_utc=null] addresses that failed at this name wait until then (an address that has not failed never waits)
  */
 
 /**
