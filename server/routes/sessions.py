@@ -4,15 +4,18 @@ events, annotations and recordings. Thin: validation by the schema, logic in ``s
 from __future__ import annotations
 
 import functools
+import logging
 
 from fastapi import APIRouter, HTTPException
 
 from server.auth import Annotator, Assistant, Runner, allow
 from server.routes.common import Ctx, Id, OptionalId, audited, by, check_assistance, not_running_here, trained_model
 from sessions import schema
+from sessions.errors import FREE_SPACE_HINT, DiskFull, is_disk_full
 from sessions.live.manager import SessionStateError
 from sessions.store import Conflict
 
+log = logging.getLogger("gaitscope")
 router = APIRouter(prefix="/api")
 
 
@@ -53,8 +56,20 @@ async def start_session(session_id: Id, c: Ctx, who: Runner) -> schema.Session:
 
 @router.post("/sessions/{session_id}/stop")
 async def stop_session(session_id: Id, c: Ctx, who: Runner) -> schema.Session:
+    """Stop a session. Stopping takes the assistance off the person, so it is never refused for want of an audit
+    entry: when a full disk refuses the entry, the session stops all the same (the refusal is logged, and the
+    session's own stop event, kept until the disk has room, names the stop) and the answer is 507 saying so."""
     before = c.store.get_session(session_id)
-    await audited(c, who, "session.stop", f"session {session_id}", before=before.state, after="stopped")
+    try:
+        await audited(c, who, "session.stop", f"session {session_id}", before=before.state, after="stopped")
+    except Exception as e:
+        if not is_disk_full(e) or before.state != "running":
+            raise
+        log.error("session %d: stopped by %s without its audit entry, which the full disk refused: %s",
+                  session_id, who.name, e)  # fmt: skip
+        await c.manager.stop(session_id)
+        what = f"session {session_id} stopped, but its audit entry could not be written"
+        raise DiskFull(f"{what}: {FREE_SPACE_HINT}") from e
     return await c.manager.stop(session_id)
 
 

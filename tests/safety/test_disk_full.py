@@ -255,6 +255,28 @@ def test_a_running_session_stopped_while_the_database_is_full_is_stopped_with_50
     assert client.post(f"/api/sessions/{sid}/stop").status_code == 409
 
 
+def test_a_stop_whose_audit_entry_the_full_database_refuses_still_stops(
+    client: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Stopping takes the assistance off the person: a full disk that refuses its audit entry does not refuse it."""
+    sid = _session(client)
+    ctx = client.app.state.ctx  # type: ignore[attr-defined]
+    with client.websocket_connect(device_path(client, sid)) as ws:
+        for k in range(50):
+            ws.send_text(json.dumps(_walk(k)))
+            ws.receive_text()
+        with monkeypatch.context() as m:
+            m.setattr(ctx.audit, "record", full)
+            r = client.post(f"/api/sessions/{sid}/stop")
+        assert r.status_code == 507, r.text
+        assert r.json()["detail"].startswith(f"session {sid} stopped, but its audit entry could not be written")
+        assert ctx.manager.get(sid) is None
+        assert client.get(f"/api/sessions/{sid}").json()["state"] == "stopped"
+        with pytest.raises(WebSocketDisconnect):  # the device is told
+            ws.send_text(json.dumps(_walk(50)))
+            ws.receive_text()
+
+
 def test_an_annotation_the_full_database_refuses_is_507(client: TestClient, monkeypatch: pytest.MonkeyPatch) -> None:
     sid = _session(client)
     store = client.app.state.ctx.store  # type: ignore[attr-defined]
