@@ -116,30 +116,6 @@ def _api_docs(app: FastAPI) -> None:
         return get_redoc_html(openapi_url="/openapi.json", title=f"{app.title} - API")
 
 
-def _api_docs(app: FastAPI) -> None:
-    """``/openapi.json``, ``/docs`` and ``/redoc``, as FastAPI serves them, but only to who may read (with accounts
-    on: a login): the API's description names every route and field, which is no one's business before logging in.
-    Left out of the OpenAPI document itself, as FastAPI's own are."""
-    from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
-    from fastapi.responses import HTMLResponse, JSONResponse
-
-    from server.auth import allow
-
-    read = [allow("read")]
-
-    @app.get("/openapi.json", include_in_schema=False, dependencies=read)
-    def openapi() -> JSONResponse:
-        return JSONResponse(app.openapi())
-
-    @app.get("/docs", include_in_schema=False, dependencies=read)
-    def docs() -> HTMLResponse:
-        return get_swagger_ui_html(openapi_url="/openapi.json", title=f"{app.title} - API")
-
-    @app.get("/redoc", include_in_schema=False, dependencies=read)
-    def redoc() -> HTMLResponse:
-        return get_redoc_html(openapi_url="/openapi.json", title=f"{app.title} - API")
-
-
 def _demo(ctx: AppContext) -> None:
     """An empty database gets a demo subject walking seed 000's treadmill protocol."""
     if ctx.store.list_subjects():
@@ -233,7 +209,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_error_handlers(app)
     for router in ROUTERS:
         app.include_router(router)
-    _api_docs(app)
     _api_docs(app)
     if WEB_DIR.is_dir():
         app.mount("/", StaticFiles(directory=WEB_DIR, html=True), name="web")
