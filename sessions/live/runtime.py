@@ -388,6 +388,8 @@ class SessionRuntime:
         if torque != state.torque_Nm:
             self.torque_faults += 1
             state = state.model_copy(update={"torque_Nm": torque, "fault": True})
+        elif math.copysign(1.0, state.torque_Nm) < 0:  # -0.0: no fault, but shown and recorded as the wire's +0.0
+            state = state.model_copy(update={"torque_Nm": torque})
         if self.estimator.events:
             self._estimator_events()
         if self.estimator.notes:
