@@ -228,6 +228,7 @@ class SessionRuntime:
         self.last_command = ""
         self.ended: str | None = None  # why the session ended, once it has
         self._stopped = False
+        self._recording_failing = False  # _recording_failed is finishing the recording (not re-entered)
         self._last_note = -math.inf
         self._suppressed_notes = 0
         #: What ending the session could not store (the database's disk full): each trial's final row, by id,
@@ -457,8 +458,14 @@ class SessionRuntime:
         The trial ends at once, readable up to its last complete chunk (:meth:`stop_recording`); the session
         ends on the next turn of the loop, with the reason in its last event and in the device's close."""
         log.error("session %d: recording failed: %s", self.session.id, e)
-        with contextlib.suppress(Exception):
-            self.stop_recording()
+        if self._recording_failing:  # a write while finishing it (its "recording stopped" event): it is ending
+            return
+        self._recording_failing = True
+        try:
+            with contextlib.suppress(Exception):
+                self.stop_recording()
+        finally:
+            self._recording_failing = False
         self.recorder, self.trial = None, None
         if self.ended is None and not self._stopped:
             why = (
