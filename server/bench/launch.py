@@ -19,11 +19,21 @@ from typing import IO
 LOOPBACK = "127.0.0.1"
 
 
+#: Ports :func:`free_port` handed out in this process.
+_HANDED_OUT: set[int] = set()
+
+
 def free_port() -> int:
-    """A TCP port on loopback that nothing listens on right now."""
-    with socket.socket() as s:
-        s.bind((LOOPBACK, 0))
-        return int(s.getsockname()[1])
+    """A TCP port on loopback that nothing listens on right now, never the same one twice in a process: the kernel
+    may hand a port it just released out again, and a server given two ports (its own and the leg view's) from two
+    calls then tried to bind one port twice ("address already in use", a CI failure)."""
+    while True:
+        with socket.socket() as s:
+            s.bind((LOOPBACK, 0))
+            port = int(s.getsockname()[1])
+        if port not in _HANDED_OUT:
+            _HANDED_OUT.add(port)
+            return port
 
 
 @dataclass
