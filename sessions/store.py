@@ -24,7 +24,9 @@ import datetime as dt
 import importlib
 import importlib.util
 import json
+import sqlite3
 import threading
+import time
 import weakref
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -313,9 +315,27 @@ def _sqlite_engine(url: URL) -> Engine:
 def _on_sqlite_connect(dbapi_connection: Any, _record: Any) -> None:
     dbapi_connection.isolation_level = None  # the driver emits no BEGIN of its own; _on_sqlite_begin does
     cursor = dbapi_connection.cursor()
-    cursor.execute("PRAGMA journal_mode=WAL")
-    cursor.execute("PRAGMA foreign_keys=ON")
-    cursor.close()
+    try:
+        _set_wal(cursor)
+        cursor.execute("PRAGMA foreign_keys=ON")
+    finally:
+        cursor.close()
+
+
+def _set_wal(cursor: Any, clock: Callable[[], float] = time.monotonic, pause: float = 0.05) -> None:
+    """Put the database in WAL mode (a persistent setting of the file: kept once set). Switching needs the
+    file's exclusive lock, and SQLite answers "database is locked" at once, without its busy handler, while
+    another process holds a lock on a file that is not in WAL mode yet (two processes opening one new
+    database, CI): so it is asked again until :data:`BUSY_TIMEOUT_S` has passed, then the error is raised."""
+    deadline = clock() + BUSY_TIMEOUT_S
+    while True:
+        try:
+            cursor.execute("PRAGMA journal_mode=WAL")
+            return
+        except sqlite3.OperationalError as exc:
+            if ("locked" not in str(exc) and "busy" not in str(exc)) or clock() >= deadline:
+                raise
+        time.sleep(pause)
 
 
 def _on_sqlite_begin(connection: Connection) -> None:

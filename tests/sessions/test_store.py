@@ -464,3 +464,43 @@ def test_a_value_the_database_refuses_is_a_conflict_and_changes_nothing(store: S
     else:
         assert store.create_subject(body).notes == "a\x00b"
         assert [s.notes for s in store.list_subjects()] == ["a\x00b"]
+
+
+class _LockedCursor:
+    """A cursor whose ``PRAGMA journal_mode=WAL`` finds the file locked ``times`` times (what SQLite answers
+    at once, busy handler or not, while another process locks a file not yet in WAL mode)."""
+
+    def __init__(self, times: int, message: str = "database is locked") -> None:
+        self.times, self.message, self.calls = times, message, 0
+
+    def execute(self, sql: str) -> None:
+        self.calls += 1
+        if self.calls <= self.times:
+            raise sqlite3.OperationalError(self.message)
+
+
+def test_wal_mode_is_asked_again_while_another_process_locks_the_new_file() -> None:
+    now = [0.0]
+    cursor = _LockedCursor(times=3)
+    store_module._set_wal(cursor, clock=lambda: now[0], pause=0.0)
+    assert cursor.calls == 4
+
+
+def test_wal_mode_gives_up_with_sqlites_error_after_the_busy_timeout() -> None:
+    now = [0.0]
+
+    def clock() -> float:
+        now[0] += 1.0
+        return now[0]
+
+    cursor = _LockedCursor(times=10**6)
+    with pytest.raises(sqlite3.OperationalError, match="locked"):
+        store_module._set_wal(cursor, clock=clock, pause=0.0)
+    assert cursor.calls == pytest.approx(store_module.BUSY_TIMEOUT_S, abs=2)
+
+
+def test_another_error_than_a_lock_is_not_retried() -> None:
+    cursor = _LockedCursor(times=1, message="disk I/O error")
+    with pytest.raises(sqlite3.OperationalError, match="disk I/O"):
+        store_module._set_wal(cursor, clock=lambda: 0.0, pause=0.0)
+    assert cursor.calls == 1
