@@ -18,7 +18,7 @@ What differs from the image, each on purpose and listed in the script's comments
 - ``--no-cache-dir`` is dropped, so that pip reuses the host's download cache (the image must not keep one).
 - The server binds 127.0.0.1 on free ports (:data:`OVERRIDES`) and uses a SQLite database in ``root``
   (no ``GAITSCOPE_DATABASE_URL``); the image's own environment, ``0.0.0.0`` included, is checked against
-  ``server.settings.Settings`` first, so that a container the server would refuse fails here too.
+  ``gaitscope.server.settings.Settings`` first, so that a container the server would refuse fails here too.
 """
 
 from __future__ import annotations
@@ -328,7 +328,7 @@ def _serve_lines(cmd: Instruction, health: Instruction, root: Path, ports: tuple
     overrides = f"GAITSCOPE_HOST=127.0.0.1 GAITSCOPE_PORT={ports[0]} GAITSCOPE_VISER_PORT={ports[1]}"
     log = q(str(root / "server.log"))
     check_settings = (
-        "from server.settings import Settings; s = Settings(); "
+        "from gaitscope.server.settings import Settings; s = Settings(); "
         "print(f'steps: the image environment is accepted: host {s.host}, environment {s.environment}')"
     )
     return [

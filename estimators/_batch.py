@@ -1,10 +1,10 @@
 """The seed-000 pipeline over a whole trial in one compiled call. Private: use
-:meth:`estimators.pipeline.GaitStatePipeline.run`.
+:meth:`gaitscope.estimators.pipeline.GaitStatePipeline.run`.
 
 :func:`run` does, sample after sample, exactly what :meth:`GaitStatePipeline.step` does (plausibility
 screening, heel high-pass, heel-strike detection, EKF predict and update, heel-strike backup, TBE,
 filter health check and divergence reset, gap restart, torque), with the same compiled kernels of
-:mod:`estimators._kernels` and the same floating-point operations in the same order, so its outputs
+:mod:`gaitscope.estimators._kernels` and the same floating-point operations in the same order, so its outputs
 are the streaming ones (``tests/estimators/test_batch.py`` asserts 1e-12; they are equal bit for bit).
 Every branch is compiled, the rare ones (gap restart, divergence reset, a backup reset to its start)
 included: there is no fallback to ``step``. A pipeline's whole state goes in and comes back, so a trial
@@ -20,7 +20,7 @@ arrays are passed as they are and updated in place. The Python objects' attribut
 source of truth: :func:`run` reads them before the loop and writes them back after it.
 
 numba keys a function's on-disk cache on its own source file only, but the functions here compile
-those of :mod:`estimators._kernels` into themselves: :class:`_KernelsStampedLocator` adds
+those of :mod:`gaitscope.estimators._kernels` into themselves: :class:`_KernelsStampedLocator` adds
 ``_kernels.py`` to this module's cache stamp, so that an edit there recompiles the batch too.
 """
 
@@ -37,12 +37,12 @@ from numba import njit
 from numba.core.caching import CacheImpl, InTreeCacheLocator
 from numpy.typing import NDArray
 
-from estimators import _kernels
-from estimators.basis import Array
-from estimators.gait_model import N_CHANNELS
+from gaitscope.estimators import _kernels
+from gaitscope.estimators.basis import Array
+from gaitscope.estimators.gait_model import N_CHANNELS
 
 if TYPE_CHECKING:
-    from estimators.pipeline import GaitStatePipeline
+    from gaitscope.estimators.pipeline import GaitStatePipeline
 
 __all__ = ["FAULTS", "run"]
 
@@ -79,7 +79,7 @@ _OK, _GAP, _DIVERGED, _TORQUE = range(len(FAULTS))
     _I_HAS_T, _I_IMPLAUSIBLE, _I_RESTARTS, _I_RESETS, _I_BK_RESETS, _I_BK_HAS_LAST_HS, _I_TBE_SEEN_HS,
     _I_HP_STARTED, _I_ACCEL_BLOCKED,
 ) = range(9)  # fmt: skip
-_FROZEN = 1e-20  # estimators.phase_ekf.FROZEN_VARIANCE
+_FROZEN = 1e-20  # gaitscope.estimators.phase_ekf.FROZEN_VARIANCE
 
 
 class _Params(NamedTuple):

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from estimators.basis import Array
+from gaitscope.estimators.basis import Array
 
 
 @njit(cache=True)

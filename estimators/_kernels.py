@@ -1,8 +1,8 @@
-"""Compiled inner loops of the phase EKF (numba). Private: use :mod:`estimators.phase_ekf`.
+"""Compiled inner loops of the phase EKF (numba). Private: use :mod:`gaitscope.estimators.phase_ekf`.
 
 Each function is the plain-numpy maths of seed 000 section II-C written as scalar loops so that numba
 turns one filter step into a few microseconds. The filterpy-based reference in
-:mod:`estimators.reference` computes the same quantities with vectorised numpy and is the test oracle.
+:mod:`gaitscope.estimators.reference` computes the same quantities with vectorised numpy and is the test oracle.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from estimators.basis import Array
+from gaitscope.estimators.basis import Array
 
 _PI4 = np.pi / 4.0
 
@@ -458,7 +458,7 @@ def healthy(x: Array, P: Array, min_rate: float, max_rate: float, max_abs_inclin
 
 @njit(cache=True)
 def highpass_step(b: Array, a: Array, zi_unit: Array, zi: Array, started: bool, x: Array) -> bool:
-    """One sample of :class:`~estimators.highpass.HighPassFilter` (direct form II transposed) on ``x``
+    """One sample of :class:`~gaitscope.estimators.highpass.HighPassFilter` (direct form II transposed) on ``x``
     ``(c,)`` in place, state ``zi`` ``(2, c)``; returns whether the filter is started.
 
     A sample with a non-finite value is left as it is and does not move the filter. A filter not yet

@@ -1,6 +1,6 @@
 """Compiled integration of the SDRE estimator and its EKF comparator (numba). Private: use :mod:`estimators.sdre`.
 
-The same maths as :class:`estimators.sdre.ContinuousFilter` (numpy, the test oracle) written as scalar
+The same maths as :class:`gaitscope.estimators.sdre.ContinuousFilter` (numpy, the test oracle) written as scalar
 loops: the joint ODE of the estimate and its Riccati matrix,
 
     xhat' = f(xhat, u) + K (y - h(xhat)),  K = P Cm^T S^-1,
@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-from estimators.basis import Array
+from gaitscope.estimators.basis import Array
 
 
 @njit(cache=True)
@@ -100,7 +100,7 @@ def evaluate(model: int, p: Array, x: Array, u: Array, jac: bool, f: Array, h: A
         cm[2, 0] = -g * math.cos(x[0])
         cm[3, 1] = -g * math.cos(x[1])
         xp = x.copy()
-        for j in range(4):  # central differences of the accelerations (documented in estimators.sdre)
+        for j in range(4):  # central differences of the accelerations (documented in gaitscope.estimators.sdre)
             step = 1e-6 * max(1.0, abs(x[j]))
             xp[j] = x[j] + step
             hi = two_link_rhs(p, xp, u)

@@ -33,7 +33,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from estimators.protocol import check_params
+from gaitscope.estimators.protocol import check_params
 
 __all__ = ["KinematicCoM", "LegGeometry", "com_from_legs"]
 

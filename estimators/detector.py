@@ -16,8 +16,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.basis import Array
-from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Output, check_params, elapsed
+from gaitscope.estimators.basis import Array
+from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Output, check_params, elapsed
 
 __all__ = ["DetectorConfig", "HeelStrikeDetector"]
 

@@ -6,8 +6,8 @@ prediction over the training data, and keep the principal components of that spa
 map*. A new person's model is then ``xi(g) = xi_avg + g P_map`` with a few numbers ``g`` (their gait
 fingerprint), found by least squares from a calibration walk (LS-GF) or estimated live by an EKF whose
 state carries them (GF). Everything here is pure numpy; the session code builds maps from the cohort
-(:mod:`sessions.offline.fingerprints`) and runs the filters in a stack (:class:`FingerprintEKF` implements
-:class:`estimators.protocol.Estimator`).
+(:mod:`gaitscope.sessions.offline.fingerprints`) and runs the filters in a stack (:class:`FingerprintEKF` implements
+:class:`gaitscope.estimators.protocol.Estimator`).
 
 Choices where the paper is silent or inconsistent (each a parameter; ``docs/estimators.md`` lists them):
 
@@ -38,8 +38,8 @@ from typing import Final, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators._fp_kernel import fp_step
-from estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
+from gaitscope.estimators._fp_kernel import fp_step
+from gaitscope.estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
 
 __all__ = [
     "FOURIER_ORDER",
@@ -283,7 +283,7 @@ class FingerprintEKF:
     fingerprint in its state, ``x = [p, pdot, l, g_1..g_k]``, started at ``g`` (zeros: the average).
     The dynamics (eqs. 2-3): phase integrates phase rate, the rest are random walks.
 
-    As a stack estimator (:class:`estimators.protocol.Estimator`): inputs thigh angle (deg) and its
+    As a stack estimator (:class:`gaitscope.estimators.protocol.Estimator`): inputs thigh angle (deg) and its
     velocity (deg/s); outputs phase, phase rate, stride length (m), the model's thigh angle and, for
     ``gf``, the fingerprint.
     """

@@ -1,6 +1,6 @@
 """Gait model fitted by equality-constrained least squares, and its heteroscedastic noise model.
 
-Seed 000 section II-A/II-B. Four outputs share one Kronecker regressor (:mod:`estimators.basis`):
+Seed 000 section II-A/II-B. Four outputs share one Kronecker regressor (:mod:`gaitscope.estimators.basis`):
 
 ====  ======================  ==========================================
 idx   output                  unit
@@ -13,7 +13,7 @@ idx   output                  unit
 
 Choice (the paper is silent): heel positions are modelled in leg lengths and multiplied by the user's
 leg length at run time, so one model serves users of any size; ``heel_in_leg_lengths=False`` in
-:func:`estimators.phase_ekf.PhaseEKF` is not offered because a model fitted this way cannot be used
+:func:`gaitscope.estimators.phase_ekf.PhaseEKF` is not offered because a model fitted this way cannot be used
 otherwise. Stride length ``l`` enters the regressor normalised by leg length, as in the paper.
 
 Constraints (seed 000 eq. 9-11, as used in the authors' code):
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
-from estimators.basis import Array, n_terms, regressor
+from gaitscope.estimators.basis import Array, n_terms, regressor
 
 N_OUTPUTS = 4
 #: Indices of the gait model's outputs (the rows of its coefficients; the columns of :func:`evaluate`).

@@ -11,7 +11,7 @@ Thatte, Shah and Geyer 2019 (``shared/seeds/003_*.txt`` section II; digest secti
   ``M = blkdiag(I3, phidot I3)``; a NaN entry of ``z`` is a missing channel, left out of the update;
 - at each heel strike (eq. 10): ``x = [0, 1 / T_(n-1)]``, ``P = 0``.
 
-The GPs (:mod:`estimators.gp`, FITC, 25 inducing points) are trained on each completed stance's samples
+The GPs (:mod:`gaitscope.estimators.gp`, FITC, 25 inducing points) are trained on each completed stance's samples
 labelled in hindsight, ``phi = t / T_n`` and ``phidot = 1 / T_n`` (``T_n`` the stance's duration), the
 velocity GPs on ``thetadot T_n = dtheta/dphi``. Every ``retrain_every`` (5) completed stances the filter
 offers a :class:`TrainingWindow`; a caller fits it anywhere with :func:`fit_models` and hands the result
@@ -30,7 +30,7 @@ Choices where the paper is silent (each a :class:`GPEKFConfig` field; ``docs/est
 - ``T_(n-1)`` is the last stance within ``max_stance_ratio`` of the one before (or two alike in a row):
   a stance with a stop in it does not time the next;
 - first model: a population model fitted to the virtual cohort's stances
-  (:func:`estimators.gp_ekf_estimator.cohort_stances`, :func:`fit_models`), version 0;
+  (:func:`gaitscope.estimators.gp_ekf_estimator.cohort_stances`, :func:`fit_models`), version 0;
 - the training window is the last ``window_steps`` completed stances (the paper's set accumulates; a
   live session must bound fit time and memory), its last stance held out of the fit;
 - the phase is kept in [0, 1] and the rate in [0, ``max_phase_rate``] after each step; ``velocity_noise_floor``
@@ -49,8 +49,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from estimators.gp import stack_eval
-from estimators.gp_models import GPModelSet, TrainingWindow, check_models
+from gaitscope.estimators.gp import stack_eval
+from gaitscope.estimators.gp_models import GPModelSet, TrainingWindow, check_models
 
 __all__ = [
     "GPEKF",

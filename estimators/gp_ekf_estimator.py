@@ -1,10 +1,10 @@
-"""Seed 003's GP-EKF (:class:`~estimators.gp_ekf.GPEKF`) as a stack estimator, with its torque control
+"""Seed 003's GP-EKF (:class:`~gaitscope.estimators.gp_ekf.GPEKF`) as a stack estimator, with its torque control
 surface and its default models.
 
 ``gp_ekf`` in a session's stack. Inputs: the joint encoders ``hip_angle_deg``, ``knee_angle_deg``,
-``ankle_angle_deg`` (what a simulated device sends, ``sessions.synth.sensors.device_channels``); optional
+``ankle_angle_deg`` (what a simulated device sends, ``gaitscope.sessions.synth.sensors.device_channels``); optional
 ``heel_strike`` (used when given) and ``foot_angle_deg`` / ``foot_vel_dps`` (heel strikes detected with
-:class:`~estimators.detector.HeelStrikeDetector` when ``heel_strike`` is NaN; the foot velocity is the
+:class:`~gaitscope.estimators.detector.HeelStrikeDetector` when ``heel_strike`` is NaN; the foot velocity is the
 differentiated foot angle when not sent).
 
 Joint velocities are differentiated inside: a backward difference low-passed by a first-order filter
@@ -23,14 +23,14 @@ present below ``still_dps`` (15 deg/s) for ``still_s`` (0.3 s) sets the rate to 
 place the phase on the standing posture's) and ramps ``standing`` to 1 over ``still_ramp_s``; walking on
 restores the rate from before the hold (the paper's stiff filter otherwise runs on for a second after a
 sudden stop, which as the primary is push-off torque on a walker who has stopped); ``model_version`` (the
-installed models' version, 0 the population model); ``fault`` (:data:`~estimators.protocol.FAULTS`: 1
+installed models' version, 0 the population model); ``fault`` (:data:`~gaitscope.estimators.protocol.FAULTS`: 1
 restarted after a gap, 2 the state was not finite and was reset); ``time_phase``, seed 003's time-based
 baseline ``t_n / T_(n-1)`` (at most 1). ``state`` and ``covariance`` are the EKF's ``x = [phi, phidot]``
 and ``P``.
 
 The session layer drives retraining through :meth:`GPEKFEstimator.take_window`, :meth:`~GPEKFEstimator.offer`,
 ``frozen``, :meth:`~GPEKFEstimator.rollback` and :attr:`~GPEKFEstimator.installed` (see
-:class:`~estimators.gp_ekf.GPEKF`).
+:class:`~gaitscope.estimators.gp_ekf.GPEKF`).
 
 Default models: :func:`build_default` fits the population observation models and the control surface to
 cohort columns (:func:`cohort_stances`); :func:`default_arrays` / :func:`load_default` turn them into plain
@@ -49,12 +49,12 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from estimators.detector import DetectorConfig, HeelStrikeDetector
-from estimators.gp import FitOptions, SparseGP, fit_sparse_gp, rbf_mean_2d
-from estimators.gp_ekf import DIVERGED, GPEKF, HEEL_STRIKE, TOE_OFF, GPEKFConfig, Installed, Offer
-from estimators.gp_models import GPModelSet, TrainingWindow, fit_models
-from estimators.protocol import HEEL_STRIKE as HS_CHANNEL
-from estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
+from gaitscope.estimators.detector import DetectorConfig, HeelStrikeDetector
+from gaitscope.estimators.gp import FitOptions, SparseGP, fit_sparse_gp, rbf_mean_2d
+from gaitscope.estimators.gp_ekf import DIVERGED, GPEKF, HEEL_STRIKE, TOE_OFF, GPEKFConfig, Installed, Offer
+from gaitscope.estimators.gp_models import GPModelSet, TrainingWindow, fit_models
+from gaitscope.estimators.protocol import HEEL_STRIKE as HS_CHANNEL
+from gaitscope.estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
 
 __all__ = [
     "COHORT_COLUMNS",
@@ -80,7 +80,7 @@ COHORT_COLUMNS: Final = (
     "ankle_dorsiflexion_moment_ipsi_Nm",
     "subject_metadata",
 )
-_ANGLE_LIMIT, _VELOCITY_LIMIT = 180.0, 4000.0  # sessions.schema.SENSOR_LIMITS for angles and rates
+_ANGLE_LIMIT, _VELOCITY_LIMIT = 180.0, 4000.0  # gaitscope.sessions.schema.SENSOR_LIMITS for angles and rates
 _GAP, _DIVERGED = 1.0, 2.0  # FAULTS.index("gap"), FAULTS.index("diverged")
 
 
@@ -96,7 +96,7 @@ def cohort_stances(columns: Mapping[str, ArrayLike], index: int = 0) -> Training
     """The stances of a LocoHub-style table (the virtual cohort's), labelled as the filter labels its own.
 
     ``columns``: :data:`COHORT_COLUMNS` by name (e.g. ``{c: frame[c].to_numpy() for c in COHORT_COLUMNS}``
-    of ``sessions.synth.cohort.generate_cohort``); angles in radians, the ankle moment in N m (dorsiflexor
+    of ``gaitscope.sessions.synth.cohort.generate_cohort``); angles in radians, the ankle moment in N m (dorsiflexor
     positive), the mass from ``subject_metadata`` (``mass_kg:..``). A stride starts where ``phase_ipsi`` is
     0; its stance runs to its ``toe_off_ipsi`` sample. Velocities are ``np.gradient`` of the angles within
     each stride; ``moment`` is the plantarflexor moment per kg (``-moment / mass``).
@@ -141,7 +141,7 @@ class ControlSurface:
     """Seed 003's feedforward-torque control surface (II-B) for the ankle: a 2-D sparse GP of the
     plantarflexor moment (N m/kg) over (phase, phase rate), 0 at phase rate 0 (standing).
 
-    The applied torque scales it as :class:`estimators.torque.TorqueProfile` scales its model:
+    The applied torque scales it as :class:`gaitscope.estimators.torque.TorqueProfile` scales its model:
     ``clip(scale * mass * surface, 0, max_torque)`` (``scale`` 1/5, plantarflexion only).
     """
 
@@ -181,7 +181,7 @@ def fit_control_surface(
     samples are thinned evenly to ``max_points``.
 
     Default options: 100 inducing points (II-B) at training inputs, not optimized (as for the observation
-    models, :class:`~estimators.gp.FitOptions`).
+    models, :class:`~gaitscope.estimators.gp.FitOptions`).
     """
     if data.moment is None:
         raise ValueError("the stances carry no moment")
@@ -295,7 +295,7 @@ class GPEKFEstimator:
         detector: heel-strike detection from the foot when ``heel_strike`` is not given.
 
     Attributes:
-        filter: the :class:`~estimators.gp_ekf.GPEKF` it runs.
+        filter: the :class:`~gaitscope.estimators.gp_ekf.GPEKF` it runs.
     """
 
     name = "gp_ekf"

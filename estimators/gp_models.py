@@ -1,8 +1,8 @@
-"""Seed 003's GP-EKF observation models (:mod:`estimators.gp_ekf`): the training windows the filter
+"""Seed 003's GP-EKF observation models (:mod:`gaitscope.estimators.gp_ekf`): the training windows the filter
 offers, the model sets fitted to them, and the check a new set passes before it replaces the one in use.
 
 A :class:`TrainingWindow` holds completed stances labelled in hindsight (``phi = t / T_n``, ``phidot =
-1 / T_n``); :func:`fit_models` fits a :class:`GPModelSet` (six FITC GPs, :mod:`estimators.gp`) to all of
+1 / T_n``); :func:`fit_models` fits a :class:`GPModelSet` (six FITC GPs, :mod:`gaitscope.estimators.gp`) to all of
 its stances but the last, anywhere (the live server fits in a worker process); :func:`check_models`
 judges a new set on the held-out stance against the set in use. Pure numpy, no state.
 """
@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from estimators.gp import FitOptions, GPStack, SparseGP, fit_sparse_gp
+from gaitscope.estimators.gp import FitOptions, GPStack, SparseGP, fit_sparse_gp
 
 if TYPE_CHECKING:
-    from estimators.gp_ekf import GPEKFConfig
+    from gaitscope.estimators.gp_ekf import GPEKFConfig
 
 __all__ = [
     "CHANNEL_NAMES",

@@ -7,10 +7,10 @@ the phase average of ``Sigma_R``). At each heel strike, if ``SSE_EKF - SSE_HP`` 
 (1.2e3 in the authors' code) the main EKF is overwritten with the backup's estimate and
 ``P = 1e-3 I``; both sums then restart. Order per sample: EKF predict, EKF update, backup, read.
 
-The backup also implements the stack interface (:mod:`estimators.protocol`) on its own
+The backup also implements the stack interface (:mod:`gaitscope.estimators.protocol`) on its own
 (:meth:`HeelStrikeBackup.standalone`, ``hs_backup``): its ``[lp, r]`` filter then takes ``Sigma_R`` at
 its own phase and there is no main EKF to compare with or reset. Inside
-:class:`~estimators.pipeline.GaitStatePipeline` it stays coupled to the EKF as the paper describes
+:class:`~gaitscope.estimators.pipeline.GaitStatePipeline` it stays coupled to the EKF as the paper describes
 (:meth:`HeelStrikeBackup.track`).
 
 Heel-strike detection is :mod:`estimators.detector`, the timing-based estimate :mod:`estimators.tbe`;
@@ -24,13 +24,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators import _kernels
-from estimators.basis import Array
-from estimators.detector import DetectorConfig, HeelStrikeDetector
-from estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
-from estimators.phase_ekf import EKFConfig, PhaseEKF, pseudo_from_stride, stride_from_pseudo
-from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Output, check_params, elapsed
-from estimators.tbe import TimingBasedEstimator
+from gaitscope.estimators import _kernels
+from gaitscope.estimators.basis import Array
+from gaitscope.estimators.detector import DetectorConfig, HeelStrikeDetector
+from gaitscope.estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
+from gaitscope.estimators.phase_ekf import EKFConfig, PhaseEKF, pseudo_from_stride, stride_from_pseudo
+from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Output, check_params, elapsed
+from gaitscope.estimators.tbe import TimingBasedEstimator
 
 __all__ = ["BackupConfig", "DetectorConfig", "HeelStrikeBackup", "HeelStrikeDetector", "TimingBasedEstimator"]
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from estimators import _kernels
-from estimators.basis import Array
+from gaitscope.estimators import _kernels
+from gaitscope.estimators.basis import Array
 
 CUTOFF_HZ = 0.5
 DAMPING = 0.9
@@ -49,7 +49,7 @@ class HighPassFilter:
 
         A sample holding a non-finite value is returned unfiltered and does not move the filter; one
         whose output would not be finite restarts the filter in its steady state (see
-        :func:`estimators._kernels.highpass_step`, which does the work, compiled).
+        :func:`gaitscope.estimators._kernels.highpass_step`, which does the work, compiled).
         """
         out = np.array(x, dtype=np.float64).reshape(-1)
         self.step_inplace(out)

@@ -6,7 +6,7 @@ inclination ``atan2(a_x, a_y)`` minus the posture's segment angle is the mountin
 gyro reads its bias (Ferrari et al. 2010, Gait Posture 31:540-542, calibrate in a static posture; the
 ISB's anatomical calibration the same way). A sensor that was not still (its gyro moved by more than
 ``max_gyro_dps`` from its mean, or its accelerometer's sd above ``max_accel_sd``, or the norm far from
-g) is refused with the reason, as is a period too short; the front end (:mod:`estimators.imu_frontend`)
+g) is refused with the reason, as is a period too short; the front end (:mod:`gaitscope.estimators.imu_frontend`)
 takes the accepted offsets through ``retune(pitch_offset_deg=..., gyro_bias_{x,y,z}_dps=...)``.
 
 Pure: arrays in, a frozen dataclass out (plain floats and strings, ready for a JSON API).
@@ -22,7 +22,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import ArrayLike
 
-from estimators.imu_frontend import G0
+from gaitscope.estimators.imu_frontend import G0
 
 __all__ = ["MIN_STILL_S", "Calibration", "SensorCalibration", "calibrate_standing"]
 

@@ -1,7 +1,7 @@
 """Sagittal segment angle and angular velocity from one raw 6-axis IMU: the IMU front end.
 
 A device that sends raw gyro and accelerometer readings (``imu_{seg}_gyro_{x,y,z}_dps``,
-``imu_{seg}_accel_{x,y,z}_m_s2``, axes of ``sessions.schema.CHANNELS``: x anterior, y along the segment
+``imu_{seg}_accel_{x,y,z}_m_s2``, axes of ``gaitscope.sessions.schema.CHANNELS``: x anterior, y along the segment
 toward proximal, z to the right, so a (+) sagittal rotation is (+) about z and gravity reads
 ``(g sin a, g cos a, 0)`` at rest) gets its segment angle channels (``{seg}_angle_deg``,
 ``{seg}_vel_dps``) from :class:`ImuFrontEnd`, one per IMU (``imu_foot``, ``imu_shank``, ...). The stack
@@ -11,7 +11,7 @@ it read them as if the device had sent angles.
 The filter, per sample (``method="cf"``, the live default; ``docs/results.md`` compares it with the
 libraries' AHRS filters on the cohort, ``gaitscope crossval --study imu``):
 
-- **gyro bias**: the calibration's (:mod:`estimators.imu_calibration`), then tracked as the mean of the
+- **gyro bias**: the calibration's (:mod:`gaitscope.estimators.imu_calibration`), then tracked as the mean of the
   gyro over ``bias_tau_s`` (a segment's sagittal angle is periodic in walking, so its mean rate is 0): a
   first-order high-pass of the rate, as in Mayagoitia et al. 2002 (J Biomech 35:537-542);
 - **angle**: the integrated rate, pulled toward the accelerometer's inclination ``atan2(a_x, a_y)`` with
@@ -41,7 +41,7 @@ from typing import Final, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
+from gaitscope.estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
 
 __all__ = ["CODES", "G0", "SEGMENTS", "FrontEndConfig", "ImuFrontEnd", "imu_inputs", "inclination_deg"]
 

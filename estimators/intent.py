@@ -26,7 +26,7 @@ Choices where the paper is silent (parameters; ``docs/estimators.md``):
   step, so the intent of that step is 0 and its confidence low.
 - Initial state: the first mid-stance's measurement with ``v_x^d = v_x``, covariance ``P0``; it needs the
   sagittal entries (forward and vertical position, forward velocity); a lateral one not measured (as
-  from sagittal leg kinematics, :mod:`estimators.com_kinematics`) starts at 0 and is never updated.
+  from sagittal leg kinematics, :mod:`gaitscope.estimators.com_kinematics`) starts at 0 and is never updated.
 - Initial covariance (not given): ``1e-4`` for the CoM states, ``1e-2`` (0.1 m/s SD) for ``v_x^d``
   (``BKFConfig.p0``).
 - Confidence of an intent: ``|delta v_x^d| / sqrt(var(v_x^d))``, the change in standard deviations of the

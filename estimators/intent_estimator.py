@@ -1,7 +1,7 @@
 """The buttressed Kalman filter (seed 001) as a stack estimator: gait events from the sample stream.
 
 :class:`IntentEstimator` (``intent`` in the registry) finds touchdowns and mid-stances in the samples a
-device sends, feeds them to :class:`estimators.intent.ButtressedKF`, and holds and flags its estimate
+device sends, feeds them to :class:`gaitscope.estimators.intent.ButtressedKF`, and holds and flags its estimate
 when the events cannot be trusted (standing, walking backwards, a lost leg channel); beyond the paper.
 """
 
@@ -13,15 +13,15 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.intent import _VX, COHORT, BKFConfig, ButtressedKF
-from estimators.protocol import MAX_GAP_S, check_params
+from gaitscope.estimators.intent import _VX, COHORT, BKFConfig, ButtressedKF
+from gaitscope.estimators.protocol import MAX_GAP_S, check_params
 
 __all__ = ["COM_CHANNELS", "COM_LATERAL", "IntentEstimator"]
 
 Array = NDArray[np.float64]
 
 #: The centre-of-mass channels the intent estimator needs (SensorFrame wire names): the sagittal ones, which
-#: a device sends or :class:`estimators.com_kinematics.KinematicCoM` derives from leg kinematics.
+#: a device sends or :class:`gaitscope.estimators.com_kinematics.KinematicCoM` derives from leg kinematics.
 COM_CHANNELS: Final = ("com_forward_m", "com_up_m", "com_forward_vel_m_s", "com_up_vel_m_s")
 #: The lateral ones, used when sent (sagittal kinematics cannot give them).
 COM_LATERAL: Final = ("com_lateral_m", "com_lateral_vel_m_s")
@@ -148,7 +148,7 @@ class IntentEstimator:
             self._last_mid = self._seen = t
         elif not t - last > 0:
             raise ValueError(f"time must increase: {t} after {last}")
-        elif t - last > MAX_GAP_S:  # a pause: the walk starts over (as estimators.protocol.elapsed)
+        elif t - last > MAX_GAP_S:  # a pause: the walk starts over (as gaitscope.estimators.protocol.elapsed)
             self.reset()
             self._last_mid = self._seen = t
         self._t = t

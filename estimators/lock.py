@@ -24,7 +24,7 @@ per sample (all thresholds are :class:`LockConfig` parameters):
   heel strike at all, and neither the backup filter nor the timing-based estimate can help.
 - **lock lost**: while walking, no heel strike for ``max_stride_s``, or the filter's phase rate outside
   ``phase_rate_range`` for ``out_of_range_s``: the filter is reset from the heel-strike backup, else the
-  timing-based estimate (what :meth:`estimators.pipeline.GaitStatePipeline.reset_from_backup` picks).
+  timing-based estimate (what :meth:`gaitscope.estimators.pipeline.GaitStatePipeline.reset_from_backup` picks).
 """
 
 from __future__ import annotations

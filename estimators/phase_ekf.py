@@ -24,9 +24,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from estimators import _kernels
-from estimators.basis import Array
-from estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
+from gaitscope.estimators import _kernels
+from gaitscope.estimators.basis import Array
+from gaitscope.estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
 
 #: Process-noise standard deviations (pdot, lp, r) for simulation and treadmill (seed 000 II-C5).
 Q_STD_TREADMILL = (6e-4, 9e-4, 6e-3)
@@ -107,7 +107,7 @@ class PhaseEKF:
     """Seed 000's phase EKF.
 
     Args:
-        coef: gait-model coefficients ``(4, 2, 2, 2N+1)`` (:mod:`estimators.gait_model`).
+        coef: gait-model coefficients ``(4, 2, 2, 2N+1)`` (:mod:`gaitscope.estimators.gait_model`).
         noise: heteroscedastic measurement noise ``Sigma_R(p)``.
         leg_length: the user's leg length (m); scales stride length and heel positions.
         config: tuning.

@@ -1,4 +1,4 @@
-"""The seed-000 phase EKF stack (:class:`~estimators.pipeline.GaitStatePipeline`) as a stack estimator.
+"""The seed-000 phase EKF stack (:class:`~gaitscope.estimators.pipeline.GaitStatePipeline`) as a stack estimator.
 
 ``phase_ekf`` in a session's stack: heel high-pass, heel-strike detection (unless the heel-strike channel
 is given), phase EKF, heel-strike backup, divergence reset and gap restart, exactly as the pipeline runs
@@ -7,7 +7,7 @@ among its outputs: the session's stack computes it from its primary estimator's 
 
 Outputs: ``phase`` (cycles, [0, 1)), ``phase_rate`` (1/s), ``stride_length_m``, ``incline_deg``,
 ``heel_strike`` and ``backup_reset`` (1.0 / 0.0), ``fault`` (a code of
-:data:`~estimators.protocol.FAULTS`: 1 the filters restarted after a gap, 2 the EKF diverged and was
+:data:`~gaitscope.estimators.protocol.FAULTS`: 1 the filters restarted after a gap, 2 the EKF diverged and was
 reset), and ``foot_pred_deg``, ``shank_pred_deg``, the gait model at the prior (0 where not finite).
 ``state`` and ``covariance`` are the EKF's ``x = [p, pdot, lp, r]`` and ``P``.
 """
@@ -19,19 +19,19 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.lock import LockConfig, LockSupervisor
-from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
-from estimators.protocol import HEEL_STRIKE, SENSOR_CHANNELS, Output, check_params
+from gaitscope.estimators.lock import LockConfig, LockSupervisor
+from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from gaitscope.estimators.protocol import HEEL_STRIKE, SENSOR_CHANNELS, Output, check_params
 
 __all__ = ["PhaseEKFEstimator"]
 
-#: The pipeline's faults as :data:`~estimators.protocol.FAULTS` codes; its own torque is not an output.
+#: The pipeline's faults as :data:`~gaitscope.estimators.protocol.FAULTS` codes; its own torque is not an output.
 _FAULT_CODE = {"": 0.0, "gap": 1.0, "diverged": 2.0, "torque": 0.0}
 _LOST, _RESUMED = 4.0, 5.0  # FAULTS.index("lost"), FAULTS.index("resumed")
 
 
 class PhaseEKFEstimator:
-    """:class:`~estimators.pipeline.GaitStatePipeline` behind the stack interface (``phase_ekf``).
+    """:class:`~gaitscope.estimators.pipeline.GaitStatePipeline` behind the stack interface (``phase_ekf``).
 
     Args:
         model: the trained models.

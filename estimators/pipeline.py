@@ -27,25 +27,25 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators import _batch, _kernels
-from estimators.basis import Array
-from estimators.fingerprint import FingerprintMap
-from estimators.gait_model import N_CHANNELS, Z_FOOT_ANGLE, Z_FOOT_VEL, Z_HEEL_FORWARD, Z_HEEL_UP, NoiseModel
-from estimators.heel_strike import (
+from gaitscope.estimators import _batch, _kernels
+from gaitscope.estimators.basis import Array
+from gaitscope.estimators.fingerprint import FingerprintMap
+from gaitscope.estimators.gait_model import N_CHANNELS, Z_FOOT_ANGLE, Z_FOOT_VEL, Z_HEEL_FORWARD, Z_HEEL_UP, NoiseModel
+from gaitscope.estimators.heel_strike import (
     BackupConfig,
     DetectorConfig,
     HeelStrikeBackup,
     HeelStrikeDetector,
     TimingBasedEstimator,
 )
-from estimators.highpass import HighPassFilter
-from estimators.phase_ekf import EKFConfig, PhaseEKF
-from estimators.torque import TorqueProfile
+from gaitscope.estimators.highpass import HighPassFilter
+from gaitscope.estimators.phase_ekf import EKFConfig, PhaseEKF
+from gaitscope.estimators.torque import TorqueProfile
 
 #: Physically plausible range of each measurement channel, in channel order: segment angles within
 #: +/-180 deg, angular velocities within +/-4000 deg/s (the largest full scale of common MEMS gyros,
 #: e.g. ICM-42688 and BMI088 reach +/-2000, ADIS16 parts +/-4000) and raw heel positions within
-#: +/-3 m of the hip. ``sessions.schema.SENSOR_LIMITS`` states the same bounds on the wire.
+#: +/-3 m of the hip. ``gaitscope.sessions.schema.SENSOR_LIMITS`` states the same bounds on the wire.
 CHANNEL_LIMITS: tuple[tuple[float, float], ...] = (
     (-180.0, 180.0),
     (-4000.0, 4000.0),

@@ -1,13 +1,13 @@
 """The one interface every estimator implements, so that a session can run a stack of them.
 
 An estimator is a streaming object that turns named input channels into named outputs, one sample at
-a time. It declares what it reads and what it writes, so that the session level (``sessions.stack``)
+a time. It declares what it reads and what it writes, so that the session level (``gaitscope.sessions.stack``)
 can check a source against it before the session starts, feed it, record its outputs on their own
 channel and plot them, without knowing the algorithm:
 
 - ``name``: the estimator's name in a stack (``phase_ekf``, ``tbe``, ...).
 - ``inputs``: channels it needs (a source without one of them cannot run it); ``optional_inputs``:
-  channels it uses when present. Channel names are the wire names of ``sessions.schema.SensorFrame``
+  channels it uses when present. Channel names are the wire names of ``gaitscope.sessions.schema.SensorFrame``
   (``foot_angle_deg``, ..., ``heel_strike``), as plain strings: estimators do not import ``sessions``.
 - ``outputs``: ``(name, unit)`` pairs; ``step`` returns them in this order.
 - ``tunables``: the parameter names ``retune`` accepts (an empty tuple: nothing to tune).
@@ -71,7 +71,7 @@ HEEL_STRIKE: Final = "heel_strike"
 #: after a gap, 2 reset after its state diverged (the torque of such a sample is 0 when it drives it),
 #: 3 its own torque was forced to 0 (the pipeline's; a stack computes its torque itself), 4 it lost
 #: track and was reset from a backup (torque 0 on that sample, as 2), 5 it restarted as walking resumed
-#: after standing still (:mod:`estimators.lock`).
+#: after standing still (:mod:`gaitscope.estimators.lock`).
 FAULTS: Final = ("", "gap", "diverged", "torque", "lost", "resumed")
 #: A longer gap between two samples (s) restarts a streaming estimator, as it restarts the pipeline
 #: (``PipelineConfig.max_gap_s``): the walker may have stopped.

@@ -1,7 +1,7 @@
 """Reference phase EKF on ``filterpy.kalman.ExtendedKalmanFilter`` with plain vectorised numpy.
 
-The same model as :class:`estimators.phase_ekf.PhaseEKF`, written the direct way: the measurement and
-its Jacobian from the Kronecker regressor (:func:`estimators.basis.regressor`) and filterpy's own
+The same model as :class:`gaitscope.estimators.phase_ekf.PhaseEKF`, written the direct way: the measurement and
+its Jacobian from the Kronecker regressor (:func:`gaitscope.estimators.basis.regressor`) and filterpy's own
 predict/update. It is the oracle for the compiled filter's tests and the baseline of ``gaitscope
 bench``; it is not used at run time.
 """
@@ -11,13 +11,13 @@ from __future__ import annotations
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
-from estimators.basis import Array, regressor
-from estimators.gait_model import NoiseModel
-from estimators.phase_ekf import EKFConfig
+from gaitscope.estimators.basis import Array, regressor
+from gaitscope.estimators.gait_model import NoiseModel
+from gaitscope.estimators.phase_ekf import EKFConfig
 
 
 class ReferencePhaseEKF:
-    """filterpy-based twin of :class:`~estimators.phase_ekf.PhaseEKF` (same interface)."""
+    """filterpy-based twin of :class:`~gaitscope.estimators.phase_ekf.PhaseEKF` (same interface)."""
 
     def __init__(self, coef: Array, noise: NoiseModel, leg_length: float, config: EKFConfig | None = None):
         self.config = config or EKFConfig()

@@ -22,7 +22,7 @@ measurements ``y = h(x)`` in state-dependent coefficient (SDC) form, ``f = A(x) 
   ``G = [b2 sin q1, b3 sin q2]``, ``s = sin(q1 - q2)``; ``y = [q1', q2', -g sin q1, -g sin q2]``; SDC rows
   as corrected in ``shared/reference/estimators.md`` section 5. Knee flexion is ``q1 - q2``.
 
-The integration (both models, and the EKF) is :mod:`estimators._sdre_kernel` (numba);
+The integration (both models, and the EKF) is :mod:`gaitscope.estimators._sdre_kernel` (numba);
 :class:`ContinuousFilter` with ``compiled=False`` is the same maths in plain numpy, the test oracle.
 
 Comparators as published: the **EKF** is the same observer with the Jacobians of ``f`` and ``h`` in place
@@ -42,7 +42,7 @@ Choices where the thesis is silent or inconsistent (parameters; defaults in brac
   the two-link model it is taken by central differences (step ``1e-6``).
 - Integration: classic RK4 [1 kHz, the digest's rate], ``y`` and ``u`` held over each step (the sample
   that just arrived), ``P`` symmetrised after every step; steps shortened where the equations are stiff
-  (small ``S``, large ``P``: :func:`estimators._sdre_kernel.integrate`), which fixed-step RK4 at 1 kHz
+  (small ``S``, large ``P``: :func:`gaitscope.estimators._sdre_kernel.integrate`), which fixed-step RK4 at 1 kHz
   would not survive (the thesis ran Simulink, whose solver it does not name).
 - ``S``: the thesis says the sample standard deviation of the resting, filtered IMU data; it is a
   covariance, so the default is the variance (``S`` is a parameter). ``Q`` diagonal, tuned (the thesis
@@ -61,7 +61,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from estimators import _sdre_kernel as kernel
+from gaitscope.estimators import _sdre_kernel as kernel
 
 __all__ = [
     "TABLE1",
@@ -360,7 +360,7 @@ def complementary_angle(
     gyro_dps: ArrayLike, accel_x: ArrayLike, accel_y: ArrayLike, dt: float, tau_s: float = 1.0
 ) -> Array:
     """A segment's sagittal angle (deg) from one IMU: gyro z integrated, pulled toward the accelerometer's
-    tilt ``atan2(a_x, a_y)`` with time constant ``tau_s`` (axes of :mod:`sessions.synth.imu`: x anterior,
+    tilt ``atan2(a_x, a_y)`` with time constant ``tau_s`` (axes of :mod:`gaitscope.sessions.synth.imu`: x anterior,
     y proximal; at rest ``a_x = g sin(angle)``, ``a_y = g cos(angle)``). Stands in for the YEI sensor's
     on-board orientation filter, whose settings the thesis says are unknown. Starts at the tilt."""
     w = np.asarray(gyro_dps, dtype=np.float64)

@@ -1,7 +1,7 @@
 """Seed 002's SDRE estimator as a stack estimator: knee and thigh angles live from thigh and shank IMUs.
 
-:class:`SDREKnee` (``sdre_knee``) runs the fixed-hip two-link SDRE of :mod:`estimators.sdre` (Zhong 2016
-section 4.2) on the sagittal channels of a thigh and a shank IMU (axes of ``sessions.schema.CHANNELS``:
+:class:`SDREKnee` (``sdre_knee``) runs the fixed-hip two-link SDRE of :mod:`gaitscope.estimators.sdre` (Zhong 2016
+section 4.2) on the sagittal channels of a thigh and a shank IMU (axes of ``gaitscope.sessions.schema.CHANNELS``:
 x anterior, y along the segment toward proximal, z to the right; a segment's angle is from the vertical,
 positive with its distal end forward, so at rest ``accel_x = g sin(angle)``): ``y = [gyro_z(thigh),
 gyro_z(shank), -accel_x(thigh), -accel_x(shank)]`` in rad/s and m/s^2, the thesis's ``-g sin x``.
@@ -33,8 +33,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.protocol import check_params, elapsed
-from estimators.sdre import ContinuousFilter, G, TwoLinkParams
+from gaitscope.estimators.protocol import check_params, elapsed
+from gaitscope.estimators.sdre import ContinuousFilter, G, TwoLinkParams
 
 __all__ = ["SDREKnee"]
 

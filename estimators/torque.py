@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators import _kernels
-from estimators.basis import Array, n_terms
-from estimators.gait_model import OUT_HEEL_UP, Gram, evaluate, gait_constraints, solve_constrained
+from gaitscope.estimators import _kernels
+from gaitscope.estimators.basis import Array, n_terms
+from gaitscope.estimators.gait_model import OUT_HEEL_UP, Gram, evaluate, gait_constraints, solve_constrained
 
 
 def fit_torque(g: Gram, order: int) -> Array:

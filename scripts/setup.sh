@@ -8,3 +8,6 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install --quiet --upgrade pip
 .venv/bin/python -m pip install --quiet -e ".[dev]"
+# mypy reads the packages as gaitscope.* through links (it does not follow the editable install's import hook)
+mkdir -p .typecheck/gaitscope
+for d in estimators server sessions; do ln -sfn "../../$d" ".typecheck/gaitscope/$d"; done

@@ -20,23 +20,23 @@ from pathlib import Path
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
-from server.audit_middleware import AuditMiddleware
-from server.leg_view import LegView
-from server.origin import AllowedHostsMiddleware, SameOriginMiddleware
-from server.routes import ROUTERS, Uploads, install_error_handlers
-from server.settings import Settings
-from server.ws_close import ServerSendMiddleware
-from sessions import schema
-from sessions.accounts import Accounts
-from sessions.audit import AuditLog
-from sessions.audit.key import settings_key
-from sessions.formats.models import gaitscope_version
-from sessions.live.disk import DiskGuard
-from sessions.live.gp_learning import GPTrainer
-from sessions.live.manager import ModelStore, SessionManager
-from sessions.live.warmup import warm_up
-from sessions.store import Store
-from sessions.store_writer import StoreWriter
+from gaitscope.server.audit_middleware import AuditMiddleware
+from gaitscope.server.leg_view import LegView
+from gaitscope.server.origin import AllowedHostsMiddleware, SameOriginMiddleware
+from gaitscope.server.routes import ROUTERS, Uploads, install_error_handlers
+from gaitscope.server.settings import Settings
+from gaitscope.server.ws_close import ServerSendMiddleware
+from gaitscope.sessions import schema
+from gaitscope.sessions.accounts import Accounts
+from gaitscope.sessions.audit import AuditLog
+from gaitscope.sessions.audit.key import settings_key
+from gaitscope.sessions.formats.models import gaitscope_version
+from gaitscope.sessions.live.disk import DiskGuard
+from gaitscope.sessions.live.gp_learning import GPTrainer
+from gaitscope.sessions.live.manager import ModelStore, SessionManager
+from gaitscope.sessions.live.warmup import warm_up
+from gaitscope.sessions.store import Store
+from gaitscope.sessions.store_writer import StoreWriter
 
 log = logging.getLogger("gaitscope")
 WEB_DIR = Path(__file__).resolve().parent.parent / "web"
@@ -75,7 +75,7 @@ def _cookie_logged_in(accounts: Accounts, cookie_header: str) -> int | None:
     """The open login a ``Cookie`` header holds, by id, if any (the leg view's own server asks)."""
     from http.cookies import CookieError, SimpleCookie
 
-    from server.auth import COOKIE
+    from gaitscope.server.auth import COOKIE
 
     try:
         morsel = SimpleCookie(cookie_header).get(COOKIE)
@@ -99,7 +99,7 @@ def _api_docs(app: FastAPI) -> None:
     from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
     from fastapi.responses import HTMLResponse, JSONResponse
 
-    from server.auth import allow
+    from gaitscope.server.auth import allow
 
     read = [allow("read")]
 
@@ -120,7 +120,7 @@ def _demo(ctx: AppContext) -> None:
     """An empty database gets a demo subject walking seed 000's treadmill protocol."""
     if ctx.store.list_subjects():
         return
-    from sessions.live.sources import SimulatedDevice
+    from gaitscope.sessions.live.sources import SimulatedDevice
 
     leg, mass = SimulatedDevice(schema.SimulatedSource()).subject_body()
     subject = ctx.store.create_subject(

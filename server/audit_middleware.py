@@ -10,7 +10,7 @@ For an HTTP request whose method is not GET, HEAD or OPTIONS, when the response'
 error bodies are small), writes the entry, then sends what it held. The entry: action ``refused METHOD
 /route/{template}`` (the path when no route matched), target the path, outcome ``refused``, detail the status
 and, for a JSON body, its ``detail`` in words (at most :data:`DETAIL_MAX` characters); user and role from the
-:class:`server.auth.Who` the guard left in the scope, ``local``/``admin`` with accounts off, else
+:class:`gaitscope.server.auth.Who` the guard left in the scope, ``local``/``admin`` with accounts off, else
 ``anonymous``/``none``.
 
 Everything else (websockets, lifespan, reads, answers with other statuses, streamed files) passes through
@@ -28,11 +28,11 @@ from typing import TYPE_CHECKING, Any, Final
 import anyio.to_thread
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from server.auth import LOCAL, Who
-from server.origin import SAFE_METHODS
+from gaitscope.server.auth import LOCAL, Who
+from gaitscope.server.origin import SAFE_METHODS
 
 if TYPE_CHECKING:
-    from sessions.audit import AuditLog
+    from gaitscope.sessions.audit import AuditLog
 
 __all__ = ["AUDITED", "BODY_MAX", "DETAIL_MAX", "REFUSED", "AuditMiddleware"]
 

@@ -14,7 +14,7 @@ with the admin's permissions, which is what "anyone who can reach 127.0.0.1" amo
 at start-up; it refuses to listen anywhere but loopback like that. Device tokens are required either way:
 a stray program cannot push frames into a session that drives a motor.
 
-CSRF: the login cookie is ``SameSite=Strict`` and ``HttpOnly``, the origin rule (:mod:`server.origin`)
+CSRF: the login cookie is ``SameSite=Strict`` and ``HttpOnly``, the origin rule (:mod:`gaitscope.server.origin`)
 refuses foreign origins, and each login has a CSRF token the browser sends back in ``X-CSRF-Token`` with
 every request that is not GET, HEAD or OPTIONS (OWASP's synchronizer token). Websockets cannot carry the
 header; the origin rule covers them.
@@ -29,11 +29,11 @@ from typing import TYPE_CHECKING, Annotated, Any, Final, get_args
 from fastapi import Depends, HTTPException, WebSocketException, status
 from starlette.requests import HTTPConnection
 
-from server.origin import SAFE_METHODS
-from sessions import schema
+from gaitscope.server.origin import SAFE_METHODS
+from gaitscope.sessions import schema
 
 if TYPE_CHECKING:
-    from server.app import AppContext
+    from gaitscope.server.app import AppContext
 
 __all__ = [
     "COOKIE",

@@ -14,12 +14,12 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from estimators.pipeline import PipelineConfig, TrainedModel
-from sessions.errors import DataFormatError
-from sessions.schema import SETTING_LIMITS, ModelProvenance, SubjectCreate, field_bounds
+from gaitscope.estimators.pipeline import PipelineConfig, TrainedModel
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.schema import SETTING_LIMITS, ModelProvenance, SubjectCreate, field_bounds
 
 if TYPE_CHECKING:
-    from server.settings import Settings
+    from gaitscope.server.settings import Settings
 
 EXIT_BAD_INPUT = 2
 
@@ -95,13 +95,13 @@ def _config(a: argparse.Namespace) -> PipelineConfig:
 
 
 def _load(path: Path | None) -> tuple[TrainedModel, ModelProvenance]:
-    from sessions.formats.models import default_model_path, load_model
+    from gaitscope.sessions.formats.models import default_model_path, load_model
 
     return load_model(path or default_model_path())
 
 
 def cmd_replay(a: argparse.Namespace) -> int:
-    from sessions.offline.replay import replay_file
+    from gaitscope.sessions.offline.replay import replay_file
 
     model, prov = _load(a.model)
     summary = replay_file(a.input, a.out, model, _config(a), supervised=not a.as_published)
@@ -111,9 +111,9 @@ def cmd_replay(a: argparse.Namespace) -> int:
 
 
 def cmd_demo(a: argparse.Namespace) -> int:
-    from sessions.formats.models import load_model
-    from sessions.offline.replay import replay_file
-    from sessions.synth.trials import TREADMILL_PROTOCOL, replay_columns, sensor_trial
+    from gaitscope.sessions.formats.models import load_model
+    from gaitscope.sessions.offline.replay import replay_file
+    from gaitscope.sessions.synth.trials import TREADMILL_PROTOCOL, replay_columns, sensor_trial
 
     out_dir: Path = a.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -132,7 +132,7 @@ def cmd_demo(a: argparse.Namespace) -> int:
     import numpy as np
     import pandas as pd
 
-    from sessions.offline.crossval import stride_rmse, wrapped
+    from gaitscope.sessions.offline.crossval import stride_rmse, wrapped
 
     est = pd.read_csv(out)
     hs = sensors["heel_strike"].to_numpy() > 0
@@ -147,17 +147,17 @@ def cmd_demo(a: argparse.Namespace) -> int:
 def cmd_train(a: argparse.Namespace) -> int:
     import numpy as np
 
-    from sessions.formats.models import hash_arrays, provenance, save_model
-    from sessions.offline.training import fit_models, stride_data
+    from gaitscope.sessions.formats.models import hash_arrays, provenance, save_model
+    from gaitscope.sessions.offline.training import fit_models, stride_data
 
     start = time.perf_counter()
     if a.data:
-        from sessions.formats.locohub import read_table
+        from gaitscope.sessions.formats.locohub import read_table
 
         frame = read_table(a.data)
         source, seed = str(a.data), None
     else:
-        from sessions.synth.cohort import CohortSpec, generate_cohort
+        from gaitscope.sessions.synth.cohort import CohortSpec, generate_cohort
 
         spec = CohortSpec()
         frame = generate_cohort(spec)
@@ -191,8 +191,8 @@ def cmd_train(a: argparse.Namespace) -> int:
 
 
 def cmd_cohort(a: argparse.Namespace) -> int:
-    from sessions.formats.locohub import write_table
-    from sessions.synth.cohort import CohortSpec, generate_cohort
+    from gaitscope.sessions.formats.locohub import write_table
+    from gaitscope.sessions.synth.cohort import CohortSpec, generate_cohort
 
     spec = CohortSpec(n_subjects=a.subjects, strides_per_condition=a.strides, seed=a.seed)
     frame = generate_cohort(spec)
@@ -217,7 +217,7 @@ def cmd_crossval(a: argparse.Namespace) -> int:
         return _crossval_sdre(a)
     if a.study == "gpekf":
         return _crossval_gpekf(a)
-    from sessions.offline.crossval import crossvalidate, summary, to_csv, to_markdown
+    from gaitscope.sessions.offline.crossval import crossvalidate, summary, to_csv, to_markdown
 
     start = time.perf_counter()
     results = crossvalidate(workers=a.workers)
@@ -234,20 +234,20 @@ def cmd_crossval(a: argparse.Namespace) -> int:
 
 
 def _crossval_fingerprints(a: argparse.Namespace) -> int:
-    from sessions.offline.fingerprints import run_study, to_markdown
+    from gaitscope.sessions.offline.fingerprints import run_study, to_markdown
 
     return _study(a, "fingerprints.md", lambda: to_markdown(run_study()))
 
 
 def _crossval_ekf_fingerprints(a: argparse.Namespace) -> int:
-    from sessions.offline.ekf_fingerprints import run_study, to_markdown
+    from gaitscope.sessions.offline.ekf_fingerprints import run_study, to_markdown
 
     return _study(a, "ekf_fingerprints.md", lambda: to_markdown(run_study(workers=a.workers)))
 
 
 def _crossval_intent(a: argparse.Namespace) -> int:
-    from sessions.offline.intent_study import run_study, to_markdown
-    from sessions.synth.intent_walks import IntentProtocol
+    from gaitscope.sessions.offline.intent_study import run_study, to_markdown
+    from gaitscope.sessions.synth.intent_walks import IntentProtocol
 
     protocol = IntentProtocol(step_lead=a.step_lead)
     suffix = "" if a.step_lead == IntentProtocol.step_lead else f"_lead{a.step_lead:g}"
@@ -255,25 +255,25 @@ def _crossval_intent(a: argparse.Namespace) -> int:
 
 
 def _crossval_robust(a: argparse.Namespace) -> int:
-    from sessions.offline.robust_study import run_study, to_markdown
+    from gaitscope.sessions.offline.robust_study import run_study, to_markdown
 
     return _study(a, "robust.md", lambda: to_markdown(run_study()))
 
 
 def _crossval_imu(a: argparse.Namespace) -> int:
-    from sessions.offline.imu_study import run_study, to_markdown
+    from gaitscope.sessions.offline.imu_study import run_study, to_markdown
 
     return _study(a, "imu.md", lambda: to_markdown(run_study()))
 
 
 def _crossval_sdre(a: argparse.Namespace) -> int:
-    from sessions.offline.sdre_study import run_study, to_markdown
+    from gaitscope.sessions.offline.sdre_study import run_study, to_markdown
 
     return _study(a, "sdre.md", lambda: to_markdown(run_study()))
 
 
 def _crossval_gpekf(a: argparse.Namespace) -> int:
-    from sessions.offline.gp_study import run_study, to_markdown, write_figure
+    from gaitscope.sessions.offline.gp_study import run_study, to_markdown, write_figure
 
     def run() -> str:
         study = run_study()
@@ -298,8 +298,8 @@ def _study(a: argparse.Namespace, filename: str, run: Callable[[], str]) -> int:
 def cmd_serve(a: argparse.Namespace) -> int:
     import uvicorn
 
-    from server.app import create_app
-    from server.settings import Settings
+    from gaitscope.server.app import create_app
+    from gaitscope.server.settings import Settings
 
     overrides = {k: v for k, v in (("host", a.host), ("port", a.port), ("viser_port", a.viser_port),
                                    ("data_dir", a.data_dir)) if v is not None}  # fmt: skip
@@ -350,8 +350,8 @@ def _safe_url(url: str) -> str:
 
 
 def _has_users(settings: Settings) -> bool:
-    from sessions.accounts import Accounts
-    from sessions.store import Store
+    from gaitscope.sessions.accounts import Accounts
+    from gaitscope.sessions.store import Store
 
     store = Store(settings.database_url)
     try:
@@ -362,18 +362,18 @@ def _has_users(settings: Settings) -> bool:
 
 def cmd_loadbench(a: argparse.Namespace) -> int:
     if a.soak:
-        from server.bench.soak import run_soak
+        from gaitscope.server.bench.soak import run_soak
 
         result = run_soak(devices=a.sessions if a.sessions != 10 else 4, rate=a.rate, seconds=a.seconds)
         return 0 if result["clean"] and not any(r.out_of_bounds for r in result["devices"]) else 1
-    from server.bench.load import run_loadbench
+    from gaitscope.server.bench.load import run_loadbench
 
     run_loadbench(a.sessions, a.clients, a.rate, a.seconds, a.batch_ms, gp_ekf=a.gp_ekf)
     return 0
 
 
 def cmd_wire(a: argparse.Namespace) -> int:
-    from server.wire import render, write
+    from gaitscope.server.wire import render, write
 
     if a.out is None:
         sys.stdout.write(render())
@@ -383,7 +383,7 @@ def cmd_wire(a: argparse.Namespace) -> int:
 
 
 def cmd_bench(a: argparse.Namespace) -> int:
-    from sessions.offline.bench import run_bench
+    from gaitscope.sessions.offline.bench import run_bench
 
     run_bench(crossval=not a.skip_crossval, reference_samples=a.reference_samples, samples=a.samples)
     return 0
@@ -491,13 +491,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="file to write (e.g. web/wire.js); default: standard output")
     p.set_defaults(func=cmd_wire)
 
-    from server.users_cli import register as register_users
+    from gaitscope.server.users_cli import register as register_users
 
     register_users(sub)
-    from sessions.migrations.cli import register as register_db
+    from gaitscope.sessions.migrations.cli import register as register_db
 
     register_db(sub)
-    from sessions.audit.cli import register as register_audit
+    from gaitscope.sessions.audit.cli import register as register_audit
 
     register_audit(sub)
     return parser

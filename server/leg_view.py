@@ -4,14 +4,14 @@ viser is not an ASGI app: :class:`LegView` runs a ``viser.ViserServer`` on its o
 and the dashboard embeds :attr:`LegView.url` in an iframe. ``show()`` may be called from any thread
 (the server calls it from its asyncio loop at up to ~30 Hz); it never waits for another update.
 
-The viser port streams the session too, so it applies the dashboard's rules (:mod:`server.origin`):
+The viser port streams the session too, so it applies the dashboard's rules (:mod:`gaitscope.server.origin`):
 a ``Host`` outside the allowlist is refused (DNS rebinding), and so is a websocket from another origin.
 viser 1.1 has no hook for that; it serves with ``websockets.asyncio.server.serve`` and its own
 ``process_request``, so while the ``ViserServer`` starts, ``serve`` is wrapped to put the guard in
 front of viser's hook (:func:`_guarded_serve`). If viser ever starts without going through it, the
 view refuses to start rather than run unguarded. With accounts on, the guard also refuses a websocket
 without an open login, and registers the one it lets in with the login's
-:class:`~sessions.accounts.LoginWatch`: when the login ends (logout, the account disabled, a password
+:class:`~gaitscope.sessions.accounts.LoginWatch`: when the login ends (logout, the account disabled, a password
 changed) the socket is closed with 1008 and the reason at once.
 
 Scene, in the sagittal plane x (forward) / z (up), y = 0, seen by default from the subject's right::
@@ -31,20 +31,20 @@ not yet posed), and the grey and the label say this pose is not data. viser's co
 session, phase, incline and torque) starts minimized so the leg fills the view, even in a phone-sized
 iframe where viser shows it as a bottom sheet; the camera looks at the leg from the subject's right.
 
-Angles follow :mod:`sessions.schema` (LocoHub): thigh and shank from vertical, positive when the
+Angles follow :mod:`gaitscope.sessions.schema` (LocoHub): thigh and shank from vertical, positive when the
 distal end is ahead; foot from horizontal, positive toes up; all counter-clockwise seen from the
 subject's right. That is a rotation about -y, so a segment at angle ``a`` has
 ``wxyz = [cos(a/2), 0, -sin(a/2), 0]`` (a rotation about +y by ``-a``), and each child frame holds
 its angle relative to its parent (all rotations share the y axis, so they add).
 
 Segment lengths are Winter's fractions of height ``H = leg_length / 0.53`` (as the virtual cohort
-uses them, :mod:`sessions.synth.cohort`): thigh 0.245 H, shank 0.246 H, foot 0.152 H, ankle height
+uses them, :mod:`gaitscope.sessions.synth.cohort`): thigh 0.245 H, shank 0.246 H, foot 0.152 H, ankle height
 0.039 H, so the straight leg's sole touches the ground.
 
 The thigh is neither always sensed nor predicted by the gait model. When a state has no thigh angle,
 the thigh is placed consistently with the shank: ``thigh = shank + knee flexion``, with the knee
 flexion of Schwartz et al. (2008) at free walking speed at the estimated phase
-(:mod:`sessions.synth.normative`). The ghost shares the measured leg's thigh, so both knees coincide and
+(:mod:`gaitscope.sessions.synth.normative`). The ghost shares the measured leg's thigh, so both knees coincide and
 the ghost's shank and foot differ from the measured ones exactly where the model does.
 """
 
@@ -66,11 +66,11 @@ from scipy.interpolate import CubicSpline
 from websockets.asyncio.server import ServerConnection
 from websockets.http11 import Request
 
-from estimators.gait_model import OUT_FOOT, OUT_SHANK, evaluate
-from estimators.pipeline import TrainedModel
-from server.origin import LOOPBACK_HOSTS, ProcessRequest, allowed_hosts_for, websockets_guard
-from sessions import schema
-from sessions.synth.cohort import (
+from gaitscope.estimators.gait_model import OUT_FOOT, OUT_SHANK, evaluate
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.server.origin import LOOPBACK_HOSTS, ProcessRequest, allowed_hosts_for, websockets_guard
+from gaitscope.sessions import schema
+from gaitscope.sessions.synth.cohort import (
     ANKLE_HEIGHT_FRAC,
     FOOT_FRAC,
     HEEL_BACK_FRAC,
@@ -80,8 +80,8 @@ from sessions.synth.cohort import (
 )
 
 if TYPE_CHECKING:
-    from sessions.accounts import LoginWatch
-from sessions.synth.normative import CLASSES, KNEE, curve_spline, normative
+    from gaitscope.sessions.accounts import LoginWatch
+from gaitscope.sessions.synth.normative import CLASSES, KNEE, curve_spline, normative
 
 __all__ = ["LegView", "knee_flexion_deg", "quat_y", "segment_angles_for", "status_markdown"]
 
@@ -241,7 +241,7 @@ _serve_lock = threading.Lock()  # one guarded start at a time: the wrapper is pr
 def _guarded_serve(
     allowed_hosts: Iterable[str], logged_in: LoggedIn | None = None, watch: LoginWatch | None = None
 ) -> Iterator[list[int]]:
-    """While open, ``websockets.asyncio.server.serve`` runs :func:`server.origin.websockets_guard`
+    """While open, ``websockets.asyncio.server.serve`` runs :func:`gaitscope.server.origin.websockets_guard`
     before the caller's own ``process_request``; with ``logged_in`` (accounts on), a websocket whose
     ``Cookie`` header carries no open login is refused too (401): the dashboard's login cookie is sent to
     the leg view's port as well, cookies being per host, not per port. With ``watch`` too, a websocket let

@@ -10,9 +10,9 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
-from server.origin import LOOPBACK_HOSTS, allowed_host, allowed_hosts_for
-from sessions.live.gp_learning import DUTY
-from sessions.schema import MAX_FRAME_BYTES
+from gaitscope.server.origin import LOOPBACK_HOSTS, allowed_host, allowed_hosts_for
+from gaitscope.sessions.live.gp_learning import DUTY
+from gaitscope.sessions.schema import MAX_FRAME_BYTES
 
 
 class Settings(BaseSettings):
@@ -37,18 +37,18 @@ class Settings(BaseSettings):
         slow_client_s: a browser that cannot take its stream for this long is disconnected (1013).
         ws_max_kb: the largest message (KiB) a websocket reads: a longer one closes the socket (1009) as soon
             as its header arrives, before it is read whole. At least a device's largest frame
-            (:data:`~sessions.schema.MAX_FRAME_BYTES`, 16 KiB: four times a frame of every channel); the
+            (:data:`~gaitscope.sessions.schema.MAX_FRAME_BYTES`, 16 KiB: four times a frame of every channel); the
             64 KiB default leaves a frame between the two refused with a short notice instead. Browsers
             send the server nothing larger.
         disk_warn_mb: below this many MiB free on the data folder's disk a running session warns
             (:class:`~sessions.live.disk.DiskGuard`), saying how many minutes of recording are left at its rate;
             512 MiB is 28 to 117 minutes of one 200 Hz session, from every channel to the walking set
-            (measured: ``python -m server.bench.disk_rate``, docs/dashboard.md "Disk space").
+            (measured: ``python -m gaitscope.server.bench.disk_rate``, docs/dashboard.md "Disk space").
         disk_stop_mb: below this many MiB free the recording is finished and the session stopped;
             at most ``disk_warn_mb``. 128 MiB leaves room to finish the file's index and for crash
             recovery's copy of a recording of about an hour.
         allowed_hosts: the names (and addresses) the dashboard and the leg view may be reached at;
-            any other ``Host`` is refused, which defeats DNS rebinding (:mod:`server.origin`). Names
+            any other ``Host`` is refused, which defeats DNS rebinding (:mod:`gaitscope.server.origin`). Names
             without ports; the environment gives them comma-separated
             (``GAITSCOPE_ALLOWED_HOSTS=127.0.0.1,localhost,::1,gaitlab.local``). Default the loopback
             names; ``host`` is always added unless it is a wildcard (``0.0.0.0``, ``::``).
@@ -62,7 +62,7 @@ class Settings(BaseSettings):
         lockout_after, lockout_minutes: failed logins are throttled, never locked out: after ``lockout_after``
             failures of one address at one name (4 x that of one address at any names, or at one name from
             any addresses that failed at it) the next attempt waits 1 s, doubling with each failure up to
-            ``lockout_minutes`` (:mod:`sessions.accounts.throttle`; ``docs/api.md``).
+            ``lockout_minutes`` (:mod:`gaitscope.sessions.accounts.throttle`; ``docs/api.md``).
         node: this process's name in a shared database (several gaitscope processes on one PostgreSQL):
             stored with each session it runs; at start-up it recovers only its own sessions after a crash, and
             it refuses to stop another's. Default ``<host name>:<port>``: stable across restarts, distinct for
@@ -71,7 +71,7 @@ class Settings(BaseSettings):
             HMAC under it (:mod:`sessions.audit.key`). Unset: the data folder's ``audit.key``, created (0600) at
             first start. Processes sharing one database need the same key: set it on each.
         gp_fit_duty: the fraction of its time the GP-EKF's shared fitting worker may spend fitting
-            (:class:`~sessions.live.gp_learning.GPTrainer`): with many learning sessions on few cores,
+            (:class:`~gaitscope.sessions.live.gp_learning.GPTrainer`): with many learning sessions on few cores,
             each retrains less often than seed 003's every 5 steps, so that the fits leave the cores to
             the sample loops. 1.0: back to back.
     """

@@ -16,8 +16,8 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from sessions import schema
-from sessions.errors import DataFormatError
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
 
 __all__ = ["register"]
 
@@ -35,9 +35,9 @@ def _password(a: argparse.Namespace) -> str:
 
 
 def _open(a: argparse.Namespace) -> Any:
-    from server.settings import Settings
-    from sessions.accounts import Accounts
-    from sessions.store import Store
+    from gaitscope.server.settings import Settings
+    from gaitscope.sessions.accounts import Accounts
+    from gaitscope.sessions.store import Store
 
     settings = Settings(**({"data_dir": a.data_dir} if a.data_dir is not None else {}))
     store = Store(settings.database_url)
@@ -50,9 +50,9 @@ def _errors(e: ValidationError) -> str:
 
 def _audit(a: argparse.Namespace, store: Any, action: str, target: str, before: Any = None, after: Any = None) -> None:
     """Write the command's change to the audit trail, before it is made (MAC'd with the server's audit key)."""
-    from server.settings import Settings
-    from sessions.audit import AuditLog
-    from sessions.audit.key import settings_key
+    from gaitscope.server.settings import Settings
+    from gaitscope.sessions.audit import AuditLog
+    from gaitscope.sessions.audit.key import settings_key
 
     settings = Settings(**({"data_dir": a.data_dir} if a.data_dir is not None else {}))
     key = settings_key(settings, create=True)
@@ -66,7 +66,7 @@ def _audit(a: argparse.Namespace, store: Any, action: str, target: str, before: 
 
 
 def cmd_user(a: argparse.Namespace) -> int:
-    from sessions.store import Conflict, NotFound
+    from gaitscope.sessions.store import Conflict, NotFound
 
     store, accounts = _open(a)
     try:

@@ -1,11 +1,11 @@
-"""The browser's wire types, generated from :mod:`sessions.schema` (and :mod:`sessions.registry`):
+"""The browser's wire types, generated from :mod:`gaitscope.sessions.schema` (and :mod:`gaitscope.sessions.registry`):
 ``gaitscope wire --out web/wire.js``.
 
 ``web/wire.js`` is the browser's one statement of the schema: a JSDoc ``@typedef`` for every class in
 ``schema.WIRE`` and every class their JSON schemas refer to (fields and types from
 ``model_json_schema()``, which ``GET /api/schema`` serves too), and the bounds the browser checks
 before the server does (``SETTING_LIMITS``, ``SENSOR_LIMITS``, every field's ``FIELD_LIMITS``) with
-the default ``SessionSettings``, and every registered estimator (:data:`sessions.registry.DECLARED`: its
+the default ``SessionSettings``, and every registered estimator (:data:`gaitscope.sessions.registry.DECLARED`: its
 name on screen and its outputs). The file is committed (the UI has no build step);
 ``tests/server/test_wire.py`` fails when it differs from what :func:`render` makes of the schema.
 """
@@ -17,7 +17,7 @@ import re
 from pathlib import Path
 from typing import Any, Final
 
-from sessions import registry, schema
+from gaitscope.sessions import registry, schema
 
 __all__ = ["COMMAND", "render", "write"]
 

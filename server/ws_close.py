@@ -1,7 +1,7 @@
 """Closing a websocket whose client stopped reading, with the close code it deserves.
 
 A browser stream that cannot keep up is closed with 1013 (try again later) and the reason
-(:mod:`server.routes.streams`). But a client that has stopped reading altogether has filled the socket's
+(:mod:`gaitscope.server.routes.streams`). But a client that has stopped reading altogether has filled the socket's
 buffers, and the ASGI server then holds every ``send`` back, the close frame too (uvicorn waits for the
 transport to be writable again, which it never is): the close never left, the server's own keepalive (or
 the client's) later failed the connection with 1011 "keepalive ping timeout", and that is what the client

@@ -10,10 +10,10 @@
 - ``offline/``: training, cross-validation, the replay command, the benchmark.
 """
 
-from sessions.errors import DataFormatError
-from sessions.formats.locohub import read_table, write_table
-from sessions.formats.models import default_model_path, load_model, save_model
-from sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv, write_replay_output
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats.locohub import read_table, write_table
+from gaitscope.sessions.formats.models import default_model_path, load_model, save_model
+from gaitscope.sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv, write_replay_output
 
 __all__ = [
     "DataFormatError",

@@ -1,8 +1,8 @@
 """Sensor frames in, gait states out: the session's estimator stack as a device stream needs it.
 
-The one sensor-to-estimate path: used live by :class:`~sessions.live.runtime.SessionRuntime`, and offline
-to re-run recordings (:mod:`sessions.review.rerun`) and to import raw logs (:func:`estimate`). The
-estimators and the torque are :class:`~sessions.stack.EstimatorStack`'s; this module adds what a device
+The one sensor-to-estimate path: used live by :class:`~gaitscope.sessions.live.runtime.SessionRuntime`, and offline
+to re-run recordings (:mod:`gaitscope.sessions.review.rerun`) and to import raw logs (:func:`estimate`). The
+estimators and the torque are :class:`~gaitscope.sessions.stack.EstimatorStack`'s; this module adds what a device
 stream needs around it (session time, derived velocities, soft start).
 """
 
@@ -14,13 +14,13 @@ from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from typing import Final, Literal
 
-from estimators.pipeline import TrainedModel
-from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, input_names
-from sessions import schema
-from sessions.intent_boost import IntentBoost
-from sessions.registry import StackContext, build_stack, channels_of
-from sessions.schema import GaitState, SensorFrame, SessionSettings
-from sessions.stack import EstimatorStack, StackSample
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, input_names
+from gaitscope.sessions import schema
+from gaitscope.sessions.intent_boost import IntentBoost
+from gaitscope.sessions.registry import StackContext, build_stack, channels_of
+from gaitscope.sessions.schema import GaitState, SensorFrame, SessionSettings
+from gaitscope.sessions.stack import EstimatorStack, StackSample
 
 #: Assumed sample period until the source's rate is known (s).
 DEFAULT_PERIOD = 0.005
@@ -55,16 +55,16 @@ class FrameEstimator:
     resynchronised, and :meth:`resync` moves session time to a wall clock's (a reconnect after a
     pause). Angular velocities a device does not send are derived by backward difference.
 
-    The stack (:mod:`sessions.registry`, :mod:`sessions.stack`) is ``estimators`` (names), else the
+    The stack (:mod:`gaitscope.sessions.registry`, :mod:`gaitscope.sessions.stack`) is ``estimators`` (names), else the
     settings' ``estimators``, else every estimator the source's ``channels`` allow (all of them when the
     channels are unknown), plus ``extra`` instances; its primary is the settings' ``primary``. The gait
     state is the primary's outputs and the stack's torque (``foot_pred_deg`` and ``shank_pred_deg``: the
     gait model at the prior estimate).
 
     Soft start (``soft_start``): the torque gain and bound ramp from 0 to the session's values at the
-    rate limits of :data:`~sessions.schema.SETTING_LIMITS` (0.5 gain/s, 10 N m/s), from the first frame
+    rate limits of :data:`~gaitscope.sessions.schema.SETTING_LIMITS` (0.5 gain/s, 10 N m/s), from the first frame
     and again after every restart or reset of the primary, so that assistance never starts as a step.
-    The intent boost (:mod:`sessions.intent_boost`) stays within the same ramp: the effective gain
+    The intent boost (:mod:`gaitscope.sessions.intent_boost`) stays within the same ramp: the effective gain
     ``gain x (1 + boost)`` never exceeds the ramp's ``0.5 gain/s x time since it started``, nor the
     torque the ramped bound. Deterministic in session time, so a re-run reproduces it.
 
@@ -80,7 +80,7 @@ class FrameEstimator:
 
     Raises:
         ValueError: unknown estimators, or a primary the stack cannot run.
-        sessions.registry.MissingChannels: an estimator asked for whose required channels the source lacks.
+        gaitscope.sessions.registry.MissingChannels: an estimator asked for whose required channels the source lacks.
     """
 
     def __init__(
@@ -141,7 +141,7 @@ class FrameEstimator:
         self._ramp_t0 = 0.0
         self._ramping = soft_start
         self._standing = False
-        #: when and why the primary last lost track (:mod:`estimators.lock`); None: never
+        #: when and why the primary last lost track (:mod:`gaitscope.estimators.lock`); None: never
         self.last_lost: tuple[float, str] | None = None
         self._min_next_t = -math.inf
         self._last_recv_ns = 0
@@ -169,12 +169,12 @@ class FrameEstimator:
             self.stack.set_primary(s.primary)
 
     def recorded_channels(self) -> dict[str, tuple[str, type[schema.BaseModel]]]:
-        """The MCAP channels of the stack's outputs, for :class:`~sessions.formats.recording.Recorder`."""
+        """The MCAP channels of the stack's outputs, for :class:`~gaitscope.sessions.formats.recording.Recorder`."""
         return schema.estimator_channels(self.stack.names)
 
     def output_json(self, seq: int) -> list[tuple[str, bytes]]:
         """The last frame's outputs, recorded as they are made: ``(topic, JSON of an``
-        :class:`~sessions.schema.EstimatorOutputs` ``)`` per estimator, values null once it failed.
+        :class:`~gaitscope.sessions.schema.EstimatorOutputs` ``)`` per estimator, values null once it failed.
 
         Built as text rather than through the model: per sample and estimator, building and dumping the
         model cost more than the rest of the recording (``tests/sessions/test_stack.py`` checks that it
@@ -192,7 +192,7 @@ class FrameEstimator:
 
     def recorded_json(self, frame: SensorFrame, state: GaitState, command: bytes) -> list[tuple[str, bytes]]:
         """What is recorded of the last sample, as ``(topic, JSON)`` for
-        :meth:`~sessions.formats.recording.Recorder.write_json`: every estimator's outputs
+        :meth:`~gaitscope.sessions.formats.recording.Recorder.write_json`: every estimator's outputs
         (:meth:`output_json`), the sensor frame at session time (:func:`frame_json`), the gait state and
         ``command``, the JSON of the torque command the device got (:func:`torque_json`)."""
         out = self.output_json(state.seq)
@@ -332,7 +332,7 @@ class FrameEstimator:
         )
 
     def _lost_reason(self, name: str | None) -> str:
-        """Why estimator ``name`` lost track (its ``lost_reason``, :mod:`estimators.lock`)."""
+        """Why estimator ``name`` lost track (its ``lost_reason``, :mod:`gaitscope.estimators.lock`)."""
         if name is None or name not in self.stack.names:
             return "lost track"
         return str(getattr(self.stack.estimators[self.stack.names.index(name)], "lost_reason", "") or "lost track")
@@ -401,7 +401,7 @@ def estimate(
 
 
 def _outputs_templates(name: str, outputs: Sequence[str]) -> tuple[str, str]:
-    """%-format templates of an :class:`~sessions.schema.EstimatorOutputs` JSON: ``(healthy, failed)``,
+    """%-format templates of an :class:`~gaitscope.sessions.schema.EstimatorOutputs` JSON: ``(healthy, failed)``,
     filled with ``(seq, t, *values)`` and ``(seq, t)``."""
 
     def text(values: str, failed: str) -> str:

@@ -1,12 +1,12 @@
 """Seed 003's GP-EKF model versions as a recording holds them (``/gp_models``,
-:class:`~sessions.schema.GPModelRecord`), and their replay in a review re-run.
+:class:`~gaitscope.sessions.schema.GPModelRecord`), and their replay in a review re-run.
 
-Live (:mod:`sessions.live.gp_learning`) the GP-EKF retrains in the background and installs each accepted
+Live (:mod:`gaitscope.sessions.live.gp_learning`) the GP-EKF retrains in the background and installs each accepted
 version at a heel strike; every version is recorded with its arrays (``trained``, ``refused``; ``kept`` at a
 recording's start for those from before it) and every install with its heel strike's time (``installed``).
-A re-run (:mod:`sessions.review.rerun`) does not retrain: :class:`GPReplay` installs the recorded versions at
+A re-run (:mod:`gaitscope.sessions.review.rerun`) does not retrain: :class:`GPReplay` installs the recorded versions at
 the recorded heel strikes, so the re-run's ``gp_ekf`` outputs are those that ran live, as
-:mod:`sessions.imu_calibration` re-applies a recorded IMU calibration.
+:mod:`gaitscope.sessions.imu_calibration` re-applies a recorded IMU calibration.
 """
 
 from __future__ import annotations
@@ -17,14 +17,14 @@ from typing import Final
 
 import numpy as np
 
-from estimators.gp_ekf_estimator import GPEKFEstimator
-from estimators.gp_models import CHANNEL_NAMES, GPModelSet
-from sessions import schema
-from sessions.stack import EstimatorStack
+from gaitscope.estimators.gp_ekf_estimator import GPEKFEstimator
+from gaitscope.estimators.gp_models import CHANNEL_NAMES, GPModelSet
+from gaitscope.sessions import schema
+from gaitscope.sessions.stack import EstimatorStack
 
 __all__ = ["GP_EKF", "GPReplay", "arrays_of", "gp_ekf_of", "models_of", "rmse_of", "window_text"]
 
-#: The GP-EKF's name in a stack (``sessions.registry.ESTIMATORS``).
+#: The GP-EKF's name in a stack (``gaitscope.sessions.registry.ESTIMATORS``).
 GP_EKF: Final = "gp_ekf"
 
 
@@ -34,7 +34,7 @@ def gp_ekf_of(stack: EstimatorStack) -> GPEKFEstimator | None:
 
 
 def arrays_of(models: GPModelSet) -> dict[str, schema.GPArray]:
-    """A model set's arrays (:meth:`~estimators.gp_models.GPModelSet.to_arrays`) as a record holds them."""
+    """A model set's arrays (:meth:`~gaitscope.estimators.gp_models.GPModelSet.to_arrays`) as a record holds them."""
     return {
         k: schema.GPArray(shape=list(a.shape), values=np.asarray(a, dtype=np.float64).ravel().tolist())
         for k, a in models.to_arrays().items()

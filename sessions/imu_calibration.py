@@ -1,7 +1,7 @@
 """IMU mounting calibration of a session's front ends: collect a standing period's raw samples, calibrate
-them (:func:`estimators.imu_calibration.calibrate_standing`), and apply an accepted calibration to the
-stack's ``imu_*`` front ends, live (:mod:`sessions.live.runtime`) and in a re-run
-(:mod:`sessions.review.rerun`, from the recording's ``/imu_calibration`` messages).
+them (:func:`gaitscope.estimators.imu_calibration.calibrate_standing`), and apply an accepted calibration to the
+stack's ``imu_*`` front ends, live (:mod:`gaitscope.sessions.live.runtime`) and in a re-run
+(:mod:`gaitscope.sessions.review.rerun`, from the recording's ``/imu_calibration`` messages).
 
 Collecting is cheap: one list of floats per frame, only while a calibration runs. The period is measured
 in session time (the device's clock), so it ends after ``duration_s`` of samples, however fast they came.
@@ -16,10 +16,10 @@ from typing import Final
 
 import numpy as np
 
-from estimators.imu_calibration import Calibration, calibrate_standing
-from estimators.imu_frontend import SEGMENTS, ImuFrontEnd, imu_inputs
-from sessions import schema
-from sessions.stack import EstimatorStack
+from gaitscope.estimators.imu_calibration import Calibration, calibrate_standing
+from gaitscope.estimators.imu_frontend import SEGMENTS, ImuFrontEnd, imu_inputs
+from gaitscope.sessions import schema
+from gaitscope.sessions.stack import EstimatorStack
 
 __all__ = ["GRACE_S", "StandingCollector", "applied_text", "apply_calibration", "front_end_segments"]
 

@@ -1,7 +1,7 @@
 """Assistance follows intent: the torque gain raised while the walker speeds up, lowered while they slow down.
 
 Beyond seed 001 (the paper estimates intent, it does not act on it), optional and off by default: the
-session setting ``intent_gain_boost`` (:data:`~sessions.schema.SETTING_LIMITS`, 0..0.3, 0: off) is the
+session setting ``intent_gain_boost`` (:data:`~gaitscope.sessions.schema.SETTING_LIMITS`, 0..0.3, 0: off) is the
 largest fraction by which the gain moves. The rule, per sample:
 
 - **target** ``b* = boost x code x min(confidence / SATURATION_SD, 1)``: ``code`` is the stack's ``intent``
@@ -18,7 +18,7 @@ largest fraction by which the gain moves. The rule, per sample:
 - **torque** ``clamp(torque x min(1 + b, headroom), 0, bound)``: the stack's torque is already within the
   bound and ``1 + b`` is within ``[0.7, 1.3]``, so the command stays finite and within the bound whatever
   the intent says. The stack's torque is linear in the gain below the bound, so this is the torque at the
-  gain ``gain x (1 + b)``. During the soft start (:class:`sessions.estimation.FrameEstimator`) ``bound`` is
+  gain ``gain x (1 + b)``. During the soft start (:class:`gaitscope.sessions.estimation.FrameEstimator`) ``bound`` is
   the ramped bound and ``headroom`` what the ramp allows over the ramped gain (1 while the gain itself
   ramps): the boost never lifts the torque above the soft start's ramp.
 
@@ -34,7 +34,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
-from sessions.schema import SETTING_LIMITS
+from gaitscope.sessions.schema import SETTING_LIMITS
 
 __all__ = ["INTENT", "MAX_STEP_S", "SATURATION_SD", "IntentBoost"]
 

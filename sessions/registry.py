@@ -6,7 +6,7 @@ default every registered one (:data:`ESTIMATORS`, less the :data:`OPT_IN` ones, 
 one the source cannot feed refuses the start, naming the missing channels (:class:`MissingChannels`).
 The order of :data:`ESTIMATORS` is the order a stack runs them in: a channel an estimator derives
 (``heel_strike``) reaches only those after it. :func:`build_stack` wraps the chosen estimators in a
-:class:`~sessions.stack.EstimatorStack`.
+:class:`~gaitscope.sessions.stack.EstimatorStack`.
 
 What each registered estimator is, for screens and for checking a log before anything is built
 (:data:`DECLARED`: its name on screen, required inputs and outputs), and which of them a log's channels
@@ -23,23 +23,29 @@ from typing import Any, Final
 
 import numpy as np
 
-from estimators.com_kinematics import KinematicCoM
-from estimators.detector import HeelStrikeDetector
-from estimators.fingerprint import FingerprintEKF, Mode
-from estimators.gp_ekf_estimator import COHORT_COLUMNS, ControlSurface, GPEKFEstimator, build_default, load_default
-from estimators.gp_models import GPModelSet
-from estimators.heel_strike import HeelStrikeBackup
-from estimators.imu_frontend import SEGMENTS as IMU_SEGMENTS
-from estimators.imu_frontend import FrontEndConfig, ImuFrontEnd
-from estimators.intent_estimator import IntentEstimator
-from estimators.phase_ekf_estimator import PhaseEKFEstimator
-from estimators.pipeline import PipelineConfig, TrainedModel
-from estimators.protocol import ANGLE_CHANNELS, Estimator, Output, output_names
-from estimators.sdre_estimator import SDREKnee
-from estimators.tbe import TimingBasedEstimator
-from sessions.schema import CHANNELS, PRIMARY_BLEND_S, SensorFrame, missing_channels
-from sessions.stack import EstimatorStack
-from sessions.synth.cohort import CohortSpec, generate_cohort
+from gaitscope.estimators.com_kinematics import KinematicCoM
+from gaitscope.estimators.detector import HeelStrikeDetector
+from gaitscope.estimators.fingerprint import FingerprintEKF, Mode
+from gaitscope.estimators.gp_ekf_estimator import (
+    COHORT_COLUMNS,
+    ControlSurface,
+    GPEKFEstimator,
+    build_default,
+    load_default,
+)
+from gaitscope.estimators.gp_models import GPModelSet
+from gaitscope.estimators.heel_strike import HeelStrikeBackup
+from gaitscope.estimators.imu_frontend import SEGMENTS as IMU_SEGMENTS
+from gaitscope.estimators.imu_frontend import FrontEndConfig, ImuFrontEnd
+from gaitscope.estimators.intent_estimator import IntentEstimator
+from gaitscope.estimators.phase_ekf_estimator import PhaseEKFEstimator
+from gaitscope.estimators.pipeline import PipelineConfig, TrainedModel
+from gaitscope.estimators.protocol import ANGLE_CHANNELS, Estimator, Output, output_names
+from gaitscope.estimators.sdre_estimator import SDREKnee
+from gaitscope.estimators.tbe import TimingBasedEstimator
+from gaitscope.sessions.schema import CHANNELS, PRIMARY_BLEND_S, SensorFrame, missing_channels
+from gaitscope.sessions.stack import EstimatorStack
+from gaitscope.sessions.synth.cohort import CohortSpec, generate_cohort
 
 __all__ = [
     "DECLARED",
@@ -102,7 +108,7 @@ def _fingerprint_ekf(c: StackContext, mode: Mode) -> FingerprintEKF:
 
 
 #: The GP-EKF's default models (seed 003) when shipped: ``default_arrays(*build_default(...))`` of
-#: ``estimators.gp_ekf_estimator`` saved with ``np.savez``. Without it they are fitted on first use to
+#: ``gaitscope.estimators.gp_ekf_estimator`` saved with ``np.savez``. Without it they are fitted on first use to
 #: :data:`GP_EKF_COHORT` (about 3 s with GPy's import, once per process).
 GP_EKF_MODEL_NAME: Final = "gp_ekf_default.npz"
 #: What the GP-EKF's population model and control surface are fitted to: level walking over seed 003's
@@ -249,7 +255,7 @@ def resolve(names: Sequence[str] | None, channels: Collection[str] | None, ctx: 
 
     Raises:
         ValueError: an unknown or repeated name.
-        KeyError: an estimator declares a channel that is not in :data:`~sessions.schema.CHANNELS`.
+        KeyError: an estimator declares a channel that is not in :data:`~gaitscope.sessions.schema.CHANNELS`.
         MissingChannels: a named estimator whose required channels the source lacks, or that the
             model or subject cannot build (:class:`Unavailable`: its reason).
     """
@@ -367,7 +373,7 @@ def feeds(channels: Collection[str]) -> dict[str, Feed]:
 
 
 def channels_of(frames: Iterable[SensorFrame]) -> set[str]:
-    """The channels (of :data:`~sessions.schema.CHANNELS`) a log's frames send, for :func:`resolve`."""
+    """The channels (of :data:`~gaitscope.sessions.schema.CHANNELS`) a log's frames send, for :func:`resolve`."""
     found: set[str] = set()
     for frame in frames:
         found.update(n for n in CHANNELS if n not in found and getattr(frame, n) is not None)

@@ -192,7 +192,7 @@ SETTING_LIMITS: Final[dict[str, tuple[float, float, float]]] = {
 }
 
 
-#: An estimator's name in a session's stack (``phase_ekf``, ``tbe``, ...; ``sessions.registry.ESTIMATORS``).
+#: An estimator's name in a session's stack (``phase_ekf``, ``tbe``, ...; ``gaitscope.sessions.registry.ESTIMATORS``).
 EstimatorName = Annotated[str, Field(pattern=r"^[a-z][a-z0-9_]{0,31}$")]
 #: Least time (s) between two switches of a session's primary estimator, and the time over which the
 #: torque command blends from the old primary's to the new one's (so that a switch never steps it).
@@ -395,7 +395,7 @@ class Trial(BaseModel):
     duration_s: float = 0.0
 
 
-#: ``intent``: the speed-change intent estimator detected a change (:mod:`sessions.live.runtime`), one event
+#: ``intent``: the speed-change intent estimator detected a change (:mod:`gaitscope.sessions.live.runtime`), one event
 #: per onset of speeding up or slowing down.
 EventKind = Literal["setting", "annotation", "system", "recording", "intent"]
 
@@ -587,7 +587,7 @@ class ImuCalibrationRequest(_Strict):
 
 
 class ImuSensorCalibration(_Strict):
-    """One sensor's result (``estimators.imu_calibration.SensorCalibration``): the offsets its front end
+    """One sensor's result (``gaitscope.estimators.imu_calibration.SensorCalibration``): the offsets its front end
     ``imu_<segment>`` takes, or why it was refused."""
 
     segment: str = Field(pattern=r"^[a-z_]{1,32}$", description="foot, shank, thigh, foot_contra, ...")
@@ -628,9 +628,9 @@ class ImuCalibrationStatus(BaseModel):
     applied: ImuCalibration | None = Field(description="what the front ends run now (this session's or the subject's)")
 
 
-# --- seed 003's GP-EKF learning the wearer (issue #11; sessions.live.gp_learning) -------------------------
+# --- seed 003's GP-EKF learning the wearer (issue #11; gaitscope.sessions.live.gp_learning) -------------------------
 
-#: The joints of the GP-EKF's observation models (``estimators.gp_ekf``), in its order.
+#: The joints of the GP-EKF's observation models (``gaitscope.estimators.gp_ekf``), in its order.
 GP_JOINTS: Final = ("hip", "knee", "ankle")
 #: Stance-phase points (0..1) of the learned means and bands in a :class:`GPLearningState`.
 GP_BAND_POINTS: Final = 51
@@ -896,7 +896,7 @@ CHANNELS: Final[dict[str, Channel]] = {name: ch for name, (ch, _) in _CHANNEL_TA
 #: (``Health.implausible``); the rest of the frame is used. Angles within +/-180 deg, angular velocities
 #: within +/-4000 deg/s (the largest full scale of common MEMS gyros), accelerations within +/-16 g,
 #: positions within +/-3 m, forces 0..5000 N. The estimators state the same bounds for the channels they
-#: use (``estimators.pipeline.CHANNEL_LIMITS``).
+#: use (``gaitscope.estimators.pipeline.CHANNEL_LIMITS``).
 SENSOR_LIMITS: Final[dict[str, tuple[float, float]]] = {
     name: lim for name, (_, lim) in _CHANNEL_TABLE.items() if lim is not None
 }
@@ -1117,7 +1117,7 @@ class TorqueCommand(BaseModel):
 class EstimatorOutputs(BaseModel):
     """One estimator's outputs at one sample, recorded on its own channel (``/estimators/<name>``).
 
-    ``values`` maps each output the estimator declares (``estimators.protocol.Estimator.outputs``) to its
+    ``values`` maps each output the estimator declares (``gaitscope.estimators.protocol.Estimator.outputs``) to its
     value (booleans as 1.0 / 0.0), None for all of them once the estimator has failed.
     """
 
@@ -1279,7 +1279,7 @@ def estimator_channels(names: Iterable[str]) -> dict[str, tuple[str, type[BaseMo
 
 # =================================================================================================
 # People, sessions, reports (issue #12 section 4): a stopped session's summary and its exports
-# (sessions.reports, server/routes/reports.py).
+# (gaitscope.sessions.reports, server/routes/reports.py).
 # =================================================================================================
 
 
@@ -1381,7 +1381,7 @@ class ExportJob(BaseModel):
     error: str = ""
 
 
-# --- review: A/B comparison of re-runs and review annotations (issue #12; sessions.review.compare) ---------
+# --- review: A/B comparison of re-runs and review annotations (issue #12; gaitscope.sessions.review.compare) ---------
 # (The lead may add these to WIRE for web/wire.js; they are served by /api/trials/{id}/compare and /annotations.)
 
 #: Most re-runs one comparison runs side by side (each is a full re-run of the trial's frames).
@@ -1624,7 +1624,7 @@ def _audit_time(v: str | None) -> str | None:
 
 
 class AuditEntry(BaseModel):
-    """One entry of the audit trail (``sessions.audit``): who did what to what, when, and how it ended.
+    """One entry of the audit trail (``gaitscope.sessions.audit``): who did what to what, when, and how it ended.
 
     ``before`` and ``after`` are JSON text exactly as hashed (null: nothing). ``hash`` is the SHA-256 of the
     entry's canonical JSON including ``prev_hash``, the previous entry's ``hash`` (``sessions/audit/log.py``

@@ -1,7 +1,7 @@
 """A session's estimator stack: several estimators on one sensor stream, one of them driving the torque.
 
-Every estimator implements :class:`estimators.protocol.Estimator`; which ones a session runs is chosen at
-its start (:mod:`sessions.registry`). Per sample each estimator gets its declared input channels and
+Every estimator implements :class:`gaitscope.estimators.protocol.Estimator`; which ones a session runs is chosen at
+its start (:mod:`gaitscope.sessions.registry`). Per sample each estimator gets its declared input channels and
 returns its declared outputs; an output that is itself a channel (``heel_strike`` of the detector or the
 phase EKF) fills that channel for the estimators after it when the source does not send it.
 
@@ -34,10 +34,10 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.phase_ekf import EKFConfig
-from estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, input_names, output_names
-from estimators.torque import TorqueProfile
-from sessions.schema import CHANNELS, PRIMARY_BLEND_S
+from gaitscope.estimators.phase_ekf import EKFConfig
+from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, input_names, output_names
+from gaitscope.estimators.torque import TorqueProfile
+from gaitscope.sessions.schema import CHANNELS, PRIMARY_BLEND_S
 
 __all__ = ["FALLBACK", "MAX_VARIANCE", "NOMINAL_STRIDE", "OWN_TORQUE", "EstimatorStack", "StackSample"]
 
@@ -52,9 +52,9 @@ MAX_VARIANCE: Final = 1e3
 OWN_TORQUE: Final = "torque_Nm"
 #: Outputs named as a sensor channel fill that channel for the estimators after them (``heel_strike``).
 _CHANNELS: Final = frozenset(CHANNELS)
-_DIVERGED: Final = 2.0  # estimators.protocol.FAULTS.index("diverged")
+_DIVERGED: Final = 2.0  # gaitscope.estimators.protocol.FAULTS.index("diverged")
 _LOST: Final = 4.0  # FAULTS.index("lost"): reset from a backup, torque 0 on that sample as for "diverged"
-#: An IMU front end's ``imu_code`` when its sensor sent nothing usable (estimators.imu_frontend.CODES):
+#: An IMU front end's ``imu_code`` when its sensor sent nothing usable (gaitscope.estimators.imu_frontend.CODES):
 #: it holds its last angle and rate for its own continuity, but derives no channel for the others.
 _IMU_MISSING: Final = 1.0
 _RESUMED: Final = 5.0  # FAULTS.index("resumed"): restarted as walking resumed after standing still
@@ -74,7 +74,7 @@ class StackSample:
         heel_strike: the heel-strike channel (the source's, else the first estimator's to derive it).
         backup_reset, foot_pred_deg, shank_pred_deg: the primary's when it has them (the predictions: else
             the first healthy estimator's that has them, else 0).
-        standing: the primary says the walker stands still (its ``standing`` output, :mod:`estimators.lock`).
+        standing: the primary says the walker stands still (its ``standing`` output, :mod:`gaitscope.estimators.lock`).
         fault: ``""``; ``"gap"`` (samples further apart than ``max_gap_s``: the estimators restarted);
             ``"diverged"`` (the primary reset its state: torque 0); ``"lost"`` (the primary lost track and
             reset from a backup: torque 0); ``"resumed"`` (the primary restarted as walking resumed after

@@ -2,7 +2,7 @@
 
 :class:`Store` takes any SQLAlchemy URL. Every public method is one short transaction on its own ORM
 session, so one :class:`Store` may be shared by the threads of a FastAPI thread pool, and every method
-returns the wire classes of :mod:`sessions.schema`, never ORM rows. A write builds (and so validates)
+returns the wire classes of :mod:`gaitscope.sessions.schema`, never ORM rows. A write builds (and so validates)
 its result before it commits: a value the schema refuses, like a failed insert, rolls the whole write
 back and leaves the database as it was.
 
@@ -55,7 +55,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.pool import StaticPool
 from sqlalchemy.sql import ColumnElement
 
-from sessions import schema
+from gaitscope.sessions import schema
 
 #: Seconds a SQLite writer waits for another one to commit before it fails with "database is locked".
 BUSY_TIMEOUT_S: Final = 30.0
@@ -86,7 +86,7 @@ class _Base(DeclarativeBase):
 Base = _Base
 
 #: The modules besides this one that declare tables on :data:`Base` (each imported if it exists).
-_TABLE_MODULES: Final = ("sessions.accounts.tables", "sessions.audit.tables")
+_TABLE_MODULES: Final = ("gaitscope.sessions.accounts.tables", "gaitscope.sessions.audit.tables")
 
 
 def all_metadata() -> MetaData:
@@ -358,7 +358,7 @@ def make_engine(url: str | URL) -> Engine:
 def _lock_writes(connection: Connection) -> None:
     """PostgreSQL: wait for the write lock (held until this transaction ends). SQLite's is BEGIN IMMEDIATE."""
     if connection.dialect.name == "postgresql":
-        from sessions.migrations import LOCK_KEY
+        from gaitscope.sessions.migrations import LOCK_KEY
 
         connection.exec_driver_sql(f"SELECT pg_advisory_xact_lock({LOCK_KEY})")
 
@@ -381,7 +381,7 @@ class Store:
     """Subjects, sessions, trials and events in the database at ``url``: SQLite or PostgreSQL
     (``postgresql+psycopg://user:password@host/database``).
 
-    Brings the database to the newest migration when it opens it (:func:`sessions.migrations.migrate`:
+    Brings the database to the newest migration when it opens it (:func:`gaitscope.sessions.migrations.migrate`:
     creates a new one, upgrades an old one in place; for a SQLite file it creates the folder too). An
     in-memory SQLite database (``sqlite://``) is one connection shared by all threads, one call at a time.
 
@@ -397,7 +397,7 @@ class Store:
             self._lock = threading.Lock()
         self._engine = make_engine(parsed)
         self._factory = orm.sessionmaker(self._engine, expire_on_commit=False)
-        from sessions import migrations  # here: the migrations import this module
+        from gaitscope.sessions import migrations  # here: the migrations import this module
 
         # The write lock first: two processes opening one new database do not both create it.
         with self._lock, write_transaction(self._engine) as connection:
@@ -427,7 +427,7 @@ class Store:
             raise Conflict(f"the database refused a value: {detail}") from exc
 
     def reading(self) -> contextlib.AbstractContextManager[orm.Session]:
-        """A read transaction, for the modules whose tables share this database (``sessions.accounts``)."""
+        """A read transaction, for the modules whose tables share this database (``gaitscope.sessions.accounts``)."""
         return self._read()
 
     def writing(self) -> contextlib.AbstractContextManager[orm.Session]:

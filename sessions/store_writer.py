@@ -2,7 +2,7 @@
 
 A database write blocks: SQLite commits with an ``fsync`` of its write-ahead log, which takes under a
 millisecond on a quiet disk and hundreds on a busy one (the recordings' own fsyncs measured up to 490 ms,
-see :mod:`sessions.formats.recording`), and a write waits for the database's write lock as long as another
+see :mod:`gaitscope.sessions.formats.recording`), and a write waits for the database's write lock as long as another
 writer holds it. On the event loop such a wait stalls every session's samples at once. So the writes that
 the loop's code makes (a session's events, its trial rows, the audit entries of async routes) go to
 :class:`StoreWriter`: one thread that owns them and makes them one at a time, in the order they were

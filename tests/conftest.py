@@ -25,11 +25,11 @@ from fastapi.testclient import TestClient
 from sqlalchemy import Engine, create_engine, make_url
 from sqlalchemy.pool import NullPool
 
-from estimators.pipeline import TrainedModel
-from server.app import create_app
-from server.settings import Settings
-from sessions.offline.training import StrideData, fit_models, stride_data
-from sessions.synth.cohort import CohortSpec, generate_cohort
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.server.app import create_app
+from gaitscope.server.settings import Settings
+from gaitscope.sessions.offline.training import StrideData, fit_models, stride_data
+from gaitscope.sessions.synth.cohort import CohortSpec, generate_cohort
 
 SMALL = CohortSpec(n_subjects=3, strides_per_condition=3)
 
@@ -84,7 +84,7 @@ def _postgres_template() -> Iterator[Engine | None]:
     if not POSTGRES:
         yield None
         return
-    from sessions.store import Store
+    from gaitscope.sessions.store import Store
 
     template = make_url(POSTGRES).database
     admin = _admin_engine()

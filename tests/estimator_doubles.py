@@ -1,4 +1,4 @@
-"""Test doubles of :class:`estimators.protocol.Estimator`: a timing-based phase, shifted if asked, that
+"""Test doubles of :class:`gaitscope.estimators.protocol.Estimator`: a timing-based phase, shifted if asked, that
 breaks on cue (raises, returns NaN, or lets its covariance diverge after ``n`` samples)."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.protocol import HEEL_STRIKE, Output, check_params
-from estimators.tbe import TimingBasedEstimator
+from gaitscope.estimators.protocol import HEEL_STRIKE, Output, check_params
+from gaitscope.estimators.tbe import TimingBasedEstimator
 
 
 class Scripted:

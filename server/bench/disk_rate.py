@@ -5,7 +5,7 @@ Runs what a live session runs per frame, without a server: the estimator stack c
 the same chunking and compression), on cohort walking at 200 Hz. The walking channels carry the cohort's
 signals; every other channel a device declares carries a smooth signal with sensor noise, at full float
 precision, as real sensors give (a constant would compress to nothing and understate the rate). The
-figures in :mod:`sessions.live.disk` and the disk section of ``docs/dashboard.md`` come from this.
+figures in :mod:`gaitscope.sessions.live.disk` and the disk section of ``docs/dashboard.md`` come from this.
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ from typing import Final
 
 import numpy as np
 
-from sessions import schema
-from sessions.estimation import FrameEstimator, torque_json
-from sessions.formats.models import default_model_path, load_model
-from sessions.formats.recording import Recorder
-from sessions.synth.trials import replay_input, sensor_trial
+from gaitscope.sessions import schema
+from gaitscope.sessions.estimation import FrameEstimator, torque_json
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.formats.recording import Recorder
+from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 
 #: The channel sets measured: a shank and foot encoder device, one with shank and foot IMUs, and every channel.
 WALKING: Final = ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps", "heel_forward_m",

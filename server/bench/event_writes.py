@@ -1,5 +1,5 @@
-"""``python -m server.bench.event_writes``: what one session event costs the event loop, stored on the loop
-(as before the database writer) and submitted to the writer (:mod:`sessions.store_writer`, as now).
+"""``python -m gaitscope.server.bench.event_writes``: what one session event costs the event loop, stored on the loop
+(as before the database writer) and submitted to the writer (:mod:`gaitscope.sessions.store_writer`, as now).
 
 A fresh SQLite database in a temporary folder (on the disk of ``--dir``, the data folder's disk to measure
 that one); ``--events`` events of each kind alternately, 10 ms apart, from a running asyncio loop. Prints
@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 
-from sessions import schema
-from sessions.store import Store
-from sessions.store_writer import StoreWriter
+from gaitscope.sessions import schema
+from gaitscope.sessions.store import Store
+from gaitscope.sessions.store_writer import StoreWriter
 
 
 async def _measure(store: Store, writer: StoreWriter, session_id: int, events: int) -> dict[str, list[float]]:

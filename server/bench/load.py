@@ -26,10 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from server.bench.launch import start_server
-from sessions.formats.models import default_model_path, load_model
-from sessions.registry import StackContext, resolve
-from sessions.synth.trials import replay_input, sensor_trial
+from gaitscope.server.bench.launch import start_server
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.registry import StackContext, resolve
+from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 
 #: What a device adds for the GP-EKF (``--gp-ekf``): joint encoders and its heel-strike sensor.
 GP_EKF_CHANNELS = ("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "heel_strike")

@@ -30,11 +30,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from server.bench.disk_rate import measure
-from server.bench.launch import start_server
-from sessions.errors import DataFormatError
-from sessions.formats.mcap_io import read_messages
-from sessions.synth.trials import replay_input, sensor_trial
+from gaitscope.server.bench.disk_rate import measure
+from gaitscope.server.bench.launch import start_server
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats.mcap_io import read_messages
+from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 
 #: Session time (s) of the recording measured for the disk budget (server/bench/disk_rate.py).
 _RATE_MEASURED_S = 5.0

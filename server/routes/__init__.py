@@ -1,4 +1,4 @@
-"""The HTTP and websocket routes, one module per resource; thin: validation by ``sessions.schema``,
+"""The HTTP and websocket routes, one module per resource; thin: validation by ``gaitscope.sessions.schema``,
 logic in ``sessions``. See ``docs/api.md``.
 
 ``ROUTERS`` in the order the app includes them; ``install_error_handlers`` turns domain errors into
@@ -7,7 +7,7 @@ HTTP statuses (``common.ERROR_STATUS``).
 
 from fastapi import APIRouter
 
-from server.routes import (
+from gaitscope.server.routes import (
     audit,
     auth,
     devices,
@@ -25,8 +25,8 @@ from server.routes import (
     users,
     viewer,
 )
-from server.routes.common import install_error_handlers
-from server.routes.uploads import Uploads
+from gaitscope.server.routes.common import install_error_handlers
+from gaitscope.server.routes.uploads import Uploads
 
 ROUTERS: tuple[APIRouter, ...] = (
     meta.router,

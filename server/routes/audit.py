@@ -1,6 +1,6 @@
 """``/api/audit``: the audit trail for admins: a page of entries, the CSV of all that match, the chain's check.
 
-Every route is the admin's (``allow("admin")``). The filters are :class:`sessions.schema.AuditQuery` as query
+Every route is the admin's (``allow("admin")``). The filters are :class:`gaitscope.sessions.schema.AuditQuery` as query
 parameters (an unknown parameter is refused, 422). Exporting the CSV is itself audited (``audit.export``).
 """
 
@@ -13,10 +13,10 @@ from fastapi import APIRouter, Query
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import StreamingResponse
 
-from server.auth import Who, allow
-from server.routes.common import Ctx
-from sessions import schema
-from sessions.audit.export import csv_chunks
+from gaitscope.server.auth import Who, allow
+from gaitscope.server.routes.common import Ctx
+from gaitscope.sessions import schema
+from gaitscope.sessions.audit.export import csv_chunks
 
 router = APIRouter(prefix="/api")
 

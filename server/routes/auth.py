@@ -1,15 +1,15 @@
 """``/api/auth``: log in and out, who am I, change my password.
 
 A login sets the ``gaitscope_login`` cookie (HttpOnly, SameSite=Strict, Secure behind TLS, for the login's
-length) and answers with :class:`~sessions.schema.Me`, whose ``csrf_token`` the browser sends back in the
+length) and answers with :class:`~gaitscope.sessions.schema.Me`, whose ``csrf_token`` the browser sends back in the
 ``X-CSRF-Token`` header with every state-changing request. With accounts off there is no login:
 ``GET /api/auth/me`` answers ``local``, and ``POST /api/auth/login`` says so (409).
 
-Failed logins are throttled per client address and per name (:mod:`sessions.accounts.throttle`); every
-refusal is the same 401 (:data:`~sessions.accounts.REFUSED`) after the same work. The client's address is the
+Failed logins are throttled per client address and per name (:mod:`gaitscope.sessions.accounts.throttle`); every
+refusal is the same 401 (:data:`~gaitscope.sessions.accounts.REFUSED`) after the same work. The client's address is the
 connection's, or behind a TLS proxy (``Settings.behind_tls_proxy``) the one uvicorn takes from the proxy's
 ``X-Forwarded-For``. Password hashing runs off the event loop, outside any database transaction, in a pool
-of its own (:meth:`~sessions.accounts.Accounts.login_async`).
+of its own (:meth:`~gaitscope.sessions.accounts.Accounts.login_async`).
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ import functools
 import anyio.to_thread
 from fastapi import APIRouter, HTTPException, Request, Response
 
-from server.auth import COOKIE, LoggedIn, Who, public
-from server.routes.common import Ctx, audit
-from sessions import schema
-from sessions.accounts import LoginFailed
+from gaitscope.server.auth import COOKIE, LoggedIn, Who, public
+from gaitscope.server.routes.common import Ctx, audit
+from gaitscope.sessions import schema
+from gaitscope.sessions.accounts import LoginFailed
 
 router = APIRouter(prefix="/api/auth")
 

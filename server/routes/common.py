@@ -15,17 +15,17 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel
 from sqlalchemy.exc import DBAPIError
 
-from estimators.pipeline import TrainedModel
-from sessions import schema
-from sessions.errors import FREE_SPACE_HINT, DataFormatError, DiskFull, is_disk_full
-from sessions.live.gp_learning import LearningRefused
-from sessions.live.manager import SessionStateError
-from sessions.live.runtime import ChangeNotSaved, SettingRejected
-from sessions.store import Conflict, NotFound
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import FREE_SPACE_HINT, DataFormatError, DiskFull, is_disk_full
+from gaitscope.sessions.live.gp_learning import LearningRefused
+from gaitscope.sessions.live.manager import SessionStateError
+from gaitscope.sessions.live.runtime import ChangeNotSaved, SettingRejected
+from gaitscope.sessions.store import Conflict, NotFound
 
 if TYPE_CHECKING:
-    from server.app import AppContext
-    from server.auth import Who
+    from gaitscope.server.app import AppContext
+    from gaitscope.server.auth import Who
 
 __all__ = [
     "ERROR_STATUS",
@@ -69,7 +69,7 @@ ERROR_STATUS: dict[type[Exception], int] = {
 def install_error_handlers(app: FastAPI) -> None:
     """Routes raise domain errors; these handlers turn them into ``{"detail": message}`` responses.
 
-    A full disk is 507 wherever it is met: :class:`~sessions.errors.DiskFull`, a domain error raised
+    A full disk is 507 wherever it is met: :class:`~gaitscope.sessions.errors.DiskFull`, a domain error raised
     from one (a change not saved), and the database's or the file system's own error (SQLite's
     "database or disk is full", PostgreSQL's 53100, ``ENOSPC``), which would otherwise be a 500."""
 
@@ -175,7 +175,7 @@ def by(body: _B, who: Who) -> _B:
 def audit(
     c: AppContext, who: Who, action: str, target: str, *, before: Any = None, after: Any = None, detail: str = ""
 ) -> None:
-    """Write a change to the audit trail before it takes effect (``sessions.audit``); a failure to write it
+    """Write a change to the audit trail before it takes effect (``gaitscope.sessions.audit``); a failure to write it
     refuses the change (the exception propagates: 500), so that nothing happens unaudited."""
     c.audit.record(
         user=who.name, role=who.role, action=action, target=target, before=before, after=after, detail=detail
@@ -186,7 +186,7 @@ async def audited(
     c: AppContext, who: Who, action: str, target: str, *, before: Any = None, after: Any = None, detail: str = ""
 ) -> None:
     """:func:`audit` for an ``async`` route: the entry is written by the database writer (``c.writer``,
-    :mod:`sessions.store_writer`) while the route waits, so the event loop and the sessions on it do not;
+    :mod:`gaitscope.sessions.store_writer`) while the route waits, so the event loop and the sessions on it do not;
     written before the change takes effect, and a failure to write it refuses the change, as there."""
     record = functools.partial(
         c.audit.record, user=who.name, role=who.role, action=action, target=target, before=before, after=after,

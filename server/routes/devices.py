@@ -12,10 +12,10 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path
 
-from server.auth import Runner, allow
-from server.routes.common import Ctx, Id, audit
-from sessions import schema
-from sessions.live.sources import LiveDevice
+from gaitscope.server.auth import Runner, allow
+from gaitscope.server.routes.common import Ctx, Id, audit
+from gaitscope.sessions import schema
+from gaitscope.sessions.live.sources import LiveDevice
 
 router = APIRouter(prefix="/api")
 
@@ -26,7 +26,7 @@ _TokenId = Annotated[int, Path(ge=1, le=schema.INT64_MAX)]
 def issue_token(session_id: Id, c: Ctx, who: Runner) -> schema.DeviceToken:
     session = c.store.get_session(session_id)
     if session.source.kind != "device":
-        from sessions.store import Conflict
+        from gaitscope.sessions.store import Conflict
 
         raise Conflict(f"session {session_id} takes no device (source {session.source.kind})")
     audit(c, who, "device_token.issue", f"session {session_id}")

@@ -11,12 +11,12 @@ import math
 from fastapi import APIRouter, HTTPException
 from fastapi.responses import JSONResponse
 
-from estimators.fingerprint import FingerprintMap
-from server.auth import Promoter, Reader, Runner, Uploader, allow
-from server.routes.common import Ctx, Id, audit, audited, reviewable_trial
-from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.personalization.calibration import CalibrationRefused, calibrate, read_walk
+from gaitscope.estimators.fingerprint import FingerprintMap
+from gaitscope.server.auth import Promoter, Reader, Runner, Uploader, allow
+from gaitscope.server.routes.common import Ctx, Id, audit, audited, reviewable_trial
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.personalization.calibration import CalibrationRefused, calibrate, read_walk
 
 router = APIRouter(prefix="/api")
 

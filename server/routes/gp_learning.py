@@ -1,6 +1,6 @@
 """``/api/sessions/{id}/gp-learning``: seed 003's GP-EKF learning the wearer in a running session: its state
 for the dashboard (model versions, the learned joint angles with their band) and the clinician's controls
-(freeze, unfreeze, roll back). Thin: the learning is ``sessions.live.gp_learning``'s; both routes run on the
+(freeze, unfreeze, roll back). Thin: the learning is ``gaitscope.sessions.live.gp_learning``'s; both routes run on the
 event loop, between two samples, so they never see a sample half done."""
 
 from __future__ import annotations
@@ -9,12 +9,12 @@ from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query
 
-from server.auth import Runner, allow
-from server.routes.common import Ctx, Id, audited, by, not_running_here
-from sessions import schema
-from sessions.gp_models import GP_EKF
-from sessions.live.gp_learning import GPLearning
-from sessions.live.runtime import SessionRuntime
+from gaitscope.server.auth import Runner, allow
+from gaitscope.server.routes.common import Ctx, Id, audited, by, not_running_here
+from gaitscope.sessions import schema
+from gaitscope.sessions.gp_models import GP_EKF
+from gaitscope.sessions.live.gp_learning import GPLearning
+from gaitscope.sessions.live.runtime import SessionRuntime
 
 router = APIRouter(prefix="/api")
 

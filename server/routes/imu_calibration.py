@@ -1,14 +1,14 @@
 """``/api/sessions/{id}/imu-calibration``: a standing calibration of a live session's IMU mountings (start it,
 follow it), and ``/api/subjects/{id}/imu-calibrations``: a subject's stored ones. Thin: the collecting,
-calibrating, storing and applying are the session runtime's (``sessions.imu_calibration``)."""
+calibrating, storing and applying are the session runtime's (``gaitscope.sessions.imu_calibration``)."""
 
 from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException
 
-from server.auth import Runner, allow
-from server.routes.common import Ctx, Id, audited, by, not_running_here
-from sessions import schema
+from gaitscope.server.auth import Runner, allow
+from gaitscope.server.routes.common import Ctx, Id, audited, by, not_running_here
+from gaitscope.sessions import schema
 
 router = APIRouter(prefix="/api")
 

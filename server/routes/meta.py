@@ -7,9 +7,9 @@ from typing import Any, Final
 
 from fastapi import APIRouter, Response
 
-from server.auth import allow, public
-from sessions import schema
-from sessions.formats.models import gaitscope_version
+from gaitscope.server.auth import allow, public
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.models import gaitscope_version
 
 router = APIRouter(prefix="/api")
 

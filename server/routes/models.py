@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from server.auth import allow
-from server.routes.common import Ctx
-from sessions import schema
+from gaitscope.server.auth import allow
+from gaitscope.server.routes.common import Ctx
+from gaitscope.sessions import schema
 
 router = APIRouter(prefix="/api")
 

@@ -1,5 +1,5 @@
 """``/api/sessions/{id}/summary`` and ``/api/exports``: a session's summary, and its PDF report and CSV of
-estimates made as export jobs whose progress the browser polls. Thin: logic in ``sessions.reports``.
+estimates made as export jobs whose progress the browser polls. Thin: logic in ``gaitscope.sessions.reports``.
 
 The export jobs live on ``app.state.exports``, made on first use (:func:`_exports`).
 """
@@ -14,12 +14,12 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Path, Request
 from fastapi.responses import FileResponse
 
-from server.auth import Reader, Runner, allow
-from server.routes.common import Ctx, Id, audit
-from sessions import schema
-from sessions.formats.models import gaitscope_version
-from sessions.reports.jobs import ExportJobs, ExportNotReady
-from sessions.reports.summary import session_summary
+from gaitscope.server.auth import Reader, Runner, allow
+from gaitscope.server.routes.common import Ctx, Id, audit
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.models import gaitscope_version
+from gaitscope.sessions.reports.jobs import ExportJobs, ExportNotReady
+from gaitscope.sessions.reports.summary import session_summary
 
 router = APIRouter(prefix="/api")
 

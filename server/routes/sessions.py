@@ -1,5 +1,5 @@
 """``/api/sessions``: create, start and stop sessions; change their settings while they run; their
-events, annotations and recordings. Thin: validation by the schema, logic in ``sessions.live``."""
+events, annotations and recordings. Thin: validation by the schema, logic in ``gaitscope.sessions.live``."""
 
 from __future__ import annotations
 
@@ -8,12 +8,21 @@ import logging
 
 from fastapi import APIRouter, HTTPException
 
-from server.auth import Annotator, Assistant, Runner, allow
-from server.routes.common import Ctx, Id, OptionalId, audited, by, check_assistance, not_running_here, trained_model
-from sessions import schema
-from sessions.errors import FREE_SPACE_HINT, DiskFull, is_disk_full
-from sessions.live.manager import SessionStateError
-from sessions.store import Conflict
+from gaitscope.server.auth import Annotator, Assistant, Runner, allow
+from gaitscope.server.routes.common import (
+    Ctx,
+    Id,
+    OptionalId,
+    audited,
+    by,
+    check_assistance,
+    not_running_here,
+    trained_model,
+)
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import FREE_SPACE_HINT, DiskFull, is_disk_full
+from gaitscope.sessions.live.manager import SessionStateError
+from gaitscope.sessions.store import Conflict
 
 log = logging.getLogger("gaitscope")
 router = APIRouter(prefix="/api")

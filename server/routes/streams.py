@@ -4,7 +4,7 @@ A browser's stream opens with the session's recent history (:class:`~sessions.li
 the last 30 s, as ordinary state batches right after the hello), so its plots are never empty. The live view's
 one REST action that belongs with its stream, undoing the last settings change, is here too.
 
-Every message sent is a class of :mod:`sessions.schema` (``BrowserMessage`` to browsers,
+Every message sent is a class of :mod:`gaitscope.sessions.schema` (``BrowserMessage`` to browsers,
 ``DeviceMessage`` to devices), serialised by :func:`_dump`, so that ``GET /api/schema`` and the
 browser's ``web/wire.js`` describe each one.
 """
@@ -23,20 +23,20 @@ from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
 from starlette.types import Message
 
-from server.auth import Assistant, Who, allow, device
-from server.routes.common import Ctx, Id, audit, check_assistance, not_running_here
-from server.ws_close import close_stuck
-from sessions import schema
-from sessions.estimation import FrameRefused
-from sessions.live.manager import SessionStateError
-from sessions.live.runtime import SessionRuntime, Subscriber
-from sessions.live.sources import CONNECT_S, RECEIVE_S, LiveDevice, frame_refusal, invalid_notice
-from sessions.live.subscribers import SessionHistory, attach_history
-from sessions.live.undo import undo_last_change
-from sessions.store import NotFound
+from gaitscope.server.auth import Assistant, Who, allow, device
+from gaitscope.server.routes.common import Ctx, Id, audit, check_assistance, not_running_here
+from gaitscope.server.ws_close import close_stuck
+from gaitscope.sessions import schema
+from gaitscope.sessions.estimation import FrameRefused
+from gaitscope.sessions.live.manager import SessionStateError
+from gaitscope.sessions.live.runtime import SessionRuntime, Subscriber
+from gaitscope.sessions.live.sources import CONNECT_S, RECEIVE_S, LiveDevice, frame_refusal, invalid_notice
+from gaitscope.sessions.live.subscribers import SessionHistory, attach_history
+from gaitscope.sessions.live.undo import undo_last_change
+from gaitscope.sessions.store import NotFound
 
 if TYPE_CHECKING:
-    from server.app import AppContext
+    from gaitscope.server.app import AppContext
 
 log = logging.getLogger("gaitscope")
 router = APIRouter()
@@ -126,7 +126,7 @@ LOGIN_CHECK_S = 10.0
 
 class _LoginEnded:
     """Tells a socket that the login it was opened with has ended: at once when this process ends it
-    (:class:`~sessions.accounts.LoginWatch`), within :data:`LOGIN_CHECK_S` otherwise."""
+    (:class:`~gaitscope.sessions.accounts.LoginWatch`), within :data:`LOGIN_CHECK_S` otherwise."""
 
     def __init__(self, ws: WebSocket, who: Who | None) -> None:
         self._c: AppContext = ws.app.state.ctx
@@ -217,7 +217,7 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
             last_dropped = sub.dropped
     except _SlowClient as e:
         runtime.unsubscribe(sub)
-        # a client that stopped reading has filled the buffers: the close goes past them (server.ws_close), or
+        # a client that stopped reading has filled the buffers: the close goes past them (gaitscope.server.ws_close), or
         # the connection would end later in a keepalive timeout's 1011 instead
         await close_stuck(ws, TRY_AGAIN, str(e))
 
@@ -245,11 +245,11 @@ async def undo_settings(session_id: Id, body: schema.SettingsUndo, c: Ctx, who: 
 async def device_ingest(ws: WebSocket, session_id: Id, token_id: Annotated[int, device()]) -> None:
     """A live device: ``SensorFrame`` in, ``TorqueCommand`` out, one for one.
 
-    A frame that is refused gets a short :class:`~sessions.schema.DeviceNotice` instead of a torque:
+    A frame that is refused gets a short :class:`~gaitscope.sessions.schema.DeviceNotice` instead of a torque:
     malformed, binary, too large (refused unparsed), reordered, or over the session's declared rate
     (those are dropped before they are parsed, and reported at most once a second). A message over the
     server's ``ws_max_kb`` never gets here: the websocket closes with 1009. What the device's messages
-    cost the event loop is held to its share (:class:`~sessions.live.sources.DeviceBudget`): past it, its
+    cost the event loop is held to its share (:class:`~gaitscope.sessions.live.sources.DeviceBudget`): past it, its
     socket is read late; held back for seconds on end for messages that were refused, the device is
     disconnected (1008), as it is after :data:`MAX_BAD_FRAMES` malformed frames in a row. A device that reconnects
     (after a reboot, its clock restarted) is resynchronised. An error while processing a frame fails the

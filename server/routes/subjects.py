@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from server.auth import LimitSetter, Runner, allow
-from server.routes.common import Ctx, Id, audit
-from sessions import schema
+from gaitscope.server.auth import LimitSetter, Runner, allow
+from gaitscope.server.routes.common import Ctx, Id, audit
+from gaitscope.sessions import schema
 
 router = APIRouter(prefix="/api")
 

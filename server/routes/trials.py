@@ -13,14 +13,14 @@ from fastapi import APIRouter, Body, HTTPException, Query, Response
 from fastapi import Path as PathParam
 from fastapi.responses import FileResponse
 
-from estimators.pipeline import TrainedModel
-from server.auth import Annotator, Reader, allow
-from server.routes.common import Ctx, Id, OptionalId, audit, audited, by, reviewable_trial, trained_model
-from sessions import schema
-from sessions.store import NotAllowed
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.server.auth import Annotator, Reader, allow
+from gaitscope.server.routes.common import Ctx, Id, OptionalId, audit, audited, by, reviewable_trial, trained_model
+from gaitscope.sessions import schema
+from gaitscope.sessions.store import NotAllowed
 
 if TYPE_CHECKING:
-    from server.app import AppContext
+    from gaitscope.server.app import AppContext
 
 router = APIRouter(prefix="/api")
 
@@ -52,7 +52,7 @@ def trial_events(trial_id: Id, c: Ctx) -> list[schema.Event]:
 async def trial_series(
     trial_id: Id, c: Ctx, t0: _SeriesTime = None, t1: _SeriesTime = None, max_points: _MaxPoints = 2000
 ) -> dict[str, list[Any]]:
-    from sessions.formats.mcap_io import read_series
+    from gaitscope.sessions.formats.mcap_io import read_series
 
     _, path = reviewable_trial(c, trial_id)
     return await asyncio.to_thread(read_series, path, t0, t1, max_points)
@@ -64,7 +64,7 @@ async def trial_intent(
 ) -> schema.IntentSeries:
     """The speed-change intent over the trial (desired and actual speed, decimated as ``/series``) as its
     ``intent`` estimator recorded it, or the channels that estimator needs and the trial lacks."""
-    from sessions.review.intent import intent_series
+    from gaitscope.sessions.review.intent import intent_series
 
     _, path = reviewable_trial(c, trial_id)
     return await asyncio.to_thread(intent_series, path, t0, t1, max_points)
@@ -80,7 +80,7 @@ def download(trial_id: Id, c: Ctx, who: Reader) -> FileResponse:
 @router.get("/trials/{trial_id}/settings", dependencies=[allow("read")])
 async def trial_settings(trial_id: Id, c: Ctx) -> schema.SessionSettings:
     """The settings in force at the trial's first frame, as recorded (its changes are on ``/events``)."""
-    from sessions.review.rerun import recorded_settings
+    from gaitscope.sessions.review.rerun import recorded_settings
 
     _, path = reviewable_trial(c, trial_id)
     return await asyncio.to_thread(recorded_settings, path)
@@ -89,7 +89,7 @@ async def trial_settings(trial_id: Id, c: Ctx) -> schema.SessionSettings:
 @router.get("/trials/{trial_id}/estimators", dependencies=[allow("read")])
 async def trial_estimators(trial_id: Id, c: Ctx) -> schema.RerunChoices:
     """Which estimators a re-run of the trial can run: its recorded stack and those its channels feed."""
-    from sessions.review.rerun import rerun_choices
+    from gaitscope.sessions.review.rerun import rerun_choices
 
     trial, path = reviewable_trial(c, trial_id)
     return await asyncio.to_thread(rerun_choices, path, _fingerprint(c, trial, path, None))
@@ -107,7 +107,7 @@ async def rerun(
     """The trial's raw frames through the estimators again (series like ``/series``, plus each estimator's
     outputs as ``<name>.<output>`` columns): as recorded by default, or with the body's settings over the
     whole trial (what if), and the recorded stack or the body's ``estimators``; see ``RerunRequest``."""
-    from sessions.review.rerun import rerun_series
+    from gaitscope.sessions.review.rerun import rerun_series
 
     trial, path = reviewable_trial(c, trial_id)
     subject = c.store.get_subject(c.store.get_session(trial.session_id).subject_id)
@@ -136,7 +136,7 @@ async def rerun(
 def _fingerprint(c: AppContext, trial: schema.Trial, path: Path, personalization_id: int | None) -> list[float] | None:
     """The fingerprint ``fp_ls`` re-runs with: the personalization asked for (it must be the trial's
     subject's; 422 if not), else the one the trial recorded, else the subject's active one, else none."""
-    from sessions.review.rerun import recorded_fingerprint
+    from gaitscope.sessions.review.rerun import recorded_fingerprint
 
     subject_id = c.store.get_session(trial.session_id).subject_id
     if personalization_id is None:
@@ -163,8 +163,8 @@ async def compare(
     """Two or more named re-runs of the trial side by side (A/B): each one's torque and phase, its
     difference from the first, its mean stride and its figures (peak torque, mean phase rate, stride
     length; errors against the ground truth when the trial has one: a simulated session's walk)."""
-    from sessions.review.compare import WindowTooLong, simulated_truth
-    from sessions.review.compare import compare as compare_runs
+    from gaitscope.sessions.review.compare import WindowTooLong, simulated_truth
+    from gaitscope.sessions.review.compare import compare as compare_runs
 
     trial, path = reviewable_trial(c, trial_id)
     session = c.store.get_session(trial.session_id)
@@ -202,7 +202,7 @@ async def add_annotation(
 ) -> schema.ReviewAnnotation:
     """A note at a time (``t``) or over a span (``t`` to ``t_end``) of the trial, saved with it; 422 when it
     lies outside the recording."""
-    from sessions.formats.mcap_io import read_series
+    from gaitscope.sessions.formats.mcap_io import read_series
 
     _, path = reviewable_trial(c, trial_id)
     ends = await asyncio.to_thread(read_series, path, None, None, 2)

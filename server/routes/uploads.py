@@ -11,13 +11,13 @@ restart ends every upload (:meth:`Uploads.clear_leftovers`). The rules:
   ``upload_idle_s`` is dropped. A new upload is refused with 507 when the data folder's free space,
   less the bytes that open uploads and running imports may still write, would fall below
   ``upload_min_free_mb``; a chunk or an import that meets a full disk is 507 too.
-- **Finish.** The import (:func:`sessions.formats.imports.run_import`) runs in one worker process, started on
+- **Finish.** The import (:func:`gaitscope.sessions.formats.imports.run_import`) runs in one worker process, started on
   the first finish ('forkserver' where the platform has it, else 'spawn'; never 'fork' from a server
   with threads) and shut down with the app, so parsing and estimating a large file never holds this
   process's GIL while live sessions answer their devices. The worker writes the recording to
   ``uploads/<id>.import.mcap`` and returns counts; here the session and trial rows are created in one
   transaction that moves the recording into ``recordings/`` before it commits
-  (:meth:`~sessions.store.Store.create_upload_trial`): both appear or neither does. A finished upload
+  (:meth:`~gaitscope.sessions.store.Store.create_upload_trial`): both appear or neither does. A finished upload
   is gone whatever the outcome (a later request is 404). An MCAP recording that was never finished is
   refused as recoverable (header ``X-Gaitscope-Recoverable``); sent again and finished with
   ``recover=true``, it is re-indexed first, as start-up recovery does for the server's own recordings.
@@ -43,21 +43,21 @@ from typing import TYPE_CHECKING, Annotated, Final
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response
 
-from server.auth import Uploader, allow
-from server.routes.common import Ctx, audited
-from server.settings import Settings
-from sessions import schema
-from sessions.formats.imports import ImportJob, ImportRefused, ImportResult, run_import
+from gaitscope.server.auth import Uploader, allow
+from gaitscope.server.routes.common import Ctx, audited
+from gaitscope.server.settings import Settings
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.imports import ImportJob, ImportRefused, ImportResult, run_import
 
 if TYPE_CHECKING:
-    from server.app import AppContext
+    from gaitscope.server.app import AppContext
 
 __all__ = ["RECOVERABLE", "RECOVERABLE_HEADER", "UploadState", "Uploads", "router"]
 
 router = APIRouter(prefix="/api")
 
 _MIB: Final = 1024 * 1024
-#: How :func:`sessions.formats.mcap_io.check_mcap` ends the message for an unfinished recording.
+#: How :func:`gaitscope.sessions.formats.mcap_io.check_mcap` ends the message for an unfinished recording.
 RECOVERABLE: Final = "gaitscope can recover it"
 #: Set (to "1") on the 422 refusing a recording that can be recovered: the browser offers the recovery.
 RECOVERABLE_HEADER: Final = "X-Gaitscope-Recoverable"
@@ -185,7 +185,7 @@ class Uploads:
 
         An MCAP recording that was never finished (cut off by a crash or a full disk) is refused with a
         422 that says it can be recovered and carries the header :data:`RECOVERABLE_HEADER`; sent again
-        and finished with ``recover=True``, it is re-indexed first (:func:`sessions.formats.mcap_io.recover`,
+        and finished with ``recover=True``, it is re-indexed first (:func:`gaitscope.sessions.formats.mcap_io.recover`,
         the crash recovery of the server's own recordings), then imported.
         """
         state = self._get(upload_id)
@@ -269,7 +269,8 @@ class Uploads:
         if self._worker is None:
             context = multiprocessing.get_context(self.start_method)
             if self.start_method == "forkserver":
-                context.set_forkserver_preload(["sessions.formats.imports"])  # each worker starts with it imported
+                # each worker starts with it imported
+                context.set_forkserver_preload(["gaitscope.sessions.formats.imports"])
             self._worker = ProcessPoolExecutor(max_workers=1, mp_context=context)
         return self._worker
 
@@ -294,9 +295,9 @@ class Uploads:
 
 async def _unfinished_mcap(path: Path, name: str, recover: bool) -> None:
     """Refuse an MCAP recording that was never finished (422, recoverable), or recover it when asked."""
-    from sessions.errors import DataFormatError
-    from sessions.formats.mcap_io import check_mcap
-    from sessions.formats.mcap_io import recover as recover_mcap
+    from gaitscope.sessions.errors import DataFormatError
+    from gaitscope.sessions.formats.mcap_io import check_mcap
+    from gaitscope.sessions.formats.mcap_io import recover as recover_mcap
 
     try:
         await asyncio.to_thread(check_mcap, path, name=name)

@@ -13,9 +13,9 @@ import asyncio
 
 from fastapi import APIRouter, HTTPException
 
-from server.auth import Runner, Who, allow
-from server.routes.common import Ctx, audit, reviewable_trial
-from sessions import schema
+from gaitscope.server.auth import Runner, Who, allow
+from gaitscope.server.routes.common import Ctx, audit, reviewable_trial
+from gaitscope.sessions import schema
 
 router = APIRouter(prefix="/api")
 
@@ -42,7 +42,7 @@ def viewer_focus(body: schema.ViewerFocus, c: Ctx, who: Runner) -> dict[str, int
 @router.post("/viewer/show")
 async def viewer_show(body: schema.ViewerShow, c: Ctx, who: Runner) -> dict[str, float]:
     """Pose the leg view at time ``t`` of a trial (the review page's cursor)."""
-    from sessions.formats.mcap_io import read_series
+    from gaitscope.sessions.formats.mcap_io import read_series
 
     trial, path = reviewable_trial(c, body.trial_id)
     series = await asyncio.to_thread(read_series, path, body.t - 0.02, body.t + 0.02, 10)

@@ -1,7 +1,7 @@
 """Accounts: users with argon2id password hashes, login sessions with a failed-login throttle, device tokens,
 and the assistance limits a clinician sets for experimenters.
 
-One :class:`Accounts` per server, over the :class:`~sessions.store.Store`'s database (its tables are
+One :class:`Accounts` per server, over the :class:`~gaitscope.sessions.store.Store`'s database (its tables are
 :mod:`sessions.accounts.tables`). Every method is one transaction, but a login and a password change: a read, the
 hash outside any transaction, then a write. Times are ISO-8601 UTC.
 
@@ -9,7 +9,7 @@ Choices:
 
 - Passwords: argon2id through argon2-cffi's :class:`~argon2.PasswordHasher` with its defaults (RFC 9106's
   second recommended profile, 64 MiB, 3 passes), rehashed on the next login when those defaults change.
-- Failed logins are throttled, not locked out (:mod:`sessions.accounts.throttle`): per (address, name),
+- Failed logins are throttled, not locked out (:mod:`gaitscope.sessions.accounts.throttle`): per (address, name),
   per address and per name, with exponential waits up to ``lockout_minutes``; a stranger's failures never
   stop the owner logging in from an address that has not failed. Every refusal is the same answer
   (:data:`REFUSED`) after the same work, one argon2 verification, whether the name exists or not, the
@@ -24,7 +24,7 @@ Choices:
 - Login sessions: a 256-bit random token in the cookie, stored as its SHA-256; each has its own CSRF token
   (the synchronizer-token pattern, OWASP) and ends ``login_hours`` after it began (a clinic's day), or at
   logout, or when the password changes (every login of the user ends). The sockets opened with a login
-  are told when it ends (:class:`~sessions.accounts.watch.LoginWatch`, :attr:`Accounts.watch`).
+  are told when it ends (:class:`~gaitscope.sessions.accounts.watch.LoginWatch`, :attr:`Accounts.watch`).
 - Device tokens: 256-bit random, one session each, shown once, stored as SHA-256, revocable.
 """
 
@@ -46,11 +46,11 @@ from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
 from sqlalchemy import func, orm, select, update
 
-from sessions import schema
-from sessions.accounts.tables import DeviceTokenRow, LimitsRow, LoginRow, UserRow
-from sessions.accounts.throttle import LoginThrottle
-from sessions.accounts.watch import LoginWatch
-from sessions.store import Conflict, NotFound, Store
+from gaitscope.sessions import schema
+from gaitscope.sessions.accounts.tables import DeviceTokenRow, LimitsRow, LoginRow, UserRow
+from gaitscope.sessions.accounts.throttle import LoginThrottle
+from gaitscope.sessions.accounts.watch import LoginWatch
+from gaitscope.sessions.store import Conflict, NotFound, Store
 
 __all__ = ["REFUSED", "Accounts", "Login", "LoginFailed"]
 
@@ -121,7 +121,7 @@ class Accounts:
     Args:
         store: the database.
         lockout_after: failed logins of one address at one name before its attempts wait (1 s, doubling
-            with each further failure); see :class:`~sessions.accounts.throttle.LoginThrottle` for the
+            with each further failure); see :class:`~gaitscope.sessions.accounts.throttle.LoginThrottle` for the
             counts per address and per name, which start at four times this.
         lockout_minutes: the longest wait.
         login_hours: how long a login session lasts.

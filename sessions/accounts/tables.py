@@ -1,6 +1,6 @@
 """The accounts' tables: users, their login sessions, device tokens and the experimenters' assistance limits.
 
-Declared on :data:`sessions.store.Base`, so that one database (and one chain of Alembic migrations,
+Declared on :data:`gaitscope.sessions.store.Base`, so that one database (and one chain of Alembic migrations,
 ``sessions/migrations``) holds them beside the subjects and sessions. Secrets are never stored: a password as
 its argon2id hash, a login session's and a device's token as their SHA-256 (they are 256-bit random, so a fast
 hash is enough; an attacker with the table learns nothing he could log in with).
@@ -11,7 +11,7 @@ from __future__ import annotations
 from sqlalchemy import ForeignKey, String, Text
 from sqlalchemy.orm import Mapped, mapped_column
 
-from sessions.store import Base
+from gaitscope.sessions.store import Base
 
 
 class UserRow(Base):

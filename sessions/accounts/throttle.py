@@ -22,7 +22,7 @@ names or addresses cannot grow memory without bound.
 The throttle never looks at whether a name exists: an unknown name is counted and slowed exactly as a real one,
 so its answers do not tell one from the other. Counts live in this process's memory (a restart forgets
 them, and several processes on one database count apart); the account's failed-login count the admins see
-is kept in the database by :class:`~sessions.accounts.Accounts`. Times are seconds of ``clock`` (monotonic
+is kept in the database by :class:`~gaitscope.sessions.accounts.Accounts`. Times are seconds of ``clock`` (monotonic
 by default; tests inject one).
 """
 

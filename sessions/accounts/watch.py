@@ -9,7 +9,7 @@ ended the login, so it must only hand the close to the socket's own event loop (
 
 Logins ended by another process on the same database (``gaitscope user reset-password``) or by their expiry are
 not seen here: a socket asks the database about its login now and then too
-(:meth:`~sessions.accounts.Accounts.open_logins`). :meth:`LoginWatch.open_ids` lists the watched logins.
+(:meth:`~gaitscope.sessions.accounts.Accounts.open_logins`). :meth:`LoginWatch.open_ids` lists the watched logins.
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """``gaitscope audit``: check the audit trail's chain, or export it as CSV, from the server's console.
 
-``gaitscope audit verify`` walks the chain (:meth:`sessions.audit.AuditLog.verify`) and exits 0 with
+``gaitscope audit verify`` walks the chain (:meth:`gaitscope.sessions.audit.AuditLog.verify`) and exits 0 with
 "audit trail intact: N entries" (and the newest hash), or 1 with the first problem found; with ``--checkpoint
 FILE`` it also proves that no entry up to the checkpoint was cut off or rewritten. ``gaitscope audit checkpoint
 --out FILE`` writes the trail's head, signed with the audit key (:class:`sessions.schema.AuditCheckpoint`), for the
 admin to keep away from the server. Both need the audit key (``GAITSCOPE_AUDIT_KEY`` or the data folder's
-``audit.key``, :mod:`sessions.audit.key`); without it they exit 2.
+``audit.key``, :mod:`gaitscope.sessions.audit.key`); without it they exit 2.
 ``gaitscope audit export --out F.csv`` writes the entries (all, or those the filters keep) as CSV; the export is
 itself written to the trail, as done by ``cli``. The database is the server's: ``GAITSCOPE_DATABASE_URL``, else
 the SQLite file in ``--data-dir`` (default ``GAITSCOPE_DATA_DIR``); a SQLite file that does not exist is an
@@ -21,7 +21,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from sessions.errors import DataFormatError
+from gaitscope.sessions.errors import DataFormatError
 
 __all__ = ["EXIT_BROKEN", "register"]
 
@@ -33,10 +33,10 @@ _FILTERS = ("user", "action", "outcome", "target", "since", "until")
 def _open(a: argparse.Namespace) -> Any:
     from sqlalchemy.engine import make_url
 
-    from server.settings import Settings
-    from sessions.audit import AuditLog
-    from sessions.audit.key import key_file, settings_key
-    from sessions.store import Store
+    from gaitscope.server.settings import Settings
+    from gaitscope.sessions.audit import AuditLog
+    from gaitscope.sessions.audit.key import key_file, settings_key
+    from gaitscope.sessions.store import Store
 
     settings = Settings(**({"data_dir": a.data_dir} if a.data_dir is not None else {}))
     url = make_url(settings.database_url)
@@ -54,8 +54,8 @@ def _open(a: argparse.Namespace) -> Any:
 
 
 def cmd_audit(a: argparse.Namespace) -> int:
-    from sessions import schema
-    from sessions.audit.export import csv_chunks
+    from gaitscope.sessions import schema
+    from gaitscope.sessions.audit.export import csv_chunks
 
     if a.audit_command == "export":
         try:
@@ -112,7 +112,7 @@ def cmd_audit(a: argparse.Namespace) -> int:
 
 
 def _read_checkpoint(path: Path) -> Any:
-    from sessions import schema
+    from gaitscope.sessions import schema
 
     try:
         return schema.AuditCheckpoint.model_validate_json(path.read_bytes())
@@ -125,7 +125,7 @@ def _read_checkpoint(path: Path) -> Any:
 
 def register(sub: Any) -> None:
     """Add ``gaitscope audit`` to the command line's subcommands."""
-    from sessions import schema
+    from gaitscope.sessions import schema
 
     p = sub.add_parser("audit", help="the audit trail: verify its chain, write a checkpoint, export it as CSV")
     p.add_argument("--data-dir", type=Path, help="the server's data folder (default GAITSCOPE_DATA_DIR)")

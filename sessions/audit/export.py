@@ -14,11 +14,11 @@ import io
 from collections.abc import Iterable, Iterator
 from typing import Final
 
-from sessions import schema
+from gaitscope.sessions import schema
 
 __all__ = ["COLUMNS", "csv_chunks", "safe_cell"]
 
-#: The CSV's columns, in order (the fields of :class:`sessions.schema.AuditEntry` but the row key).
+#: The CSV's columns, in order (the fields of :class:`gaitscope.sessions.schema.AuditEntry` but the row key).
 COLUMNS: Final = ("seq", "time_utc", "user", "role", "action", "target", "before", "after", "outcome", "detail",
                   "prev_hash", "hash", "mac")  # fmt: skip
 _FORMULA_START: Final = ("=", "+", "-", "@", "\t", "\r")

@@ -1,7 +1,7 @@
 """The audit trail's key: the secret that makes the chain's entries and the admin's checkpoints unforgeable.
 
 The key lives outside the database, so that someone who can write the database (an SQL shell, a stolen backup
-restored elsewhere, a bug) cannot re-make the entries' MACs after changing them (:mod:`sessions.audit.log`).
+restored elsewhere, a bug) cannot re-make the entries' MACs after changing them (:mod:`gaitscope.sessions.audit.log`).
 It is, in order:
 
 1. ``GAITSCOPE_AUDIT_KEY`` (``Settings.audit_key``): at least :data:`MIN_CHARS` characters; what every server
@@ -24,7 +24,7 @@ import stat
 from pathlib import Path
 from typing import Any, Final
 
-from sessions.errors import DataFormatError
+from gaitscope.sessions.errors import DataFormatError
 
 __all__ = ["KEY_FILE", "MIN_CHARS", "audit_key", "key_file", "settings_key"]
 
@@ -94,6 +94,6 @@ def audit_key(data_dir: Path, from_env: str | None, *, create: bool) -> bytes | 
 
 
 def settings_key(settings: Any, *, create: bool) -> bytes | None:
-    """:func:`audit_key` for a :class:`server.settings.Settings` (its ``data_dir`` and ``audit_key``)."""
+    """:func:`audit_key` for a :class:`gaitscope.server.settings.Settings` (its ``data_dir`` and ``audit_key``)."""
     secret = settings.audit_key
     return audit_key(settings.data_dir, None if secret is None else secret.get_secret_value(), create=create)

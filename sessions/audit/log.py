@@ -1,7 +1,7 @@
 """The audit trail: an append-only, hash-chained record of who changed what (issue #13).
 
-One :class:`AuditLog` per server, over the :class:`~sessions.store.Store`'s database (its table is
-:mod:`sessions.audit.tables`). The routes call :meth:`AuditLog.record` *before* a change takes effect, with
+One :class:`AuditLog` per server, over the :class:`~gaitscope.sessions.store.Store`'s database (its table is
+:mod:`gaitscope.sessions.audit.tables`). The routes call :meth:`AuditLog.record` *before* a change takes effect, with
 outcome ``requested``; the change then happens (or not) in its own transaction.
 
 **The chain.** Entries are numbered ``seq`` = 1, 2, 3... without gaps. Each carries ``prev_hash``, the ``hash``
@@ -25,14 +25,14 @@ every character but DEL, which it escapes).
 **The key.** A hash chain alone proves nothing against someone who can write the database: they change an entry
 and re-hash it and every entry after it, or append an entry of their own, and the chain checks. So each entry
 also carries ``mac``, the HMAC-SHA256 (RFC 2104) of its ``hash`` (the 64 hex characters as ASCII) under the
-audit key, which is kept outside the database (:mod:`sessions.audit.key`)::
+audit key, which is kept outside the database (:mod:`gaitscope.sessions.audit.key`)::
 
     mac = HMAC-SHA256( key, ASCII(hash) )
 
 Since ``hash`` covers ``prev_hash``, each MAC vouches for its entry and for the whole chain before it.
 
 **Checkpoints** (:meth:`AuditLog.checkpoint`, ``gaitscope audit checkpoint``): the newest ``seq`` and ``hash`` at a
-moment, with the HMAC-SHA256 under the key of their canonical JSON (:class:`sessions.schema.AuditCheckpoint`),
+moment, with the HMAC-SHA256 under the key of their canonical JSON (:class:`gaitscope.sessions.schema.AuditCheckpoint`),
 written to a small file the admin keeps elsewhere. Checked against one, verification also finds entries cut off
 the end, up to the checkpoint.
 
@@ -45,7 +45,7 @@ the database (they can re-make every MAC; only a checkpoint kept where they cann
 
 **Trails from before the key** (migration ``0005_audit_mac``): their entries have no MAC. The first time a server
 runs with a key, :meth:`AuditLog.ensure_keyed` appends an ``audit.keyed`` entry, the first with a MAC; entries
-before it are checked by the SHA-256 chain only, which :attr:`~sessions.schema.AuditVerification.keyed_from`
+before it are checked by the SHA-256 chain only, which :attr:`~gaitscope.sessions.schema.AuditVerification.keyed_from`
 reports. After it, an entry without a MAC is a break; so is a trail whose newest entry has none (its MACs
 stripped and the chain re-hashed, which makes the whole trail look older than the key).
 
@@ -68,9 +68,9 @@ from typing import Any, Final
 from pydantic import BaseModel
 from sqlalchemy import Row, Select, func, select
 
-from sessions import schema
-from sessions.audit.tables import AuditRow
-from sessions.store import Store
+from gaitscope.sessions import schema
+from gaitscope.sessions.audit.tables import AuditRow
+from gaitscope.sessions.store import Store
 
 __all__ = ["LOCK_KEY", "VERIFY_CHUNK", "AuditKeyMismatch", "AuditLog", "checkpoint_mac", "entry_hash", "entry_mac"]
 
@@ -160,12 +160,12 @@ def _filtered(query: schema.AuditQuery) -> Select[AuditRow]:
 
 class AuditLog:
     """The audit trail in ``store``'s database: :meth:`record`, :meth:`list`, :meth:`iter`, :meth:`verify`,
-    :meth:`checkpoint`. ``key``: the audit key (:func:`sessions.audit.key.audit_key`); every entry appended
+    :meth:`checkpoint`. ``key``: the audit key (:func:`gaitscope.sessions.audit.key.audit_key`); every entry appended
     carries its MAC."""
 
     def __init__(self, store: Store, key: bytes) -> None:
         if not key:
-            raise ValueError("the audit trail needs its key (sessions.audit.key.audit_key)")
+            raise ValueError("the audit trail needs its key (gaitscope.sessions.audit.key.audit_key)")
         self.store = store
         self._key = key
 
@@ -228,7 +228,7 @@ class AuditLog:
 
         Raises:
             ValueError: ``before``/``after`` are not JSON-able (NaN included), ``outcome`` is not one of
-                :data:`sessions.schema.AUDIT_OUTCOMES`, or ``user``/``role``/``action`` are empty or too long.
+                :data:`gaitscope.sessions.schema.AUDIT_OUTCOMES`, or ``user``/``role``/``action`` are empty or too long.
         """
         if outcome not in schema.AUDIT_OUTCOMES:
             raise ValueError(f"audit outcome {outcome!r} is not one of {', '.join(schema.AUDIT_OUTCOMES)}")

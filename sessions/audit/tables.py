@@ -6,7 +6,7 @@ here, as functions, so that the migration and the tests create exactly the same 
 
 The triggers refuse ``UPDATE`` and ``DELETE`` (and, on PostgreSQL, ``TRUNCATE``) on the table: a bug, or a person
 with an SQL shell who does not mean harm, cannot change the trail. Someone who can drop triggers can; that is what
-the hash chain (:mod:`sessions.audit.log`) is for: ``gaitscope audit verify`` finds the change.
+the hash chain (:mod:`gaitscope.sessions.audit.log`) is for: ``gaitscope audit verify`` finds the change.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import Final
 from sqlalchemy import Connection, Index, String, Text
 from sqlalchemy.orm import Mapped, mapped_column
 
-from sessions.store import Base
+from gaitscope.sessions.store import Base
 
 __all__ = ["TABLE", "TRIGGERS", "AuditRow", "create_triggers", "drop_triggers"]
 

@@ -1,4 +1,4 @@
-"""Fast paths for numeric CSV tables (the replay CSV). Private: use :mod:`sessions.formats.replay_io`.
+"""Fast paths for numeric CSV tables (the replay CSV). Private: use :mod:`gaitscope.sessions.formats.replay_io`.
 
 Reading: Arrow's multi-threaded C++ parser, but only for files that every CSV reader splits the same
 way (:func:`simple_body`) and only when every cell parses (:func:`read_numbers`); otherwise the caller

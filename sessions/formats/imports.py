@@ -3,12 +3,12 @@
 The format is decided by the file's name and its content together (:func:`detect_format`): an MCAP
 file starts with the MCAP magic, a parquet file with ``PAR1``, a CSV file is UTF-8 text whose header
 names the replay columns or the LocoHub ones; a name that says one thing and content that says
-another is refused. Every refusal is a :class:`~sessions.errors.DataFormatError` that names the
+another is refused. Every refusal is a :class:`~gaitscope.sessions.errors.DataFormatError` that names the
 user's file name, never the path the bytes were stored under.
 
 The import streams (:func:`import_log`): frames are read, checked, estimated and written to the
 recording in batches of :data:`BATCH_FRAMES`, so memory does not grow with the file (a LocoHub table
-is the exception: it is read whole, as :func:`~sessions.formats.locohub.read_table` validates it, but its
+is the exception: it is read whole, as :func:`~gaitscope.sessions.formats.locohub.read_table` validates it, but its
 frames are not). Raw logs (CSV, LocoHub, an MCAP without ``/gait_state``) are run through the
 estimators with default settings so that every trial reviews the same way; an MCAP with gait states
 is checked message by message and kept as it is. The recording is written to ``ImportJob.target``
@@ -17,7 +17,7 @@ the database rows itself once the recording is complete.
 
 Times: every time in a log must be a finite number within :data:`MAX_ABS_TIME_S` of 0 and increase
 strictly, and a log may span at most :data:`MAX_SPAN_S`; sensor values must be finite (values outside
-:data:`~sessions.schema.SENSOR_LIMITS` are kept and treated as missing by the estimators, as live).
+:data:`~gaitscope.sessions.schema.SENSOR_LIMITS` are kept and treated as missing by the estimators, as live).
 """
 
 from __future__ import annotations
@@ -41,15 +41,15 @@ from typing import Any, Final, Literal
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
-from estimators.pipeline import TrainedModel
-from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.estimation import FrameEstimator, torque_json
-from sessions.formats.locohub import read_table
-from sessions.formats.mcap_io import check_mcap, count_messages, read_messages
-from sessions.formats.recording import ESTIMATORS_KEY, SAMPLE_PERIOD_KEY, Recorder
-from sessions.formats.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, RAW_IMUS, header_columns, parse_cells
-from sessions.registry import channels_of
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.estimation import FrameEstimator, torque_json
+from gaitscope.sessions.formats.locohub import read_table
+from gaitscope.sessions.formats.mcap_io import check_mcap, count_messages, read_messages
+from gaitscope.sessions.formats.recording import ESTIMATORS_KEY, SAMPLE_PERIOD_KEY, Recorder
+from gaitscope.sessions.formats.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, RAW_IMUS, header_columns, parse_cells
+from gaitscope.sessions.registry import channels_of
 
 __all__ = [
     "BATCH_FRAMES",
@@ -117,7 +117,7 @@ class ImportResult:
 class ImportRefused(ValueError):
     """The file was refused; ``str()`` is the reason, naming the user's file.
 
-    :func:`run_import` raises it in place of :class:`~sessions.errors.DataFormatError`, whose
+    :func:`run_import` raises it in place of :class:`~gaitscope.sessions.errors.DataFormatError`, whose
     keyword-only arguments do not survive the trip back from a worker process.
     """
 
@@ -399,7 +399,7 @@ def _drain(items: collections.deque[schema.SensorFrame]) -> Iterator[schema.Sens
 
 def _replay_frames(path: Path, name: str) -> Iterator[schema.SensorFrame]:
     """The frames of a replay CSV, read and checked a batch of rows at a time (rules of
-    :func:`~sessions.formats.replay_io.read_replay_csv`; the first bad row of the file is reported)."""
+    :func:`~gaitscope.sessions.formats.replay_io.read_replay_csv`; the first bad row of the file is reported)."""
     with path.open(newline="", encoding="utf-8-sig") as file:
         reader = csv.reader(file)
         try:

@@ -2,11 +2,11 @@
 
 A LocoHub table has one row per sample: metadata columns (``subject``, ``task``, ``task_info``, ...),
 ``step`` (stride index), ``phase_ipsi`` (percent of the ipsilateral gait cycle) and signal columns
-such as ``thigh_sagittal_angle_ipsi_rad``. Every column name comes from :mod:`sessions.schema`.
+such as ``thigh_sagittal_angle_ipsi_rad``. Every column name comes from :mod:`gaitscope.sessions.schema`.
 Files are parquet or CSV, chosen by the suffix.
 
 :func:`read_table` validates a table with vectorised checks (a million rows take about a second) and
-raises :class:`~sessions.errors.DataFormatError` naming the file, the column and the row of the first
+raises :class:`~gaitscope.sessions.errors.DataFormatError` naming the file, the column and the row of the first
 problem. :func:`write_table` writes atomically: the target is replaced only once the new file is
 complete.
 """
@@ -22,9 +22,9 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.files import atomic_output
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.files import atomic_output
 
 __all__ = ["KNOWN_COLUMNS", "STRING_COLUMNS", "parse_task_info", "read_table", "write_table"]
 

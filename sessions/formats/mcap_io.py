@@ -1,12 +1,12 @@
-"""Reading, checking and crash recovery of trial MCAP files (the writer is :mod:`sessions.formats.recording`).
+"""Reading, checking and crash recovery of trial MCAP files (the writer is :mod:`gaitscope.sessions.formats.recording`).
 
-A trial file holds the JSON channels of :data:`~sessions.schema.MCAP_CHANNELS`; every message's log
+A trial file holds the JSON channels of :data:`~gaitscope.sessions.schema.MCAP_CHANNELS`; every message's log
 time (integer nanoseconds since the Unix epoch) is the session's start wall clock plus the sample
 time ``t`` (s). The readers need a finished file, i.e. one with a summary section indexing its chunks
 (Foxglove needs it too); :func:`recover` turns a file left unfinished by a crash into one, losing at
 most the chunk that was being filled.
 
-Every problem with a file raises :class:`~sessions.errors.DataFormatError` naming the file.
+Every problem with a file raises :class:`~gaitscope.sessions.errors.DataFormatError` naming the file.
 """
 
 from __future__ import annotations
@@ -48,9 +48,9 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.summary import Summary
 from mcap.writer import Writer
 
-from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.files import atomic_output
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.files import atomic_output
 
 __all__ = [
     "CHUNK_SIZE",
@@ -73,7 +73,7 @@ __all__ = [
 
 #: Largest uncompressed chunk (bytes). One 200 Hz sample (/sensor + /gait_state + /torque) takes
 #: about 1.1 kB, so this is about a second of data. The recorder closes chunks earlier, by time
-#: (:data:`~sessions.formats.recording.FLUSH_INTERVAL_S`), so this cap matters only for faster sources.
+#: (:data:`~gaitscope.sessions.formats.recording.FLUSH_INTERVAL_S`), so this cap matters only for faster sources.
 #: Half-second chunks compress as well as one-second ones: about 29 KiB/s of file at 200 Hz.
 CHUNK_SIZE: Final = 224 * 1024
 
@@ -243,11 +243,11 @@ def read_sensor_frames(path: str | Path) -> list[schema.SensorFrame]:
 
 
 def read_events(path: str | Path) -> list[dict[str, Any]]:
-    """The ``/events`` of a file as :class:`~sessions.schema.Event`-shaped dicts, plus ``log_time_ns``.
+    """The ``/events`` of a file as :class:`~gaitscope.sessions.schema.Event`-shaped dicts, plus ``log_time_ns``.
 
     Keys come from the Foxglove event's metadata (written by :meth:`Recorder.write_event`): ``id`` and
     ``session_id`` as int, ``t`` as float, ``before``/``after`` as float when ``field`` is a numeric
-    setting (:data:`~sessions.schema.SETTING_LIMITS`) or the event is an ``intent`` (desired speeds),
+    setting (:data:`~gaitscope.sessions.schema.SETTING_LIMITS`) or the event is an ``intent`` (desired speeds),
     else str; absent keys (events written by other tools) are left out.
     """
     out = []

@@ -1,7 +1,7 @@
 """Fitted-model files: save, load, and the model that ships with gaitscope.
 
 A model file is a NumPy ``.npz`` archive (no pickles) holding the arrays of a
-:class:`~estimators.pipeline.TrainedModel` and a JSON :class:`~sessions.schema.ModelProvenance` that
+:class:`~gaitscope.estimators.pipeline.TrainedModel` and a JSON :class:`~gaitscope.sessions.schema.ModelProvenance` that
 records what it was trained on. Loading checks the format version and every array's shape, so a
 truncated or foreign file is refused with a message naming it. Writes are atomic.
 """
@@ -19,13 +19,13 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
-from estimators.fingerprint import FingerprintMap
-from estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
-from estimators.pipeline import TrainedModel
-from estimators.torque import TorqueProfile
-from sessions.errors import DataFormatError
-from sessions.files import atomic_output
-from sessions.schema import ModelProvenance
+from gaitscope.estimators.fingerprint import FingerprintMap
+from gaitscope.estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.estimators.torque import TorqueProfile
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.files import atomic_output
+from gaitscope.sessions.schema import ModelProvenance
 
 DEFAULT_MODEL_NAME = "default_model.npz"
 

@@ -1,6 +1,6 @@
 """Recording one trial to an MCAP file; the readers and crash recovery live in :mod:`sessions.formats.mcap_io`.
 
-One JSON-schema channel per entry of :data:`~sessions.schema.MCAP_CHANNELS`, plus the channels a session
+One JSON-schema channel per entry of :data:`~gaitscope.sessions.schema.MCAP_CHANNELS`, plus the channels a session
 registers for its estimator stack (``channels``: ``/estimators/<name>``); every message's log time
 and publish time are ``start_ns + round(t * 1e9)``: integer nanoseconds since the Unix epoch, the
 session's start wall clock plus the sample time ``t`` (s). Lifecycle: construct (writes the header,
@@ -10,7 +10,7 @@ the ``gaitscope`` metadata record and the channels), :meth:`Recorder.write` per 
 What a crash loses. The mcap ``Writer`` builds a chunk in memory. The recorder closes it with
 ``Writer.flush()`` (public in mcap 1.5 and 1.6; gaitscope needs >= 1.6) once it holds
 ``flush_interval_s`` of session time, or has been open that long by the wall clock, or reaches
-:data:`~sessions.formats.mcap_io.CHUNK_SIZE`, whichever comes first. It then hands the chunk to the
+:data:`~gaitscope.sessions.formats.mcap_io.CHUNK_SIZE`, whichever comes first. It then hands the chunk to the
 operating system at once. So ``kill -9`` loses at most the open chunk: about ``flush_interval_s``
 (0.5 s) of data. Session time bounds that loss in seconds of data, and it makes the rule
 deterministic (tests, replays faster than real time). The wall clock bounds how long data waits in
@@ -20,7 +20,7 @@ wall time (2 s) and at :meth:`~Recorder.finish`. A power cut therefore loses at 
 ``flush_interval_s + fsync_interval_s`` of data. The periodic fsync runs on a worker thread, because
 the caller is the session's event loop. On a busy disk one fsync of a 15 KiB chunk took up to 490 ms
 (median 0.7 ms), while the ``write`` that hands a chunk to the OS stayed under 0.1 ms. An fsync
-error is raised by the next write. :func:`~sessions.formats.mcap_io.recover` re-indexes what is left.
+error is raised by the next write. :func:`~gaitscope.sessions.formats.mcap_io.recover` re-indexes what is left.
 
 Write errors (a full disk). The ``Writer`` writes into memory, never to the file, so an I/O error
 cannot leave it half-updated. The recorder copies its output to the file. When that write fails,
@@ -28,7 +28,7 @@ the recorder cuts the file back to the end of the last complete chunk and raises
 :class:`RecordingError`. Every later write raises it too, so nothing more is recorded and memory
 stays bounded. :meth:`~Recorder.finish` then retries the failed chunk and writes the index. If the
 disk is still full, :meth:`~Recorder.finish` leaves the file ending at the last complete chunk and
-raises :class:`RecordingError`. Such a file is readable once :func:`~sessions.formats.mcap_io.recover` has
+raises :class:`RecordingError`. Such a file is readable once :func:`~gaitscope.sessions.formats.mcap_io.recover` has
 indexed it (start-up recovery does that). What is lost: the messages refused after the failure,
 and, if the disk stays full, the chunk whose write failed (at most ``flush_interval_s`` of data).
 """
@@ -49,9 +49,9 @@ from typing import IO, TYPE_CHECKING, Final, cast
 from mcap.writer import Writer
 from pydantic import BaseModel
 
-from sessions import schema
-from sessions.formats._mcap_fast import message_adder
-from sessions.formats.mcap_io import CHUNK_SIZE
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats._mcap_fast import message_adder
+from gaitscope.sessions.formats.mcap_io import CHUNK_SIZE
 
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer
@@ -70,7 +70,7 @@ __all__ = [
 #: Name of the MCAP metadata record holding the trial's key/values (subject code, session id, ...).
 METADATA_NAME: Final = "gaitscope"
 #: Key in that record of the sample period (s, a float's ``repr``) the live estimator was built with, so
-#: that a review re-run (:mod:`sessions.review.rerun`) builds the same one.
+#: that a review re-run (:mod:`gaitscope.sessions.review.rerun`) builds the same one.
 SAMPLE_PERIOD_KEY: Final = "sample_period_s"
 #: Key of the session's estimator stack (names, comma-separated, in run order), so that a review re-run
 #: runs the same estimators.
@@ -151,8 +151,8 @@ class Recorder:
             time or has been open this long by the wall clock (see the module docstring).
         fsync_interval_s: the file is fsynced when a chunk is handed over this long (wall clock)
             after the last fsync; 0 fsyncs every chunk, ``math.inf`` only at :meth:`finish`.
-        channels: more channels, as :data:`~sessions.schema.MCAP_CHANNELS` (topic -> schema name and
-            class): a stack's ``/estimators/<name>`` (:func:`~sessions.schema.estimator_channels`).
+        channels: more channels, as :data:`~gaitscope.sessions.schema.MCAP_CHANNELS` (topic -> schema name and
+            class): a stack's ``/estimators/<name>`` (:func:`~gaitscope.sessions.schema.estimator_channels`).
 
     Attributes:
         samples: number of ``/gait_state`` messages written.
@@ -250,7 +250,7 @@ class Recorder:
     def write_json(self, t: float, messages: Sequence[tuple[str, bytes]]) -> None:
         """Write ``messages`` at session time ``t`` (s), each ``(topic, data)`` with ``data`` already the
         JSON of the topic's class: the hot path, which writes one sample's sensor frame, state, torque
-        and estimator outputs (:meth:`~sessions.estimation.FrameEstimator.output_json`) in one call
+        and estimator outputs (:meth:`~gaitscope.sessions.estimation.FrameEstimator.output_json`) in one call
         rather than building and dumping a model for each. Not validated here; tests check that what
         the hot path builds is what the class would dump.
 
@@ -294,7 +294,7 @@ class Recorder:
         """Write ``event`` on ``/events`` as a ``foxglove.Event`` at its ``t``.
 
         Its fields become the metadata key/values (absent ones left out), so Foxglove lists them and
-        :func:`~sessions.formats.mcap_io.read_events` gives them back.
+        :func:`~gaitscope.sessions.formats.mcap_io.read_events` gives them back.
         """
         log_time = self.log_time_ns(event.t)
         stamp = schema.TimeStamp(sec=log_time // 1_000_000_000, nsec=log_time % 1_000_000_000)
@@ -321,7 +321,7 @@ class Recorder:
 
         Raises:
             RecordingError: the file could not be completed; it ends at its last complete chunk,
-                which :func:`~sessions.formats.mcap_io.recover` indexes (see the module docstring).
+                which :func:`~gaitscope.sessions.formats.mcap_io.recover` indexes (see the module docstring).
         """
         if self._finished:
             return

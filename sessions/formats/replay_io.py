@@ -1,10 +1,10 @@
 """The replay CSV: the input of ``gaitscope replay INPUT.csv`` and the file it writes.
 
 Input: a header row, then one row per sample. ``time_s`` is required and strictly increasing; any of
-the :data:`~sessions.schema.REPLAY_SIGNALS` may follow, at least one of the angle columns
-(:data:`~sessions.schema.REPLAY_ANGLES`); ``heel_strike`` (0/1) is optional; other columns are ignored.
+the :data:`~gaitscope.sessions.schema.REPLAY_SIGNALS` may follow, at least one of the angle columns
+(:data:`~gaitscope.sessions.schema.REPLAY_ANGLES`); ``heel_strike`` (0/1) is optional; other columns are ignored.
 
-Every problem raises :class:`~sessions.errors.DataFormatError` naming the file, the line (the header
+Every problem raises :class:`~gaitscope.sessions.errors.DataFormatError` naming the file, the line (the header
 is line 1) and, where one is at fault, the column, e.g.
 ``file trial.csv, column 'time_s', row 7: time goes backwards (1.23 after 1.24)``.
 """
@@ -24,10 +24,10 @@ from typing import BinaryIO, Final
 import numpy as np
 import pandas as pd
 
-from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.files import atomic_output
-from sessions.formats import _fastcsv
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.files import atomic_output
+from gaitscope.sessions.formats import _fastcsv
 
 __all__ = ["ReplayInput", "ReplayOutput", "read_replay_csv", "write_replay_output"]
 
@@ -44,7 +44,7 @@ class ReplayInput:
 
     Attributes:
         time_s: (n,) float64 sample times in seconds, strictly increasing.
-        signals: the :data:`~sessions.schema.REPLAY_SIGNALS` columns present in the file, in that
+        signals: the :data:`~gaitscope.sessions.schema.REPLAY_SIGNALS` columns present in the file, in that
             order, each (n,) float64.
         heel_strike: (n,) bool, or None when the file has no ``heel_strike`` column.
     """
@@ -78,7 +78,7 @@ def write_replay_output(path: str | Path, columns: Mapping[str, np.ndarray]) -> 
 
     Args:
         path: the output CSV.
-        columns: exactly the :data:`~sessions.schema.REPLAY_OUTPUT` names, each (n,) numeric;
+        columns: exactly the :data:`~gaitscope.sessions.schema.REPLAY_OUTPUT` names, each (n,) numeric;
             ``heel_strike`` bool or 0/1.
 
     Raises:
@@ -92,7 +92,7 @@ def write_replay_output(path: str | Path, columns: Mapping[str, np.ndarray]) -> 
 class ReplayOutput:
     """The replay output CSV, written atomically in consecutive parts; a context manager.
 
-    Columns are written in the order of :data:`~sessions.schema.REPLAY_OUTPUT` under a header row:
+    Columns are written in the order of :data:`~gaitscope.sessions.schema.REPLAY_OUTPUT` under a header row:
     floats at full (shortest round-trip) precision as Python's ``repr`` writes them (NaN as ``nan``),
     ``heel_strike`` as 0/1. The file is written beside ``path``; leaving the ``with`` block normally
     moves it over ``path``, an exception deletes it and leaves ``path`` as it was.
@@ -202,7 +202,7 @@ def _read_validated(path: Path, name: str) -> ReplayInput:
 
 
 def _output_values(columns: Mapping[str, np.ndarray]) -> list[np.ndarray]:
-    """The output columns in :data:`~sessions.schema.REPLAY_OUTPUT` order, checked; floats as float64,
+    """The output columns in :data:`~gaitscope.sessions.schema.REPLAY_OUTPUT` order, checked; floats as float64,
     ``heel_strike`` as int64."""
     missing = [c for c in schema.REPLAY_OUTPUT if c not in columns]
     extra = [c for c in columns if c not in schema.REPLAY_OUTPUT]

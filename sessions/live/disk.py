@@ -3,7 +3,7 @@ minutes of recording that space is at a session's own rate.
 
 What a recording takes depends on what the device sends and what the stack runs: each sample records
 the sensor frame, every estimator's outputs, the gait state and the torque. Measured with
-``python -m server.bench.disk_rate`` (cohort walking at 200 Hz, 60 s per row, index included)::
+``python -m gaitscope.server.bench.disk_rate`` (cohort walking at 200 Hz, 60 s per row, index included)::
 
     channels                  estimators   kB/s   MiB/hour
     walking (7)                        3   76.6        263
@@ -13,11 +13,11 @@ the sensor frame, every estimator's outputs, the gait state and the torque. Meas
 
 :func:`estimated_bytes_per_s` fits those rows (:data:`BYTES_PER_SAMPLE` and the two per-item figures) and is
 a recording's rate until it has grown for a while; from then on :class:`GrowthRate` measures the file's own
-growth. An hour's index adds ~1 MiB at :meth:`~sessions.formats.recording.Recorder.finish`, and crash
+growth. An hour's index adds ~1 MiB at :meth:`~gaitscope.sessions.formats.recording.Recorder.finish`, and crash
 recovery writes a full copy of the file beside it before it replaces the original (on a full disk
-:func:`~sessions.formats.mcap_io.recover_in_place` indexes it where it lies instead). The runtime calls
+:func:`~gaitscope.sessions.formats.mcap_io.recover_in_place` indexes it where it lies instead). The runtime calls
 :meth:`DiskGuard.check` once a second: ``low`` warns the clinician, ``critical`` stops the recording cleanly
-while there is still room to finish it, so a full disk (:class:`~sessions.formats.recording.RecordingError`)
+while there is still room to finish it, so a full disk (:class:`~gaitscope.sessions.formats.recording.RecordingError`)
 stays the exception. The thresholds are MiB (the stop one is room to finish files, whatever the rate);
 the events and data health state them as minutes of recording at the session's rate (:func:`minutes`).
 """

@@ -1,7 +1,7 @@
 """Seed 003's GP-EKF learning the wearer in a live session (issue #11): background fits, installs at heel
 strikes, freeze and rollback, each one an event and a ``/gp_models`` record.
 
-A session whose stack runs ``gp_ekf`` (:class:`~estimators.gp_ekf_estimator.GPEKFEstimator`) has a
+A session whose stack runs ``gp_ekf`` (:class:`~gaitscope.estimators.gp_ekf_estimator.GPEKFEstimator`) has a
 :class:`GPLearning`, which the runtime polls after each sample (:meth:`GPLearning.poll`, between the stack's
 step and the next frame, on the session's own event loop):
 
@@ -16,7 +16,7 @@ step and the next frame, on the session's own event loop):
 
 Each outcome is a :class:`Note`: a system event in plain words (field ``gp_ekf``) with the training window
 (steps and time span) and the fit quality (held-out RMSE per joint), and the record of the version
-(:class:`~sessions.schema.GPModelRecord`, its arrays on ``trained`` and ``refused``). A fit that raises,
+(:class:`~gaitscope.sessions.schema.GPModelRecord`, its arrays on ``trained`` and ``refused``). A fit that raises,
 or a worker that dies, is a note too: the session goes on with the model it has.
 
 The clinician's controls (:meth:`GPLearning.plan` then :meth:`GPLearning.apply`): freeze (no fits, no
@@ -50,12 +50,12 @@ from typing import Final, Literal
 
 import numpy as np
 
-from estimators.gp import FitOptions
-from estimators.gp_ekf_estimator import GPEKFEstimator
-from estimators.gp_models import GPModelSet, TrainingWindow, fit_models
-from sessions import schema
-from sessions.gp_models import GP_EKF, arrays_of, gp_ekf_of, rmse_of, window_text
-from sessions.stack import EstimatorStack
+from gaitscope.estimators.gp import FitOptions
+from gaitscope.estimators.gp_ekf_estimator import GPEKFEstimator
+from gaitscope.estimators.gp_models import GPModelSet, TrainingWindow, fit_models
+from gaitscope.sessions import schema
+from gaitscope.sessions.gp_models import GP_EKF, arrays_of, gp_ekf_of, rmse_of, window_text
+from gaitscope.sessions.stack import EstimatorStack
 
 __all__ = ["DUTY", "FIT_OPTIONS", "GPLearning", "GPTrainer", "LearningRefused", "Note", "fit_window"]
 

@@ -1,14 +1,14 @@
 """IMU problems in the clinician's words: session events and a data-health line from the IMU front ends.
 
-Each IMU front end of the stack (:class:`estimators.imu_frontend.ImuFrontEnd`) says per sample what was wrong
-with its sensor's reading (its ``imu_code`` output, :data:`estimators.imu_frontend.CODES`) and degrades its
+Each IMU front end of the stack (:class:`gaitscope.estimators.imu_frontend.ImuFrontEnd`) says per sample what was wrong
+with its sensor's reading (its ``imu_code`` output, :data:`gaitscope.estimators.imu_frontend.CODES`) and degrades its
 estimate safely on its own (angle held, or taken from the accelerometer alone). One sample's code says
 little: a single frame without the sensor, one spike at the gyro's full scale, one late frame.
 :class:`ImuWatch` turns the codes into **episodes**, per sensor and problem:
 
 - a problem **starts** when its code covers at least ``onset_s`` (0.3 s) of the last ``window_s`` (1 s)
   of session time, each sample counting for the time since the sample before it (at most
-  :data:`~estimators.protocol.MAX_GAP_S`, after which the estimators restart anyway; the session's first
+  :data:`~gaitscope.estimators.protocol.MAX_GAP_S`, after which the estimators restart anyway; the session's first
   sample for nothing). So a fault that lasts is reported 0.3 s after it began, whatever the sample rate;
   an intermittent one (a gyro that saturates at every swing's peak) once it covers 30 % of a second; an
   isolated bad sample, or a few of them, never;
@@ -37,8 +37,8 @@ from typing import Final, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.imu_frontend import CODES, ImuFrontEnd
-from estimators.protocol import MAX_GAP_S
+from gaitscope.estimators.imu_frontend import CODES, ImuFrontEnd
+from gaitscope.estimators.protocol import MAX_GAP_S
 
 __all__ = ["ONSET_S", "PROBLEMS", "SEVERITY", "WINDOW_S", "ImuEvent", "ImuWatch", "Problem"]
 
@@ -66,7 +66,7 @@ class Problem:
     text: str
 
 
-#: Every non-zero ``imu_code`` (by its :data:`~estimators.imu_frontend.CODES` name) in the clinician's words.
+#: Every non-zero ``imu_code`` (by its :data:`~gaitscope.estimators.imu_frontend.CODES` name) in the clinician's words.
 PROBLEMS: Final[dict[str, Problem]] = {
     "missing": Problem("no data", "no data for {since_s:.1f} s; {angle} held"),
     "gyro_saturated": Problem(
@@ -101,7 +101,7 @@ class ImuEvent:
     Attributes:
         estimators: the front ends (``imu_shank``); several when the same problem, in the same words, started
             or ended on several at the same sample (a wrong sample rate: every sensor of a device sees it).
-        before, after: the problem's code name (:data:`~estimators.imu_frontend.CODES`) and :data:`OK`,
+        before, after: the problem's code name (:data:`~gaitscope.estimators.imu_frontend.CODES`) and :data:`OK`,
             in that order when it ended, the other way round when it started.
         text: what happened, naming the sensors (``Right shank IMU: gyro saturated ...``).
     """
@@ -188,7 +188,7 @@ class ImuWatch:
 
     def update(self, t: float, outputs: Sequence[NDArray[np.float64] | None]) -> list[ImuEvent]:
         """One sample at session time ``t`` with every estimator's outputs
-        (:attr:`sessions.stack.StackSample.outputs`); the problems that started or ended at it. A few
+        (:attr:`gaitscope.sessions.stack.StackSample.outputs`); the problems that started or ended at it. A few
         comparisons per front end while its sensor is fine."""
         weight = 0.0 if self._t is None else min(max(t - self._t, 0.0), MAX_GAP_S)
         self._t = t
@@ -225,7 +225,7 @@ class ImuWatch:
         return [(name, code) for _, _, name, code in sorted(found)]
 
     def health(self) -> tuple[Literal["ok", "fault"] | None, str]:
-        """Data health's IMU line (:class:`~sessions.schema.Health` ``imu``, ``imu_note``): None without front
+        """Data health's IMU line (:class:`~gaitscope.sessions.schema.Health` ``imu``, ``imu_note``): None without front
         ends; ``ok``; or ``fault`` and the worst open problem's words now (naming every sensor with the same
         words), and how many more are open."""
         if not self._sensors:

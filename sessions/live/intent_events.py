@@ -73,7 +73,7 @@ class IntentOnsets:
         return self._k is not None
 
     def update(self, outputs: Sequence[NDArray[np.float64] | None]) -> IntentOnset | None:
-        """One sample's outputs of every estimator (:attr:`sessions.stack.StackSample.outputs`); the onset
+        """One sample's outputs of every estimator (:attr:`gaitscope.sessions.stack.StackSample.outputs`); the onset
         at it, if there is one. A few comparisons when there is none."""
         k = self._k
         if k is None or k >= len(outputs):

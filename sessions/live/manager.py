@@ -11,17 +11,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
-from estimators.pipeline import TrainedModel
-from sessions import schema
-from sessions.errors import DataFormatError, DiskFull, disk_full, is_disk_full
-from sessions.formats.mcap_io import recover
-from sessions.formats.models import default_model_path, load_model
-from sessions.live.gp_learning import GPTrainer
-from sessions.live.runtime import DiskState, SessionRuntime, count_states
-from sessions.live.sources import FrameSource, LiveDevice, ReplayDevice, SimulatedDevice
-from sessions.live.subscribers import attach_history
-from sessions.store import Store
-from sessions.store_writer import StoreWriter
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError, DiskFull, disk_full, is_disk_full
+from gaitscope.sessions.formats.mcap_io import recover
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.live.gp_learning import GPTrainer
+from gaitscope.sessions.live.runtime import DiskState, SessionRuntime, count_states
+from gaitscope.sessions.live.sources import FrameSource, LiveDevice, ReplayDevice, SimulatedDevice
+from gaitscope.sessions.live.subscribers import attach_history
+from gaitscope.sessions.store import Store
+from gaitscope.sessions.store_writer import StoreWriter
 
 log = logging.getLogger("gaitscope")
 
@@ -75,7 +75,7 @@ class ModelStore:
 
 class SessionManager:
     """Owns the :class:`SessionRuntime` of every running session, and the worker their GP-EKFs' fits share
-    (:class:`~sessions.live.gp_learning.GPTrainer`: started by the first session that runs ``gp_ekf``, stopped
+    (:class:`~gaitscope.sessions.live.gp_learning.GPTrainer`: started by the first session that runs ``gp_ekf``, stopped
     by :meth:`stop_all`)."""
 
     def __init__(
@@ -110,8 +110,8 @@ class SessionManager:
         Only this process's (its :attr:`node`'s, and those of no node): sessions another process runs on the
         same database, and their recordings, are that process's.
 
-        Every trial still ``recording`` ends ``recovered`` when :func:`~sessions.formats.mcap_io.recover`
-        re-indexes its file (a kill loses at most the last ~0.5 s, :mod:`sessions.formats.recording`), else
+        Every trial still ``recording`` ends ``recovered`` when :func:`~gaitscope.sessions.formats.mcap_io.recover`
+        re-indexes its file (a kill loses at most the last ~0.5 s, :mod:`gaitscope.sessions.formats.recording`), else
         ``damaged``: the file is missing, not MCAP, or could not be rewritten (disk full, no
         permission). Either way its session gets a system event saying so in the user's words,
         without server paths. One trial's failure never stops the others or the server. Every
@@ -290,7 +290,7 @@ class SessionManager:
 
         Raises:
             SessionStateError: not running (here).
-            sessions.errors.DiskFull: it stopped, but the database could not store that (its disk full):
+            gaitscope.sessions.errors.DiskFull: it stopped, but the database could not store that (its disk full):
                 stored later (:meth:`reconcile`); or it had ended already and that is still not stored.
         """
         session = self.shown(self.store.get_session(session_id))

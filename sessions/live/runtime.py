@@ -6,7 +6,7 @@ that runs on the loop (a settings change, an annotation, a recording toggle) hap
 samples: a change takes effect at the next sample, and its event carries the time of the last sample
 processed before it. Subscribers never slow the pipeline: each has a bounded buffer that drops its
 oldest entries (counted) when the client does not keep up. The database writes are made by a writer
-thread (:mod:`sessions.store_writer`), never on the loop: the events the sample path raises (intent
+thread (:mod:`gaitscope.sessions.store_writer`), never on the loop: the events the sample path raises (intent
 onsets, IMU and estimator notes, GP-EKF learning) are stored without a sample waiting for them, then
 recorded and sent, in the order they happened.
 
@@ -15,12 +15,12 @@ Safety:
 - the torque that leaves the runtime is always a finite number in ``[0, max_torque_Nm]``
   (:func:`safe_torque`), whatever the estimators did and whatever the optional intent boost of the gain
   (:mod:`sessions.intent_boost`, off by default, applied by the frame estimator) does; an estimator that fails is
-  isolated by the stack (:mod:`sessions.stack`), its failure is a system event and data health lists it;
+  isolated by the stack (:mod:`gaitscope.sessions.stack`), its failure is a system event and data health lists it;
 - a problem an IMU front end reports for long enough (a sensor that stops sending, a saturated gyro, a
-  flipped axis, a wrong sample rate: :mod:`sessions.live.imu_events`) is a system event naming the sensor,
+  flipped axis, a wrong sample rate: :mod:`gaitscope.sessions.live.imu_events`) is a system event naming the sensor,
   another when it clears, and data health shows the worst one; the front end degrades its own estimate,
   and the torque stays bounded as above;
-- the GP-EKF's retraining (:mod:`sessions.live.gp_learning`, when the stack runs ``gp_ekf``) fits in a worker
+- the GP-EKF's retraining (:mod:`gaitscope.sessions.live.gp_learning`, when the stack runs ``gp_ekf``) fits in a worker
   process, never on the sample loop; a fit that fails is an event, and the model in use stays;
 - a change of settings is stored with its events in one transaction first and applied only then, so
   that what runs is always what the database (and the rate limits) say (the settings route waits for
@@ -50,22 +50,22 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.pipeline import TrainedModel
-from sessions import schema
-from sessions.errors import FREE_SPACE_HINT, DiskFull, disk_full, is_disk_full
-from sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused, torque_json
-from sessions.formats.mcap_io import read_messages, recover, recover_in_place
-from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, SAMPLE_PERIOD_KEY, Recorder
-from sessions.imu_calibration import StandingCollector, applied_text, apply_calibration, front_end_segments
-from sessions.live.disk import DiskLevel, GrowthRate, estimated_bytes_per_s, minutes
-from sessions.live.gp_learning import GPLearning, GPTrainer, Note
-from sessions.live.imu_events import ImuWatch
-from sessions.live.intent_events import IntentOnsets
-from sessions.live.sources import FrameSource, LiveDevice
-from sessions.live.subscribers import SUBSCRIBER_CAPACITY, Subscriber
-from sessions.schema import GaitState, SensorFrame, SessionSettings, SettingsChange
-from sessions.store import Store
-from sessions.store_writer import StoreWriter, Write
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import FREE_SPACE_HINT, DiskFull, disk_full, is_disk_full
+from gaitscope.sessions.estimation import DEFAULT_PERIOD, FrameEstimator, FrameRefused, torque_json
+from gaitscope.sessions.formats.mcap_io import read_messages, recover, recover_in_place
+from gaitscope.sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, SAMPLE_PERIOD_KEY, Recorder
+from gaitscope.sessions.imu_calibration import StandingCollector, applied_text, apply_calibration, front_end_segments
+from gaitscope.sessions.live.disk import DiskLevel, GrowthRate, estimated_bytes_per_s, minutes
+from gaitscope.sessions.live.gp_learning import GPLearning, GPTrainer, Note
+from gaitscope.sessions.live.imu_events import ImuWatch
+from gaitscope.sessions.live.intent_events import IntentOnsets
+from gaitscope.sessions.live.sources import FrameSource, LiveDevice
+from gaitscope.sessions.live.subscribers import SUBSCRIBER_CAPACITY, Subscriber
+from gaitscope.sessions.schema import GaitState, SensorFrame, SessionSettings, SettingsChange
+from gaitscope.sessions.store import Store
+from gaitscope.sessions.store_writer import StoreWriter, Write
 
 __all__ = [
     "SUBSCRIBER_CAPACITY",
@@ -134,12 +134,12 @@ class SessionRuntime:
             the runtime stopped, with the session's final state; the manager stores it.
         gp_trainer: the worker the GP-EKF's fits go to (the server's, shared); None: the session starts its
             own if its stack runs ``gp_ekf`` (and stops it with the session).
-        writer: the thread that makes the session's database writes (:mod:`sessions.store_writer`; the
+        writer: the thread that makes the session's database writes (:mod:`gaitscope.sessions.store_writer`; the
             server's, shared); None: the session starts its own (and closes it when it stops).
 
     Raises:
         ValueError: the settings name an unknown estimator, or a primary the stack cannot run.
-        sessions.registry.MissingChannels: an estimator asked for whose required channels the source lacks.
+        gaitscope.sessions.registry.MissingChannels: an estimator asked for whose required channels the source lacks.
     """
 
     def __init__(
@@ -434,7 +434,7 @@ class SessionRuntime:
 
     def _intent_event(self, outputs: Sequence[NDArray[np.float64] | None]) -> None:
         """An onset of speeding up or slowing down at this sample: an ``intent`` event (at most one per
-        mid-stance, see :mod:`sessions.live.intent_events`)."""
+        mid-stance, see :mod:`gaitscope.sessions.live.intent_events`)."""
         onset = self.intent_onsets.update(outputs)
         if onset is not None:
             before, after = round(onset.desired_before_m_s, 3), round(onset.desired_m_s, 3)
@@ -575,7 +575,7 @@ class SessionRuntime:
         the actor and stored first, applied only then (at the next heel strike for a rollback), recorded.
 
         Raises:
-            sessions.live.gp_learning.LearningRefused: a rollback to a version not kept; nothing changed.
+            gaitscope.sessions.live.gp_learning.LearningRefused: a rollback to a version not kept; nothing changed.
             ChangeNotSaved: the event could not be stored; nothing changed.
         """
         learning = self.gp_learning

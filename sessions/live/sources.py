@@ -8,7 +8,7 @@
   event loop (:class:`DeviceBudget`); :func:`frame_refusal` and :func:`invalid_notice` make the short
   notices for what it sends that is not a frame.
 
-Every source is an async iterator of :class:`~sessions.schema.SensorFrame` whose ``t`` increases;
+Every source is an async iterator of :class:`~gaitscope.sessions.schema.SensorFrame` whose ``t`` increases;
 pacing uses the event loop's monotonic clock against each frame's due time, so a late wake-up catches
 up (the frames already due go out at once) instead of drifting.
 """
@@ -27,8 +27,8 @@ import numpy as np
 import pandas as pd
 from pydantic import ValidationError
 
-from sessions import schema
-from sessions.schema import SensorFrame
+from gaitscope.sessions import schema
+from gaitscope.sessions.schema import SensorFrame
 
 
 class FrameSource(Protocol):
@@ -47,7 +47,7 @@ class FrameSource(Protocol):
 class FrameTable:
     """The sensor frames of a replay-CSV-like table, made one at a time (:meth:`frame`).
 
-    Columns named as channels of :data:`~sessions.schema.CHANNELS` are carried (flags as 0/1 or bool),
+    Columns named as channels of :data:`~gaitscope.sessions.schema.CHANNELS` are carried (flags as 0/1 or bool),
     other columns ignored; a non-finite value is an absent channel. The values are kept as one array: a
     fraction of the memory of a list of frames that carry every channel.
     """
@@ -74,7 +74,7 @@ class FrameTable:
 
 def frames_from_table(table: pd.DataFrame) -> list[SensorFrame]:
     """Sensor frames from a replay-CSV-like table: ``time_s`` and any channels of
-    :data:`~sessions.schema.CHANNELS` (the replay signals, ``heel_strike``, schema version 2's others)."""
+    :data:`~gaitscope.sessions.schema.CHANNELS` (the replay signals, ``heel_strike``, schema version 2's others)."""
     rows = FrameTable(table)
     return [rows.frame(k) for k in range(len(rows))]
 
@@ -129,7 +129,7 @@ class SimulatedDevice:
         self._rows: FrameTable | None = None
 
     def _generate(self) -> FrameTable:
-        from sessions.synth.trials import sensor_trial
+        from gaitscope.sessions.synth.trials import sensor_trial
 
         schedule = [(p.speed_m_s, p.incline_deg, p.strides) for p in self.spec.protocol]
         sensors, _, _ = sensor_trial(
@@ -146,7 +146,7 @@ class SimulatedDevice:
 
     def subject_body(self) -> tuple[float, float]:
         """Leg length (m) and mass (kg) of the virtual subject walking."""
-        from sessions.synth.cohort import CohortSpec, make_subjects
+        from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
 
         subj = make_subjects(CohortSpec())[self.spec.cohort_subject]
         return subj.leg_length_m, subj.mass_kg
@@ -165,9 +165,9 @@ class ReplayDevice:
     PROBE = 200
 
     def __init__(self, path: Path, speed: float = 1.0, loop: bool = False):
-        from sessions.errors import DataFormatError
-        from sessions.formats.mcap_io import iter_sensor_frames
-        from sessions.registry import channels_of
+        from gaitscope.sessions.errors import DataFormatError
+        from gaitscope.sessions.formats.mcap_io import iter_sensor_frames
+        from gaitscope.sessions.registry import channels_of
 
         self.path = path
         self.speed = speed
@@ -186,7 +186,7 @@ class ReplayDevice:
             getattr(probe, "close", lambda: None)()  # a generator: close its file now
 
     async def _read(self) -> AsyncIterator[SensorFrame]:
-        from sessions.formats.mcap_io import iter_sensor_frames
+        from gaitscope.sessions.formats.mcap_io import iter_sensor_frames
 
         frames = iter_sensor_frames(self.path)
         while True:
@@ -309,8 +309,8 @@ CONNECT_S: Final = 0.003
 def frame_refusal(text: str) -> schema.DeviceNotice | None:
     """A ``too_large`` notice for a frame's text that is not worth parsing, else None.
 
-    Longer than :data:`~sessions.schema.MAX_FRAME_BYTES`, or with more keys than a frame has
-    (:data:`~sessions.schema.MAX_FRAME_KEYS`; counted by its colons, which a frame has one per key):
+    Longer than :data:`~gaitscope.sessions.schema.MAX_FRAME_BYTES`, or with more keys than a frame has
+    (:data:`~gaitscope.sessions.schema.MAX_FRAME_KEYS`; counted by its colons, which a frame has one per key):
     both are checked in microseconds, where parsing 500,000 unknown keys took seconds.
     """
     if len(text) > schema.MAX_FRAME_BYTES:

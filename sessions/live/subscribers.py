@@ -13,11 +13,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from sessions import schema
-from sessions.schema import GaitState
+from gaitscope.sessions import schema
+from gaitscope.sessions.schema import GaitState
 
 if TYPE_CHECKING:
-    from sessions.live.runtime import SessionRuntime
+    from gaitscope.sessions.live.runtime import SessionRuntime
 
 #: Samples a subscriber may have waiting before its oldest are dropped (about 5 s at 200 Hz).
 SUBSCRIBER_CAPACITY = 1000

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from sessions import schema
-from sessions.live.runtime import SessionRuntime, SettingRejected
+from gaitscope.sessions import schema
+from gaitscope.sessions.live.runtime import SessionRuntime, SettingRejected
 
 #: The fields a settings change may set (and so an undo may set back).
 UNDOABLE = (*schema.SETTING_LIMITS, "primary")

@@ -21,11 +21,11 @@ from typing import Final
 
 import numpy as np
 
-from estimators.pipeline import TrainedModel
-from estimators.protocol import HEEL_STRIKE, input_names
-from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
-from sessions.registry import ESTIMATORS, StackContext, Unavailable
-from sessions.schema import SensorFrame, SessionSettings
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.estimators.protocol import HEEL_STRIKE, input_names
+from gaitscope.sessions.estimation import DEFAULT_PERIOD, FrameEstimator
+from gaitscope.sessions.registry import ESTIMATORS, StackContext, Unavailable
+from gaitscope.sessions.schema import SensorFrame, SessionSettings
 
 __all__ = ["warm_up"]
 

@@ -1,6 +1,6 @@
 """Alembic migrations of the gaitscope database: one chain of revisions for SQLite and PostgreSQL.
 
-:class:`sessions.store.Store` calls :func:`migrate` when it opens a database, so that a new database
+:class:`gaitscope.sessions.store.Store` calls :func:`migrate` when it opens a database, so that a new database
 is created by the migrations (never by ``create_all``), one made before migrations existed is upgraded
 in place, and a versioned one is brought to the newest revision. ``gaitscope db`` (:mod:`.cli`) runs
 the same code by hand; Alembic's own command line works too, through ``env.py`` here
@@ -72,7 +72,7 @@ def config(url: str | None = None) -> Config:
 def configure(context: EnvironmentContext, connection: Connection, **kwargs: Any) -> None:
     """Configure a migration run on ``connection``: the same options for the store, ``gaitscope db`` and
     ``alembic``. ``render_as_batch`` because SQLite alters tables by copying them."""
-    from sessions.store import all_metadata
+    from gaitscope.sessions.store import all_metadata
 
     context.configure(
         connection=connection,

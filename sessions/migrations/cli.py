@@ -3,7 +3,7 @@
 The server needs none of this (it upgrades the database when it opens it); this is for an operator who
 wants to upgrade before starting the servers, look at the version, or step back after a bad release.
 The database is ``--database-url``, else ``GAITSCOPE_DATABASE_URL``, else the default of
-:class:`server.settings.Settings` (the SQLite file in the data folder). Each command runs in one
+:class:`gaitscope.server.settings.Settings` (the SQLite file in the data folder). Each command runs in one
 transaction holding the database's write lock, as the store's own upgrade does. Errors (an unknown
 revision, a database that cannot be reached) exit with status 2 and one line naming the database.
 """
@@ -18,7 +18,7 @@ from alembic.util.exc import CommandError
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import SQLAlchemyError
 
-from sessions import migrations
+from gaitscope.sessions import migrations
 
 __all__ = ["register"]
 
@@ -28,7 +28,7 @@ EXIT_ERROR = 2
 def _url(a: argparse.Namespace) -> str:
     if a.database_url:
         return str(a.database_url)
-    from server.settings import Settings  # the server's one settings object: env var, then its default
+    from gaitscope.server.settings import Settings  # the server's one settings object: env var, then its default
 
     return Settings().database_url
 
@@ -39,7 +39,7 @@ def _heads_label(revision: str, current: tuple[str, ...], heads: tuple[str, ...]
 
 
 def cmd_db(a: argparse.Namespace) -> int:
-    from sessions.store import make_engine, write_transaction
+    from gaitscope.sessions.store import make_engine, write_transaction
 
     url = _url(a)
     shown = make_url(url).render_as_string(hide_password=True)
@@ -75,7 +75,7 @@ def cmd_db(a: argparse.Namespace) -> int:
 
 
 def register(sub: Any) -> None:
-    """Add ``gaitscope db`` to the command line's subparsers (``server.cli.build_parser``)."""
+    """Add ``gaitscope db`` to the command line's subparsers (``gaitscope.server.cli.build_parser``)."""
     p = sub.add_parser("db", help="database migrations: upgrade, downgrade, current, history")
     p.add_argument(
         "--database-url",

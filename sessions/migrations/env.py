@@ -1,9 +1,9 @@
 """Alembic's entry point for its own command line (``alembic -c sessions/migrations/alembic.ini ...``).
 
-The store and ``gaitscope db`` do not come here (:func:`sessions.migrations.run` configures the
+The store and ``gaitscope db`` do not come here (:func:`gaitscope.sessions.migrations.run` configures the
 migration itself); this file serves ``alembic revision --autogenerate`` and friends. The database is
 ``-x url=...``, else ``sqlalchemy.url`` of the configuration, else ``GAITSCOPE_DATABASE_URL``, else
-the default SQLite file of :class:`server.settings.Settings`.
+the default SQLite file of :class:`gaitscope.server.settings.Settings`.
 """
 
 from __future__ import annotations
@@ -11,14 +11,14 @@ from __future__ import annotations
 from alembic import context
 from sqlalchemy import create_engine
 
-from sessions.migrations import LOCK_KEY, configure
+from gaitscope.sessions.migrations import LOCK_KEY, configure
 
 
 def _url() -> str:
     url = context.get_x_argument(as_dictionary=True).get("url") or context.config.get_main_option("sqlalchemy.url")
     if url:
         return url
-    from server.settings import Settings
+    from gaitscope.server.settings import Settings
 
     return Settings().database_url
 

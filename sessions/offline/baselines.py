@@ -4,7 +4,7 @@ A baseline is what an estimator would be written with a general-purpose filterin
 model, the library's own predict and update, plain vectorised numpy. Two estimators have a natural one,
 both on filterpy's ``ExtendedKalmanFilter``:
 
-- ``phase_ekf``: :class:`~estimators.reference.ReferencePhaseEKF`, the filter core only
+- ``phase_ekf``: :class:`~gaitscope.estimators.reference.ReferencePhaseEKF`, the filter core only
   (:class:`PhaseEKFCore`): predict and update on the measurement row, with the heel positions already
   high-passed. ``phase_ekf``'s step does more (high-pass, detection, the backup filter, health checks),
   so the cost ratio understates the filter's own speed-up, which the EKF row of the bench measures.
@@ -15,7 +15,7 @@ The timing-based estimate (``tbe``: a division and a modulo per sample) and the 
 (``hs_detector``: threshold tests) are no filter of any library; they have no baseline (:data:`BASELINES`
 leaves them out) rather than an invented one.
 
-Like :mod:`estimators.reference`, nothing here is used at run time (the backup's twin could join
+Like :mod:`gaitscope.estimators.reference`, nothing here is used at run time (the backup's twin could join
 ``ReferencePhaseEKF`` there).
 """
 
@@ -30,15 +30,15 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 from numpy.typing import NDArray
 
-from estimators.basis import Array
-from estimators.gait_model import N_CHANNELS, NoiseModel
-from estimators.heel_strike import BackupConfig
-from estimators.phase_ekf import EKFConfig, pseudo_from_stride
-from estimators.protocol import MAX_GAP_S, elapsed
-from estimators.reference import ReferencePhaseEKF
-from sessions.formats.replay_io import ReplayInput
-from sessions.offline.replay import measurements
-from sessions.registry import StackContext
+from gaitscope.estimators.basis import Array
+from gaitscope.estimators.gait_model import N_CHANNELS, NoiseModel
+from gaitscope.estimators.heel_strike import BackupConfig
+from gaitscope.estimators.phase_ekf import EKFConfig, pseudo_from_stride
+from gaitscope.estimators.protocol import MAX_GAP_S, elapsed
+from gaitscope.estimators.reference import ReferencePhaseEKF
+from gaitscope.sessions.formats.replay_io import ReplayInput
+from gaitscope.sessions.offline.replay import measurements
+from gaitscope.sessions.registry import StackContext
 
 __all__ = ["BASELINES", "Baseline", "PhaseEKFCore", "ReferenceHeelStrikeBackup", "Stepper"]
 
@@ -56,7 +56,7 @@ class Stepper(Protocol):
 
 
 class PhaseEKFCore:
-    """:class:`~estimators.reference.ReferencePhaseEKF` stepped per sample: predict over the time since
+    """:class:`~gaitscope.estimators.reference.ReferencePhaseEKF` stepped per sample: predict over the time since
     the previous sample (0.01 s before the first), then update with ``z``, the six measurements in the
     EKF's order (heel positions high-passed, NaN where missing). Returns the state ``[p, pdot, lp, r]``."""
 
@@ -82,12 +82,12 @@ class PhaseEKFCore:
 
 
 class ReferenceHeelStrikeBackup:
-    """filterpy twin of the standalone :class:`~estimators.heel_strike.HeelStrikeBackup` (``hs_backup``).
+    """filterpy twin of the standalone :class:`~gaitscope.estimators.heel_strike.HeelStrikeBackup` (``hs_backup``).
 
     The same model written the direct way: the open-loop phase in plain Python (reset at a heel strike,
     its rate from the last plausible stride period) and a two-state ``ExtendedKalmanFilter`` over
     ``x = [lp, r]`` with ``F = I`` and ``Q = diag(q_rate) dt``, whose measurement and Jacobian are the
-    reference phase EKF's (Kronecker regressor, :class:`~estimators.reference.ReferencePhaseEKF`) at
+    reference phase EKF's (Kronecker regressor, :class:`~gaitscope.estimators.reference.ReferencePhaseEKF`) at
     ``[phase, phase_rate, lp, r]``, columns lp and r, and ``R = Sigma_R(phase)`` on the finite channels.
     An extended filter and not filterpy's linear ``KalmanFilter``: the gait model is nonlinear in lp
     and r, and the backup re-linearises it at every sample as gaitscope's does. filterpy's update is

@@ -2,8 +2,8 @@
 measured in one run; every comparison is against a baseline measured in the same run.
 
 1. Per-sample cost (predict + update through the Python interface, ``time.perf_counter_ns`` around each
-   sample) of :class:`~estimators.phase_ekf.PhaseEKF` against the baseline
-   :class:`~estimators.reference.ReferencePhaseEKF` (filterpy's ``ExtendedKalmanFilter`` with the same
+   sample) of :class:`~gaitscope.estimators.phase_ekf.PhaseEKF` against the baseline
+   :class:`~gaitscope.estimators.reference.ReferencePhaseEKF` (filterpy's ``ExtendedKalmanFilter`` with the same
    model in vectorised numpy), on the same simulated trial with the shipped model; both filters run in
    lock step and the largest state and covariance difference over every sample is reported.
 2. Replay throughput of a 10-minute 100 Hz trial through the command-line path (CSV in, CSV out),
@@ -11,19 +11,19 @@ measured in one run; every comparison is against a baseline measured in the same
    (:meth:`GaitStatePipeline.step` per sample) against the batch path (:meth:`GaitStatePipeline.run`,
    the default), best of a few runs each; and the batch path's parts (reading, estimating, writing)
    timed one by one.
-3. Per-sample cost of every registered estimator (:data:`sessions.registry.ESTIMATORS`, the opt-in ones
+3. Per-sample cost of every registered estimator (:data:`gaitscope.sessions.registry.ESTIMATORS`, the opt-in ones
    too), each on its own through the stack interface (``step(t, z)``, ``time.perf_counter_ns`` around
    each sample, fed the channels the default stack feeds it), against its library baseline where it has
-   a natural one (:data:`sessions.offline.baselines.BASELINES`; none for the TBE and the heel-strike
+   a natural one (:data:`gaitscope.sessions.offline.baselines.BASELINES`; none for the TBE and the heel-strike
    detector), each timed in a pass of its own; a baseline of the same step is also compared with the
    estimator output by output.
-4. Per-sample cost of the whole default estimator stack (:mod:`sessions.stack`, every registered
+4. Per-sample cost of the whole default estimator stack (:mod:`gaitscope.sessions.stack`, every registered
    estimator, as a live session runs it) against the seed-000 pipeline's :meth:`GaitStatePipeline.step`.
-5. Per-sample cost of the speed-change intent estimator (:mod:`sessions.offline.intent_bench`) on a simulated
+5. Per-sample cost of the speed-change intent estimator (:mod:`gaitscope.sessions.offline.intent_bench`) on a simulated
    walk, between events and at events, against seed 001 on filterpy's ``KalmanFilter`` (row 3 feeds it the
    default trial, which lacks its channels, so it sees no events there).
 6. A GP-EKF retraining (seed 003) against the walking time it has and against GPy's documented sparse GP
-   regression (:mod:`sessions.offline.gp_bench`).
+   regression (:mod:`gaitscope.sessions.offline.gp_bench`).
 7. Wall time of the full leave-one-subject-out cross-validation.
 
 Targets: issue #2, gaitscope >= 20x faster than the reference and < 10 us per sample, states agree to
@@ -44,20 +44,20 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from estimators.phase_ekf import PhaseEKF
-from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
-from estimators.protocol import HEEL_STRIKE, Estimator, input_names
-from estimators.reference import ReferencePhaseEKF
-from sessions import schema
-from sessions.formats.models import default_model_path, load_model
-from sessions.formats.replay_io import read_replay_csv, write_replay_output
-from sessions.offline.baselines import BASELINES, Stepper
-from sessions.offline.gp_bench import retrain_cost
-from sessions.offline.intent_bench import intent_cost
-from sessions.offline.replay import measurements, replay_file, run
-from sessions.offline.timing import step_times
-from sessions.registry import ESTIMATORS, OPT_IN, StackContext, build_stack
-from sessions.synth.trials import minutes_schedule, replay_columns, replay_input, sensor_trial
+from gaitscope.estimators.phase_ekf import PhaseEKF
+from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from gaitscope.estimators.protocol import HEEL_STRIKE, Estimator, input_names
+from gaitscope.estimators.reference import ReferencePhaseEKF
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.formats.replay_io import read_replay_csv, write_replay_output
+from gaitscope.sessions.offline.baselines import BASELINES, Stepper
+from gaitscope.sessions.offline.gp_bench import retrain_cost
+from gaitscope.sessions.offline.intent_bench import intent_cost
+from gaitscope.sessions.offline.replay import measurements, replay_file, run
+from gaitscope.sessions.offline.timing import step_times
+from gaitscope.sessions.registry import ESTIMATORS, OPT_IN, StackContext, build_stack
+from gaitscope.sessions.synth.trials import minutes_schedule, replay_columns, replay_input, sensor_trial
 
 
 def _percentiles(ns: np.ndarray) -> tuple[float, float]:
@@ -244,10 +244,10 @@ def calibration_cost(walk_s: float = 60.0) -> dict[str, float]:
     """Seconds to fit a subject's fingerprint from the samples of a ``walk_s`` walk (the subject page's
     "Fit": strides cut at heel strikes, belt-speed stride length; reading the samples from a recording
     comes on top), and to refit the map from the cohort's level walking."""
-    from estimators.fingerprint import fit_map
-    from sessions.offline.fingerprints import training_walks
-    from sessions.personalization.calibration import CalibrationWalk, calibrate
-    from sessions.synth.cohort import CohortSpec
+    from gaitscope.estimators.fingerprint import fit_map
+    from gaitscope.sessions.offline.fingerprints import training_walks
+    from gaitscope.sessions.personalization.calibration import CalibrationWalk, calibrate
+    from gaitscope.sessions.synth.cohort import CohortSpec
 
     model, _ = load_model(default_model_path())
     assert model.fingerprints is not None
@@ -322,7 +322,7 @@ def stack_cost(samples: int = 6000) -> tuple[dict[str, float], tuple[str, ...]]:
 
 
 def crossval_time() -> float:
-    from sessions.offline.crossval import crossvalidate
+    from gaitscope.sessions.offline.crossval import crossvalidate
 
     t0 = time.perf_counter()
     crossvalidate()

@@ -6,7 +6,7 @@ Protocol, as in the authors' code (``shared/reference/estimators.md`` section 1)
   training subjects) and the torque profile are refitted on the other subjects;
 - each of the held-out subject's 27 conditions is walked as one trial of concatenated strides
   (duplicate boundary samples dropped; 150 samples per stride, so ``dt = T / 149``) through simulated
-  sensors (:func:`sessions.synth.cohort.simulate_sensors`, seed 000's sensor noise levels), starting from the
+  sensors (:func:`gaitscope.sessions.synth.cohort.simulate_sensors`, seed 000's sensor noise levels), starting from the
   paper's initial state; heel strikes are the true ones (perfect heel strikes, as for the TBE);
 - phase error is wrapped, ``min(|d|, 1 - |d|)``; RMSE per stride (heel strike to heel strike), and per
   subject the mean of its stride RMSEs; stride length, incline and torque likewise; the torque error
@@ -33,15 +33,15 @@ import pandas as pd
 from numpy.typing import NDArray
 from scipy import stats
 
-from estimators.basis import Array
-from estimators.phase_ekf import EKFConfig
-from estimators.pipeline import PipelineConfig, TrainedModel
-from sessions import schema
-from sessions.formats.replay_io import ReplayInput
-from sessions.offline.replay import run
-from sessions.offline.training import StrideData, fit_models, stride_data, subject_grams
-from sessions.synth.cohort import CohortSpec, SensorNoise, generate_cohort, simulate_sensors
-from sessions.synth.trials import replay_input
+from gaitscope.estimators.basis import Array
+from gaitscope.estimators.phase_ekf import EKFConfig
+from gaitscope.estimators.pipeline import PipelineConfig, TrainedModel
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.replay_io import ReplayInput
+from gaitscope.sessions.offline.replay import run
+from gaitscope.sessions.offline.training import StrideData, fit_models, stride_data, subject_grams
+from gaitscope.sessions.synth.cohort import CohortSpec, SensorNoise, generate_cohort, simulate_sensors
+from gaitscope.sessions.synth.trials import replay_input
 
 #: Seed 000 Table/section III-B numbers: (mean, SD).
 PAPER = {

@@ -1,9 +1,9 @@
 """Gait fingerprints for seed 000's phase EKF: seed 004's personalization applied to the Kronecker model.
 
 Seed 004 (Montes Pérez et al., ``shared/reference/estimators.md`` section 2) personalizes a thigh-angle
-model; :mod:`estimators.fingerprint` implements it. Here the same construction personalizes seed 000's
+model; :mod:`gaitscope.estimators.fingerprint` implements it. Here the same construction personalizes seed 000's
 gait model (foot angle, shank angle, heel forward and heel up over phase, normalised stride length and
-incline; :mod:`estimators.gait_model`), and the leave-one-subject-out study on the cohort measures what
+incline; :mod:`gaitscope.estimators.gait_model`), and the leave-one-subject-out study on the cohort measures what
 it does for the phase EKF. For each held-out subject:
 
 - average model: seed 000's model fitted on the other subjects (:func:`~sessions.offline.training.fit_models`);
@@ -41,7 +41,7 @@ it does for the phase EKF. For each held-out subject:
   model's error on a new person, so it overstates the personalized models' error and those filters
   trust their models less than they could. Conservative and the same for every variant; a personalized
   ``Sigma_R`` would need each training subject calibrated against a map built without it;
-- filters run and are scored as :func:`sessions.offline.crossval.evaluate_subject` runs the EKF: the
+- filters run and are scored as :func:`gaitscope.sessions.offline.crossval.evaluate_subject` runs the EKF: the
   same trials, sensor-noise draws, initial state, true heel strikes and per-stride scoring, so the
   average model's row is crossval's EKF result; paired two-sided t-tests over subjects against it.
 """
@@ -59,8 +59,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from estimators.basis import Array, regressor
-from estimators.gait_model import (
+from gaitscope.estimators.basis import Array, regressor
+from gaitscope.estimators.gait_model import (
     N_OUTPUTS,
     Z_FOOT_ANGLE,
     Z_HEEL_FORWARD,
@@ -70,12 +70,12 @@ from estimators.gait_model import (
     evaluate,
     fit_outputs,
 )
-from estimators.pipeline import PipelineConfig, TrainedModel
-from sessions import schema
-from sessions.offline.crossval import stride_rmse, subject_trials, wrapped
-from sessions.offline.replay import measurements, run
-from sessions.offline.training import SAMPLES_PER_STRIDE, StrideData, fit_models, stride_data, subject_grams
-from sessions.synth.cohort import (
+from gaitscope.estimators.pipeline import PipelineConfig, TrainedModel
+from gaitscope.sessions import schema
+from gaitscope.sessions.offline.crossval import stride_rmse, subject_trials, wrapped
+from gaitscope.sessions.offline.replay import measurements, run
+from gaitscope.sessions.offline.training import SAMPLES_PER_STRIDE, StrideData, fit_models, stride_data, subject_grams
+from gaitscope.sessions.synth.cohort import (
     CohortSpec,
     SensorNoise,
     SubjectParams,
@@ -84,7 +84,7 @@ from sessions.synth.cohort import (
     make_subjects,
     simulate_sensors,
 )
-from sessions.synth.trials import replay_input
+from gaitscope.sessions.synth.trials import replay_input
 
 __all__ = [
     "AVERAGE",
@@ -216,7 +216,7 @@ def fit_map(
     """The personalization map from the training subjects' Grams (module docstring).
 
     Args:
-        grams: one :class:`~estimators.gait_model.Gram` per training subject (outputs in the model's units).
+        grams: one :class:`~gaitscope.estimators.gait_model.Gram` per training subject (outputs in the model's units).
         base: the average model ``(4, 2, 2, 2N+1)``, fitted on the same subjects.
         scale: ``s_o`` ``(4,)`` (:func:`output_scale`).
         variance_threshold: keep components until their cumulative share exceeds it (seed 004: 99 %).
@@ -358,7 +358,7 @@ def score_filters(
     seed: int,
 ) -> tuple[dict[str, Errors], int]:
     """The EKF of each model over every condition of ``subject``: trials, noise draws, configuration and
-    scoring of :func:`sessions.offline.crossval.evaluate_subject`. Returns per-model (phase %, stride
+    scoring of :func:`gaitscope.sessions.offline.crossval.evaluate_subject`. Returns per-model (phase %, stride
     length m, incline deg) RMSE and the number of strides scored."""
     leg, mass, trials = subject_trials(cohort, data, subject, noise, seed)
     config = PipelineConfig(leg_length=leg, body_mass_kg=mass, max_torque=200.0)

@@ -5,7 +5,7 @@ section 2), with the cohort standing in for the Embry data set:
 
 - training data: each subject's level walking at 0.8, 1.0 and 1.2 m/s (20 strides each, the cohort's
   reported thigh angle, which carries the subject's sensor offset); for each held-out subject the map
-  (:func:`estimators.fingerprint.fit_map`) is learnt from the other nine;
+  (:func:`gaitscope.estimators.fingerprint.fit_map`) is learnt from the other nine;
 - test walk: the held-out subject at ``SCHEDULE`` (26 strides per block), ``dt = 1 / (150 pdot_true)``
   (150 samples per stride), thigh velocity by numerical differentiation of the angle (``numpy.gradient``
   over time, as the paper differentiated its motion-capture angles; a choice of scheme);
@@ -31,10 +31,10 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from estimators.fingerprint import FingerprintConfig, FingerprintEKF, FingerprintMap, Mode, basis, fit_map
-from sessions import schema
-from sessions.offline.crossval import wrapped
-from sessions.synth.cohort import CohortSpec, SubjectParams, generate_cohort, generate_walk, make_subjects
+from gaitscope.estimators.fingerprint import FingerprintConfig, FingerprintEKF, FingerprintMap, Mode, basis, fit_map
+from gaitscope.sessions import schema
+from gaitscope.sessions.offline.crossval import wrapped
+from gaitscope.sessions.synth.cohort import CohortSpec, SubjectParams, generate_cohort, generate_walk, make_subjects
 
 __all__ = [
     "CONVERGED_PHASE_RMSE",

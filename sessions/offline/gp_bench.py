@@ -2,17 +2,17 @@
 user would call it, measured in the same run.
 
 Issue #11: a retrain of 5 steps must finish well within the next 5 steps. The window is the first one the
-estimator offers on seed 003's protocol (:mod:`sessions.synth.speed_walks`, the cohort's default
+estimator offers on seed 003's protocol (:mod:`gaitscope.sessions.synth.speed_walks`, the cohort's default
 subject), at the start of the sinusoid (0.8 m/s and rising). Timed:
 
-- :func:`estimators.gp_models.fit_models`, as sessions run it (six FITC sparse GPs, 25 inducing points at
+- :func:`gaitscope.estimators.gp_models.fit_models`, as sessions run it (six FITC sparse GPs, 25 inducing points at
   training inputs, maximum likelihood, one BLAS thread, GPy's numpy kernel gradients);
 - the baseline: the same six fits the way GPy's documentation writes one,
   ``GPy.models.SparseGPRegression(X, Y, num_inducing=25).optimize(max_iters=200)`` (variational DTC,
   inducing inputs optimized, the BLAS's default threads).
 
 The budget is the walking time of the next 5 steps, which the window's own 5 steps approximate. The
-per-sample cost of ``gp_ekf`` is in the per-estimator rows (``sessions.offline.bench.estimator_costs``).
+per-sample cost of ``gp_ekf`` is in the per-estimator rows (``gaitscope.sessions.offline.bench.estimator_costs``).
 Nothing here runs at run time.
 """
 
@@ -23,12 +23,12 @@ from typing import Final
 
 import numpy as np
 
-from estimators.gp_ekf_estimator import GPEKFEstimator
-from estimators.gp_models import TrainingWindow, fit_models
-from estimators.protocol import input_names
-from sessions.registry import gp_ekf_default
-from sessions.synth.cohort import CohortSpec, make_subjects
-from sessions.synth.speed_walks import SpeedProtocol, speed_walk
+from gaitscope.estimators.gp_ekf_estimator import GPEKFEstimator
+from gaitscope.estimators.gp_models import TrainingWindow, fit_models
+from gaitscope.estimators.protocol import input_names
+from gaitscope.sessions.registry import gp_ekf_default
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_walk
 
 __all__ = ["first_window", "retrain_cost"]
 

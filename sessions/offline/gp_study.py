@@ -1,10 +1,10 @@
 """Seed 003's findings on the cohort: ``gaitscope crossval --study gpekf``.
 
-Protocol (:mod:`sessions.synth.speed_walks`): each cohort subject walks on a treadmill whose speed is a
+Protocol (:mod:`gaitscope.sessions.synth.speed_walks`): each cohort subject walks on a treadmill whose speed is a
 sinusoid between 0.4 and 1.2 m/s with a 20 s period, then stops suddenly and stands. The GP-EKF
-(:class:`estimators.gp_ekf_estimator.GPEKFEstimator`) runs sample by sample at 200 Hz from the joint
+(:class:`gaitscope.estimators.gp_ekf_estimator.GPEKFEstimator`) runs sample by sample at 200 Hz from the joint
 encoders, with the device's heel strikes, and learns as it walks: each time it offers a training window
-(every 5 completed steps) the window is fitted here at once (:func:`estimators.gp_models.fit_models`) and
+(every 5 completed steps) the window is fitted here at once (:func:`gaitscope.estimators.gp_models.fit_models`) and
 offered back, so the new model is installed at the next heel strike if it passes the held-back check.
 A live session fits in a worker and installs at the first heel strike after the fit ends; a fit takes
 well under the 5 steps it has (``gaitscope bench``), so the live model is at most a few steps later.
@@ -39,18 +39,18 @@ import numpy as np
 import pandas as pd
 from scipy.stats import wilcoxon
 
-from estimators.gp import FitOptions
-from estimators.gp_ekf_estimator import (
+from gaitscope.estimators.gp import FitOptions
+from gaitscope.estimators.gp_ekf_estimator import (
     COHORT_COLUMNS,
     ControlSurface,
     EstimatorConfig,
     GPEKFEstimator,
     build_default,
 )
-from estimators.gp_models import GPModelSet, fit_models
-from sessions.registry import GP_EKF_COHORT
-from sessions.synth.cohort import CohortSpec, SubjectParams, generate_cohort, make_subjects
-from sessions.synth.speed_walks import SpeedProtocol, speed_walk
+from gaitscope.estimators.gp_models import GPModelSet, fit_models
+from gaitscope.sessions.registry import GP_EKF_COHORT
+from gaitscope.sessions.synth.cohort import CohortSpec, SubjectParams, generate_cohort, make_subjects
+from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_walk
 
 __all__ = ["GPStudy", "SubjectRun", "run_study", "to_markdown", "write_figure"]
 
@@ -200,7 +200,7 @@ def run_study(
     """Every subject of ``cohort`` through the protocol (see the module docstring).
 
     ``population``: what the first model is fitted to, less the subject; default the GP-EKF's own
-    conditions (:data:`sessions.registry.GP_EKF_COHORT`) for every subject of ``cohort``.
+    conditions (:data:`gaitscope.sessions.registry.GP_EKF_COHORT`) for every subject of ``cohort``.
     """
     protocol = protocol or SpeedProtocol()
     cohort = cohort or CohortSpec()

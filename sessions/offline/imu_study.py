@@ -1,11 +1,11 @@
 """The IMU front end on the virtual cohort: which orientation filter turns its simulated IMUs into angles.
 
 ``gaitscope crossval --study imu``. Each of ``subjects`` cohort subjects walks the treadmill protocol
-(seed 000 III-E, :data:`~sessions.schema.TREADMILL_PROTOCOL`) at 100 Hz through the cohort's simulated
-MPU-9250s (:mod:`sessions.synth.imu`: noise, bias up to 5 deg/s, scale, mounting misalignment, ADC); every
+(seed 000 III-E, :data:`~gaitscope.sessions.schema.TREADMILL_PROTOCOL`) at 100 Hz through the cohort's simulated
+MPU-9250s (:mod:`gaitscope.sessions.synth.imu`: noise, bias up to 5 deg/s, scale, mounting misalignment, ADC); every
 filter turns each leg IMU's raw readings into the segment's sagittal angle, compared with the true angle:
 
-- ``cf``: :class:`estimators.imu_frontend.ImuFrontEnd` (gated complementary filter, tracked gyro bias,
+- ``cf``: :class:`gaitscope.estimators.imu_frontend.ImuFrontEnd` (gated complementary filter, tracked gyro bias,
   foot-flat resets on the feet), the live default;
 - ``fusion``: the same front end with x-io's Fusion AHRS (``imufusion``) as its filter;
 - ``madgwick``, ``mahony``: the ``ahrs`` package's filters (defaults, 100 Hz; when installed) on the bias-tracked gyro,
@@ -30,10 +30,17 @@ from typing import Final
 import numpy as np
 import pandas as pd
 
-from estimators.imu_frontend import ImuFrontEnd, imu_inputs
-from sessions import schema as s
-from sessions.schema import TREADMILL_PROTOCOL
-from sessions.synth.cohort import CohortSpec, SensorNoise, generate_walk, make_subjects, resample_walk, simulate_sensors
+from gaitscope.estimators.imu_frontend import ImuFrontEnd, imu_inputs
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.schema import TREADMILL_PROTOCOL
+from gaitscope.sessions.synth.cohort import (
+    CohortSpec,
+    SensorNoise,
+    generate_walk,
+    make_subjects,
+    resample_walk,
+    simulate_sensors,
+)
 
 __all__ = ["METHODS", "SEGMENTS", "ImuStudy", "run_study", "to_markdown", "trial"]
 
@@ -57,7 +64,7 @@ class ImuStudy:
 
 
 def trial(subject: int, seed: int) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """A subject's treadmill protocol as :func:`sessions.synth.trials.sensor_trial` simulates it, with the
+    """A subject's treadmill protocol as :func:`gaitscope.sessions.synth.trials.sensor_trial` simulates it, with the
     clean walk it came from (the true angles): ``(sensors, walk)``, row for row."""
     subj = make_subjects(CohortSpec())[subject]
     rng = np.random.default_rng(seed)

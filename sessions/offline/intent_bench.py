@@ -29,11 +29,11 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 
-from estimators.intent import COHORT, BKFConfig, D
-from estimators.intent_estimator import IntentEstimator
-from estimators.protocol import input_names
-from sessions.offline.timing import step_times
-from sessions.synth.trials import sensor_trial
+from gaitscope.estimators.intent import COHORT, BKFConfig, D
+from gaitscope.estimators.intent_estimator import IntentEstimator
+from gaitscope.estimators.protocol import input_names
+from gaitscope.sessions.offline.timing import step_times
+from gaitscope.sessions.synth.trials import sensor_trial
 
 __all__ = ["ReferenceIntent", "intent_cost", "walk_inputs"]
 

@@ -1,7 +1,7 @@
 """Seed 001's evaluation of the buttressed Kalman filter, on the virtual cohort's speed-change walks.
 
 ``gaitscope crossval --study intent``. Protocol (seed 001 Sec. III, ``shared/reference/estimators.md``
-section 4), with :mod:`sessions.synth.intent_walks` standing in for the Ekso trials:
+section 4), with :mod:`gaitscope.sessions.synth.intent_walks` standing in for the Ekso trials:
 
 - each cohort subject walks three commanded speed-ups (SU) and three slow-downs (SD), command at step 8,
   and one self-paced walk with changes at steps of its own choosing; sensors at 100 Hz with the cohort's
@@ -22,7 +22,7 @@ section 4), with :mod:`sessions.synth.intent_walks` standing in for the Ekso tri
 - three step-length models: the paper's (its uninjured subject's kappa), the subject's own (fitted on
   their other trials) and the cohort's (fitted on the other subjects, for a new subject with no
   training); and the filter fed the centre of mass from leg kinematics
-  (:func:`estimators.com_kinematics.com_from_legs`) instead of the measured one;
+  (:func:`gaitscope.estimators.com_kinematics.com_from_legs`) instead of the measured one;
 - baselines on the same steps: the sign of the last measured speed change, and the sign of the step-length
   change above a threshold (``STEP_THRESHOLD_M``).
 """
@@ -37,11 +37,11 @@ from typing import Final
 import numpy as np
 from scipy import stats
 
-from estimators.com_kinematics import LegGeometry, com_from_legs
-from estimators.intent import UNINJURED, BKFConfig, ButtressedKF, fit_kappa
-from estimators.intent_estimator import IntentEstimator
-from sessions.synth.cohort import CohortSpec
-from sessions.synth.intent_walks import IntentProtocol, IntentTrial, intent_trials
+from gaitscope.estimators.com_kinematics import LegGeometry, com_from_legs
+from gaitscope.estimators.intent import UNINJURED, BKFConfig, ButtressedKF, fit_kappa
+from gaitscope.estimators.intent_estimator import IntentEstimator
+from gaitscope.sessions.synth.cohort import CohortSpec
+from gaitscope.sessions.synth.intent_walks import IntentProtocol, IntentTrial, intent_trials
 
 __all__ = [
     "PAPER_CORR",

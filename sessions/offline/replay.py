@@ -1,6 +1,6 @@
 """Replay a recorded trial (the replay CSV) through the estimator stack.
 
-Reads the input with full validation (:mod:`sessions.formats.replay_io`), derives missing angular velocities
+Reads the input with full validation (:mod:`gaitscope.sessions.formats.replay_io`), derives missing angular velocities
 from the angles (``numpy.gradient`` in time), high-passes the raw heel positions over the whole trial
 (seed 000 II-B, discretised at the median sample period), runs :class:`GaitStatePipeline` over the
 whole trial in one compiled call (:meth:`~GaitStatePipeline.run`, the same outputs as stepping it sample
@@ -9,8 +9,8 @@ atomically.
 
 ``supervised=True`` (what ``gaitscope replay`` and ``gaitscope demo`` do unless ``--as-published``)
 runs the filter as a live session's ``phase_ekf`` does instead: sample by sample through
-:class:`~estimators.phase_ekf_estimator.PhaseEKFEstimator`, with its lock supervisor
-(:mod:`estimators.lock`: standing still, heel strikes from the shank, lock loss), the torque times
+:class:`~gaitscope.estimators.phase_ekf_estimator.PhaseEKFEstimator`, with its lock supervisor
+(:mod:`gaitscope.estimators.lock`: standing still, heel strikes from the shank, lock loss), the torque times
 ``1 - standing`` and 0 at a lock-loss reset, as the session's stack commands it. The compiled path
 stays seed 000's filter as published, which the cross-validation reproduces.
 """
@@ -23,14 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-from estimators.basis import Array
-from estimators.highpass import HighPassFilter
-from estimators.lock import LockConfig
-from estimators.phase_ekf_estimator import PhaseEKFEstimator
-from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
-from estimators.protocol import FAULTS
-from sessions import schema
-from sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv
+from gaitscope.estimators.basis import Array
+from gaitscope.estimators.highpass import HighPassFilter
+from gaitscope.estimators.lock import LockConfig
+from gaitscope.estimators.phase_ekf_estimator import PhaseEKFEstimator
+from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from gaitscope.estimators.protocol import FAULTS
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv
 
 _VELOCITY_OF = {"foot_vel_dps": "foot_angle_deg", "shank_vel_dps": "shank_angle_deg"}
 
@@ -77,7 +77,7 @@ class ReplaySummary:
 def measurements(data: ReplayInput, highpass: bool = True) -> Array:
     """``(n, 6)`` measurement matrix in the EKF's channel order; NaN for absent channels.
 
-    Values outside :data:`~sessions.schema.SENSOR_LIMITS` are missing (as live). Velocities absent
+    Values outside :data:`~gaitscope.sessions.schema.SENSOR_LIMITS` are missing (as live). Velocities absent
     from the input are derived from their angles; heel positions are high-passed, with a missing
     sample holding the filter's input at the last good value (its output there stays missing);
     ``highpass=False`` leaves them raw (for :class:`PhaseEKFEstimator`, which filters them as it goes).

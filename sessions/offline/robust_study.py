@@ -1,12 +1,12 @@
 """The phase EKF on walks with what real walking contains (issue #10): ``gaitscope crossval --study robust``.
 
-Each cohort subject walks :func:`sessions.synth.real_walks.real_walk` (three bouts from and to standing,
+Each cohort subject walks :func:`gaitscope.sessions.synth.real_walks.real_walk` (three bouts from and to standing,
 each with a start, a 90 deg turn and a stop; sensor offsets, gyro bias, the turns' yaw leak, dropouts),
 seen through four sensor subsets: foot + shank + heel, foot + shank, foot only, shank only. Through
 each run, sample by sample as a session runs them (heel strikes detected, never given):
 
-- ``EKF``: the ``phase_ekf`` stack estimator (:class:`estimators.phase_ekf_estimator.PhaseEKFEstimator`),
-  with its lock supervisor (:mod:`estimators.lock`: standing, shank heel strikes, lock loss);
+- ``EKF``: the ``phase_ekf`` stack estimator (:class:`gaitscope.estimators.phase_ekf_estimator.PhaseEKFEstimator`),
+  with its lock supervisor (:mod:`gaitscope.estimators.lock`: standing, shank heel strikes, lock loss);
 - ``EKF as published``: the same without the supervisor (seed 000's filter, backup and detector);
 - ``TBE``: the timing-based estimate inside it, on the same detected heel strikes;
 - ``no-task EKF``: the same with stride length and incline frozen (seed 000's ablation).
@@ -28,15 +28,15 @@ from typing import Final
 import numpy as np
 import pandas as pd
 
-from estimators.lock import LockConfig
-from estimators.phase_ekf import EKFConfig
-from estimators.phase_ekf_estimator import PhaseEKFEstimator
-from estimators.pipeline import PipelineConfig, TrainedModel
-from sessions import schema as s
-from sessions.formats.models import default_model_path, load_model
-from sessions.offline.crossval import wrapped
-from sessions.synth.cohort import CohortSpec, SubjectParams
-from sessions.synth.real_walks import RealWalkSpec, real_walks
+from gaitscope.estimators.lock import LockConfig
+from gaitscope.estimators.phase_ekf import EKFConfig
+from gaitscope.estimators.phase_ekf_estimator import PhaseEKFEstimator
+from gaitscope.estimators.pipeline import PipelineConfig, TrainedModel
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.offline.crossval import wrapped
+from gaitscope.sessions.synth.cohort import CohortSpec, SubjectParams
+from gaitscope.sessions.synth.real_walks import RealWalkSpec, real_walks
 
 __all__ = ["ESTIMATORS", "SUBSETS", "RobustStudy", "run_study", "to_markdown"]
 

@@ -1,7 +1,7 @@
 """Seed 002's evaluation of the SDRE joint-angle estimator, on simulated legs. ``gaitscope crossval --study sdre``.
 
 Protocol (Zhong 2016 chapter 4, ``shared/reference/estimators.md`` section 5), with
-:mod:`sessions.synth.fes_leg` standing in for the leg-extension experiment:
+:mod:`gaitscope.sessions.synth.fes_leg` standing in for the leg-extension experiment:
 
 - **seated knee**: Table 1's six legs x 3 trials of 30 s = 18 trials; the SDRE (seated-knee model,
   ``a = 1``) and the EKF (Jacobians, ``a = 0``) on the shank IMU, the rotation-matrix method (RMX) on both;
@@ -18,7 +18,7 @@ Protocol (Zhong 2016 chapter 4, ``shared/reference/estimators.md`` section 5), w
   ``Q`` of each tuned on a pre-trial (bias 0.5 deg/s, its own seed), thigh ("hip") and knee RMSE. The IMU
   data reach the estimators splined to 1 kHz but not low-passed (the thesis's simulation adds only a
   gyro bias and accelerometer noise).
-- **walking** (not in the thesis): the stack estimator :class:`estimators.sdre_estimator.SDREKnee` on the
+- **walking** (not in the thesis): the stack estimator :class:`gaitscope.estimators.sdre_estimator.SDREKnee` on the
   virtual cohort's simulated thigh and shank IMUs, knee RMSE against the knee encoder channel, beside the
   difference of the two segments' complementary-filter angles (RMX in the sagittal plane).
 """
@@ -34,10 +34,10 @@ import numpy as np
 from scipy import signal, stats
 from scipy.interpolate import CubicSpline
 
-from estimators.sdre import ContinuousFilter, complementary_angle, initial_angle, rmx_knee_angle, rotation_z
-from estimators.sdre_estimator import SDREKnee
-from sessions.synth.fes_leg import IMU_RATE_HZ, LEGS, TRUTH_RATE_HZ, FesTrial, seated_trial, two_link_trial
-from sessions.synth.trials import minutes_schedule, sensor_trial
+from gaitscope.estimators.sdre import ContinuousFilter, complementary_angle, initial_angle, rmx_knee_angle, rotation_z
+from gaitscope.estimators.sdre_estimator import SDREKnee
+from gaitscope.sessions.synth.fes_leg import IMU_RATE_HZ, LEGS, TRUTH_RATE_HZ, FesTrial, seated_trial, two_link_trial
+from gaitscope.sessions.synth.trials import minutes_schedule, sensor_trial
 
 __all__ = [
     "PAPER_2DOF",

@@ -2,7 +2,7 @@
 
 A table is turned into :class:`StrideData`: strides of 150 phase samples each with their phase rate,
 normalised stride length and incline, the measured channels and the plantarflexor moment. From it,
-per-subject Gram matrices make leave-one-subject-out refits cheap (:mod:`estimators.gait_model`).
+per-subject Gram matrices make leave-one-subject-out refits cheap (:mod:`gaitscope.estimators.gait_model`).
 
 Protocol (seed 000 II-B, II-C4 and the authors' code):
 
@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from estimators.basis import Array
-from estimators.fingerprint import FingerprintMap, fit_map
-from estimators.gait_model import (
+from gaitscope.estimators.basis import Array
+from gaitscope.estimators.fingerprint import FingerprintMap, fit_map
+from gaitscope.estimators.gait_model import (
     OUT_FOOT,
     OUT_HEEL_FORWARD,
     OUT_HEEL_UP,
@@ -37,11 +37,11 @@ from estimators.gait_model import (
     gram,
     residual_covariance,
 )
-from estimators.highpass import HighPassFilter
-from estimators.pipeline import TrainedModel
-from estimators.torque import TorqueProfile, fit_torque
-from sessions import schema
-from sessions.formats.locohub import parse_task_info
+from gaitscope.estimators.highpass import HighPassFilter
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.estimators.torque import TorqueProfile, fit_torque
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.locohub import parse_task_info
 
 SAMPLES_PER_STRIDE = 150
 LEG_LENGTH_PER_HEIGHT = 0.530  # Winter, Biomechanics and Motor Control of Human Movement, 4th ed., Fig. 4.1
@@ -113,7 +113,7 @@ def _is_number(v: str) -> bool:
 
 
 def stride_data(frame: pd.DataFrame) -> StrideData:
-    """Arrange a LocoHub table (see :data:`sessions.schema.TRAINING_COLUMNS`) into strides."""
+    """Arrange a LocoHub table (see :data:`gaitscope.sessions.schema.TRAINING_COLUMNS`) into strides."""
     if schema.SUBJECT_METADATA not in frame.columns:
         raise ValueError("the table has no subject_metadata column (leg length and mass are needed)")
     meta = _metadata(frame)

@@ -24,8 +24,8 @@ from typing import Final
 
 import numpy as np
 
-from estimators.fingerprint import FingerprintMap, basis
-from sessions.formats.mcap_io import read_messages
+from gaitscope.estimators.fingerprint import FingerprintMap, basis
+from gaitscope.sessions.formats.mcap_io import read_messages
 
 __all__ = ["MIN_STRIDES", "Calibration", "CalibrationRefused", "CalibrationWalk", "calibrate", "read_walk"]
 

@@ -11,8 +11,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Final
 
-from sessions import schema
-from sessions.formats.mcap_io import count_messages, read_messages
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.mcap_io import count_messages, read_messages
 
 __all__ = ["CSV_COLUMNS", "write_estimates_csv"]
 

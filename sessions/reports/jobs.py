@@ -23,11 +23,11 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Final
 
-from sessions import schema
-from sessions.reports.estimates_csv import write_estimates_csv
-from sessions.reports.pdf import render_pdf
-from sessions.reports.summary import session_summary
-from sessions.store import Store
+from gaitscope.sessions import schema
+from gaitscope.sessions.reports.estimates_csv import write_estimates_csv
+from gaitscope.sessions.reports.pdf import render_pdf
+from gaitscope.sessions.reports.summary import session_summary
+from gaitscope.sessions.store import Store
 
 __all__ = ["KEEP", "ExportJobs", "ExportNotReady"]
 
@@ -83,7 +83,7 @@ class ExportJobs:
         return job
 
     def get(self, job_id: str) -> schema.ExportJob:
-        from sessions.store import NotFound
+        from gaitscope.sessions.store import NotFound
 
         with self._lock:
             job = self._jobs.get(job_id)

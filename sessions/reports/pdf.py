@@ -8,7 +8,7 @@ the system's fonts, so a report looks the same on every machine.
 
 Nothing the user typed is ever spliced into Typst markup: the summary goes in as a JSON file that the
 template reads (``json("summary.json")``) and prints as text, so a trial name or an annotation cannot
-inject markup. Figures are SVG files (:mod:`sessions.reports.svg`).
+inject markup. Figures are SVG files (:mod:`gaitscope.sessions.reports.svg`).
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ from typing import Final
 
 import typst
 
-from sessions import schema
-from sessions.reports.summary import OVERLAY_SIGNALS
-from sessions.reports.svg import PALETTE, Line, line_chart
+from gaitscope.sessions import schema
+from gaitscope.sessions.reports.summary import OVERLAY_SIGNALS
+from gaitscope.sessions.reports.svg import PALETTE, Line, line_chart
 
 __all__ = ["FIGURE_TITLES", "render_pdf"]
 

@@ -1,4 +1,4 @@
-"""A stopped session's summary (:class:`~sessions.schema.SessionSummary`) from its rows and recordings.
+"""A stopped session's summary (:class:`~gaitscope.sessions.schema.SessionSummary`) from its rows and recordings.
 
 Strides run from one heel strike (``GaitState.heel_strike``) to the next. A stride's speed is the
 estimated stride length at its end over its duration, its incline the mean estimated incline over it.
@@ -20,9 +20,9 @@ from typing import Any, Final
 
 import numpy as np
 
-from sessions import schema
-from sessions.formats.mcap_io import count_messages, read_messages
-from sessions.store import Store
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.mcap_io import count_messages, read_messages
+from gaitscope.sessions.store import Store
 
 __all__ = [
     "INCLINE_BIN",
@@ -189,7 +189,7 @@ def session_summary(
     ``on_progress(done, total)`` is called as the recordings are read, in gait states (progress of a long
     export). Trials still recording or damaged are listed but not read.
     """
-    from sessions.review.rerun import recorded_settings
+    from gaitscope.sessions.review.rerun import recorded_settings
 
     session = store.get_session(session_id)
     subject = store.get_subject(session.subject_id)

@@ -1,6 +1,6 @@
 """A/B review: two or more re-runs of one trial side by side, with the figures a clinician compares.
 
-Each run is a full-rate re-run (:func:`~sessions.review.rerun.rerun_series` with every row kept, which is
+Each run is a full-rate re-run (:func:`~gaitscope.sessions.review.rerun.rerun_series` with every row kept, which is
 why a comparison is bounded by :data:`MAX_ROWS` samples: zoom to a window for a longer trial). All runs
 step through the same recorded frames, so their rows are on the same session times; the comparison
 aligns them on ``seq`` and keeps the rows present in every run.
@@ -24,11 +24,11 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from estimators.pipeline import TrainedModel
-from sessions.errors import DataFormatError
-from sessions.formats.mcap_io import count_messages, read_messages, series_window
-from sessions.review.rerun import rerun_series
-from sessions.schema import (
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats.mcap_io import count_messages, read_messages, series_window
+from gaitscope.sessions.review.rerun import rerun_series
+from gaitscope.sessions.schema import (
     ComparedRun,
     ComparedRunSpec,
     Comparison,
@@ -185,7 +185,7 @@ def compare(
 
     Args:
         path: the trial's MCAP file.
-        models, leg_length, mass_kg, fingerprint: as :func:`~sessions.review.rerun.rerun_series`.
+        models, leg_length, mass_kg, fingerprint: as :func:`~gaitscope.sessions.review.rerun.rerun_series`.
         runs: the runs, the first the reference.
         t0, t1: the session-time window compared (s; None: unbounded).
         max_points: about how many rows of the time series come back (decimated keeping extremes).
@@ -194,7 +194,7 @@ def compare(
     Raises:
         WindowTooLong: the window holds more than :data:`MAX_ROWS` samples.
         DataFormatError: the window holds no sample; and what
-            :func:`~sessions.review.rerun.rerun_series` raises.
+            :func:`~gaitscope.sessions.review.rerun.rerun_series` raises.
     """
     window = series_window(path, t0, t1)
     n = 0 if window is None else count_messages(path, "/sensor", *window)
@@ -267,7 +267,7 @@ def simulated_truth(spec: SimulatedSource, path: Path) -> Callable[[NDArray[np.i
     Raises:
         DataFormatError: the recording's frames do not match the regenerated walk (another spec).
     """
-    from sessions.synth.trials import sensor_trial
+    from gaitscope.sessions.synth.trials import sensor_trial
 
     schedule = [(p.speed_m_s, p.incline_deg, p.strides) for p in spec.protocol]
     walk, _, _ = sensor_trial(schedule, subject=spec.cohort_subject, rate_hz=spec.rate_hz, seed=spec.seed)

@@ -2,10 +2,10 @@
 
 A trial whose stack ran the intent estimator (seed 001; a live session's or an import's, whenever the
 channels allowed) records its outputs on ``/estimators/intent``; they come back decimated as a series
-(:func:`~sessions.formats.mcap_io.read_estimator_series`), desired and actual speed to plot. A trial that
+(:func:`~gaitscope.sessions.formats.mcap_io.read_estimator_series`), desired and actual speed to plot. A trial that
 does not record them either lacks channels the estimator requires (named, as
-:func:`~sessions.registry.feeds` reckons them from its first frames, so that a review says which instead
-of drawing an empty plot) or ran a stack without it: a re-run with it (:mod:`sessions.review.rerun`) then
+:func:`~gaitscope.sessions.registry.feeds` reckons them from its first frames, so that a review says which instead
+of drawing an empty plot) or ran a stack without it: a re-run with it (:mod:`gaitscope.sessions.review.rerun`) then
 shows it.
 """
 
@@ -13,11 +13,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sessions.formats.mcap_io import read_estimator_series
-from sessions.live.intent_events import INTENT
-from sessions.registry import feeds
-from sessions.review.rerun import trial_channels
-from sessions.schema import IntentSeries
+from gaitscope.sessions.formats.mcap_io import read_estimator_series
+from gaitscope.sessions.live.intent_events import INTENT
+from gaitscope.sessions.registry import feeds
+from gaitscope.sessions.review.rerun import trial_channels
+from gaitscope.sessions.schema import IntentSeries
 
 __all__ = ["intent_series"]
 

@@ -1,6 +1,6 @@
 """Reviewing a recorded trial: re-run its raw sensor frames through the estimators.
 
-Two modes (:class:`~sessions.schema.RerunRequest`):
+Two modes (:class:`~gaitscope.sessions.schema.RerunRequest`):
 
 * **as recorded** (``settings=None``, the default): the trial's ``/settings`` timeline is replayed, the
   settings in force at its first frame and then each recorded change from the frame after the one it
@@ -8,7 +8,7 @@ Two modes (:class:`~sessions.schema.RerunRequest`):
   round-off: the baseline ("what ran") a clinician compares a what-if with.
 * **what if** (``settings`` given): those settings, model included, held constant over the whole trial.
 
-Which estimators (:mod:`sessions.registry`): ``estimators`` when given (any subset of the registered ones
+Which estimators (:mod:`gaitscope.sessions.registry`): ``estimators`` when given (any subset of the registered ones
 whose channels the trial has), else the trial's recorded stack (``ESTIMATORS_KEY`` in its metadata; a
 recording made before stacks had one ran the phase EKF and its timing-based estimate), else every
 estimator the trial's channels allow (:func:`rerun_choices` says which can run, for a review's picker).
@@ -16,15 +16,15 @@ Each one's outputs come back as ``<name>.<output>`` columns beside the gait stat
 overlays them. The primary is the settings' when the subset has it, else its first estimator with a
 phase; a recorded switch to one the subset lacks is not applied.
 
-The estimator is built as the live one was (:class:`~sessions.live.runtime.SessionRuntime`): the model named
+The estimator is built as the live one was (:class:`~gaitscope.sessions.live.runtime.SessionRuntime`): the model named
 in the settings, the subject's leg length and mass, the sample period in the recording's metadata record
-(:data:`~sessions.formats.recording.SAMPLE_PERIOD_KEY`) and the recording's session clock, so the states come
+(:data:`~gaitscope.sessions.formats.recording.SAMPLE_PERIOD_KEY`) and the recording's session clock, so the states come
 out on the times of the recorded ones and overlay them; its torque passes the live loop's last guard
-(:func:`~sessions.live.runtime.safe_torque`). In both modes the IMU mounting calibration the recording
+(:func:`~gaitscope.sessions.live.runtime.safe_torque`). In both modes the IMU mounting calibration the recording
 holds (its ``/imu_calibration`` messages: the one in force at the trial's start, and one made during it)
 is applied to the IMU front ends from where it was recorded, as it was live; and the GP-EKF (``gp_ekf``) does
 not retrain: it installs the model versions the recording holds (``/gp_models``) at the heel strikes where
-they were installed live (:class:`~sessions.gp_models.GPReplay`), so its outputs are those that ran.
+they were installed live (:class:`~gaitscope.sessions.gp_models.GPReplay`), so its outputs are those that ran.
 
 Frames are read lazily and the result is decimated on the fly (:class:`~sessions.formats.mcap_io.SeriesBuilder`),
 so a re-run of an hour-long trial needs memory for ``max_points`` rows, not for the hour. The estimator
@@ -46,16 +46,22 @@ from typing import Any, Final
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
-from estimators.pipeline import TrainedModel
-from sessions.errors import DataFormatError
-from sessions.estimation import DEFAULT_PERIOD, FrameEstimator
-from sessions.formats.mcap_io import SeriesBuilder, count_messages, iter_sensor_frames, read_messages, series_window
-from sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, METADATA_NAME, SAMPLE_PERIOD_KEY
-from sessions.gp_models import GPReplay, gp_ekf_of
-from sessions.imu_calibration import apply_calibration
-from sessions.live.runtime import safe_torque
-from sessions.registry import OPT_IN, channels_of, feeds, redundant
-from sessions.schema import GPModelRecord, ImuCalibration, RerunChoices, SensorFrame, SessionSettings
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.estimation import DEFAULT_PERIOD, FrameEstimator
+from gaitscope.sessions.formats.mcap_io import (
+    SeriesBuilder,
+    count_messages,
+    iter_sensor_frames,
+    read_messages,
+    series_window,
+)
+from gaitscope.sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, METADATA_NAME, SAMPLE_PERIOD_KEY
+from gaitscope.sessions.gp_models import GPReplay, gp_ekf_of
+from gaitscope.sessions.imu_calibration import apply_calibration
+from gaitscope.sessions.live.runtime import safe_torque
+from gaitscope.sessions.registry import OPT_IN, channels_of, feeds, redundant
+from gaitscope.sessions.schema import GPModelRecord, ImuCalibration, RerunChoices, SensorFrame, SessionSettings
 
 __all__ = ["recorded_settings", "recorded_stack", "rerun_choices", "rerun_series", "trial_channels"]
 
@@ -93,7 +99,7 @@ def rerun_series(
     estimators: Sequence[str] | None = None,
     fingerprint: Sequence[float] | None = None,
 ) -> dict[str, list[Any]]:
-    """Series (as :func:`~sessions.formats.mcap_io.read_series`) of the trial re-estimated, and the
+    """Series (as :func:`~gaitscope.sessions.formats.mcap_io.read_series`) of the trial re-estimated, and the
     outputs of each estimator as ``<name>.<output>`` columns (None where it had failed).
 
     Args:
@@ -103,7 +109,7 @@ def rerun_series(
         settings: None to replay the recorded settings (as recorded); else held over the whole trial
             (what if).
         t0, t1: session times (s) of the states returned (None: unbounded).
-        max_points: decimation bound, as :func:`~sessions.formats.mcap_io.read_series`.
+        max_points: decimation bound, as :func:`~gaitscope.sessions.formats.mcap_io.read_series`.
         estimators: the estimators to run (None: the recorded stack; see the module docstring).
         fingerprint: the subject's gait fingerprint, which the personalized filter ``fp_ls`` runs.
 
@@ -207,7 +213,7 @@ def rerun_series(
 def rerun_choices(path: Path, fingerprint: Sequence[float] | None = None) -> RerunChoices:
     """Which estimators :func:`rerun_series` can run on the trial: its recorded stack (they ran, whatever
     the channels), and every registered estimator its first frames' channels can feed, as
-    :func:`~sessions.registry.feeds` reckons it; the personalized fingerprint filter (``fp_ls``) only with
+    :func:`~gaitscope.sessions.registry.feeds` reckons it; the personalized fingerprint filter (``fp_ls``) only with
     the subject's ``fingerprint``.
 
     Raises:
@@ -264,7 +270,7 @@ def recorded_stack(path: Path) -> tuple[str, ...] | None:
 
 
 def trial_channels(path: Path) -> set[str]:
-    """The channels the trial's first :data:`_PROBE` frames send (:func:`~sessions.registry.channels_of`)."""
+    """The channels the trial's first :data:`_PROBE` frames send (:func:`~gaitscope.sessions.registry.channels_of`)."""
     return channels_of(f for _, f in itertools.islice(iter_sensor_frames(path), _PROBE))
 
 
@@ -318,7 +324,7 @@ def _sample_period(path: Path, first: SensorFrame) -> float:
     Read from the metadata record. Recordings made before it was recorded get what made them: the live
     runtime built a device's or a replay's estimator before it knew their rate (so with
     ``DEFAULT_PERIOD``); a simulated source's was ``1 / rate``, and an import's
-    (:func:`~sessions.estimation.estimate`) the mean frame period, which equals it to round-off.
+    (:func:`~gaitscope.sessions.estimation.estimate`) the mean frame period, which equals it to round-off.
     """
     meta = _metadata(path)
     text = meta.get(SAMPLE_PERIOD_KEY)

@@ -1,10 +1,10 @@
 """Whole-body quantities of a generated walk: the other leg, the feet's loads, the centre of mass relative
 to the stance foot, and where each IMU is and how it accelerates.
 
-:func:`body_columns` takes the kinematics :mod:`sessions.synth.cohort` has built for one walk (per stride
+:func:`body_columns` takes the kinematics :mod:`gaitscope.sessions.synth.cohort` has built for one walk (per stride
 and sample, shape ``(n_strides, samples_per_stride)``) and returns the extra clean columns of schema
-version 2 of the sensor frame (column names in :mod:`sessions.schema`). It draws no random numbers: every
-per-subject number comes from :class:`~sessions.synth.cohort.SubjectParams`, so the existing signals'
+version 2 of the sensor frame (column names in :mod:`gaitscope.sessions.schema`). It draws no random numbers: every
+per-subject number comes from :class:`~gaitscope.sessions.synth.cohort.SubjectParams`, so the existing signals'
 random streams are untouched. Sources and modelling choices are in ``docs/cohort.md`` ("Schema version 2").
 
 Frame: the walker's (a treadmill's lab frame, inertial), x forward, z up, origin at the hip's mean
@@ -18,7 +18,7 @@ from typing import Final
 
 import numpy as np
 
-from sessions import schema as s
+from gaitscope.sessions import schema as s
 
 __all__ = [
     "COM_HEIGHT_FRAC",

@@ -15,12 +15,12 @@ generator. The realism argument, with every source and every modelling choice, i
   (the kinds of variation gait fingerprints find, seed 004); per stride: stride time (CV 2 %),
   amplitude and offset deviations blended smoothly across heel strikes so no signal jumps.
 
-Output is a LocoHub-style table (column names from :mod:`sessions.schema`), angles in radians, one
+Output is a LocoHub-style table (column names from :mod:`gaitscope.sessions.schema`), angles in radians, one
 row per sample, ``samples_per_stride`` samples per stride including both ends. Signals are clean;
 :func:`simulate_sensors` adds sensor noise. For schema version 2 of the sensor frame the table also
 holds the reported contralateral leg (with the subject's between-leg asymmetry), the pelvis, the feet's
 vertical loads, the centre of mass relative to the stance foot and each IMU's acceleration
-(:mod:`sessions.synth.body`); their randomness has its own streams, so the columns above are unchanged.
+(:mod:`gaitscope.sessions.synth.body`); their randomness has its own streams, so the columns above are unchanged.
 """
 
 from __future__ import annotations
@@ -32,10 +32,10 @@ import numpy as np
 import pandas as pd
 from scipy.interpolate import CubicSpline
 
-from sessions import schema as s
-from sessions.synth.body import Kinematics, body_columns
-from sessions.synth.normative import ANKLE, HIP, KNEE, MOMENT, PELVIS, at_speed, curve_spline, normative
-from sessions.synth.sensors import SensorNoise, resample_walk, simulate_sensors
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.synth.body import Kinematics, body_columns
+from gaitscope.sessions.synth.normative import ANKLE, HIP, KNEE, MOMENT, PELVIS, at_speed, curve_spline, normative
+from gaitscope.sessions.synth.sensors import SensorNoise, resample_walk, simulate_sensors
 
 __all__ = [
     "CohortSpec",
@@ -540,7 +540,7 @@ def generate_walk(
 
     ``stride_scale`` (one value per stride, default 1) multiplies each stride's mean length at its speed;
     the stride time follows (length / speed), so the walker takes longer or shorter strides at the same
-    speed, as when the step length leads a speed change (:mod:`sessions.synth.intent_walks`).
+    speed, as when the step length leads a speed change (:mod:`gaitscope.sessions.synth.intent_walks`).
     """
     return pd.DataFrame(_walk_columns(subject, schedule, rng, samples_per_stride, t0, stride_scale))
 

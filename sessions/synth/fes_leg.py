@@ -1,10 +1,10 @@
 """Simulated FES-driven legs of seed 002 (Zhong 2016): the seated knee and the fixed-hip thigh and shank.
 
-Both models are :mod:`estimators.sdre`'s; what this module adds is what the thesis's trials had and its
+Both models are :mod:`gaitscope.estimators.sdre`'s; what this module adds is what the thesis's trials had and its
 estimators do not know. Deterministic from a seed.
 
 **Seated knee** (thesis section 4.1, :func:`seated_trial`): one leg of Table 1 (``J``, ``m``, ``l_c`` from
-Winter 2009, :meth:`estimators.sdre.KneeParams.from_table1`) on a leg-extension machine, thigh horizontal
+Winter 2009, :meth:`gaitscope.estimators.sdre.KneeParams.from_table1`) on a leg-extension machine, thigh horizontal
 and still, 30 s per trial like the thesis's. The truth differs from the estimators' model as a real leg
 differs from its identified model (choices, none tuned to the thesis's numbers):
 
@@ -15,13 +15,13 @@ differs from its identified model (choices, none tuned to the thesis's numbers):
 - stimulation: 3 s at rest, then trapezoid bursts (ramp 1.5 s, hold 2 s, ramp 1.5 s, off 2 s) whose
   hold level would, with the nominal model, hold the knee at an angle drawn uniformly from 15-45 deg
   (the thesis shows knee flexion-extension cycles, Fig. 12, without their timing);
-- IMUs (both segments) sampled at 100 Hz (the thesis's rate) by :func:`sessions.synth.imu.imu_readings`
+- IMUs (both segments) sampled at 100 Hz (the thesis's rate) by :func:`gaitscope.sessions.synth.imu.imu_readings`
   with the MPU-9250's noise (the thesis's YEI sensor's is not given), a gyro bias about z of 0.1-1 deg/s
   (uniform, random sign; seed 002's simulation range), no other constant error, the shank sensor halfway
   down the shank so that it feels the motion's acceleration (the estimators take it for noise).
 
 **Fixed-hip thigh and shank** (section 4.2, :func:`two_link_trial`): Winter's segments hanging from a
-fixed hip (:meth:`estimators.sdre.TwoLinkParams.from_anthropometry`, the knee's passive torque of Table 1's
+fixed hip (:meth:`gaitscope.estimators.sdre.TwoLinkParams.from_anthropometry`, the knee's passive torque of Table 1's
 P1-L), swung through a gait-like hip and knee pattern (1.2 s cycles after 1 s at rest) by a computed-torque
 controller on the true state (the thesis drives it with its synergy controller, chapter 5); the estimators
 know the joint torques, as the thesis's know the controller's input. IMUs: a constant gyro bias on both
@@ -39,9 +39,9 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from estimators._sdre_kernel import two_link_rhs
-from estimators.sdre import WINTER_SHANK, WINTER_THIGH, KneeParams, TwoLinkParams
-from sessions.synth.imu import ImuErrors, ImuSpec, imu_readings
+from gaitscope.estimators._sdre_kernel import two_link_rhs
+from gaitscope.estimators.sdre import WINTER_SHANK, WINTER_THIGH, KneeParams, TwoLinkParams
+from gaitscope.sessions.synth.imu import ImuErrors, ImuSpec, imu_readings
 
 __all__ = [
     "IMU_RATE_HZ",
@@ -73,7 +73,7 @@ class FesTrial:
         knee_deg: (n,) true knee flexion (deg); ``hip_deg``: (n,) thigh from the vertical (two-link, else NaN).
         u: (n, i) the input the estimators know: stimulation (seated) or hip and knee torques (N m).
         gyro: (k, s, 3) deg/s, ``accel``: (k, s, 3) m/s^2: the IMUs (sensor 0 thigh, 1 shank), axes of
-            :mod:`sessions.synth.imu` (x anterior, y proximal, z right).
+            :mod:`gaitscope.sessions.synth.imu` (x anterior, y proximal, z right).
         params: the estimators' model (:class:`KneeParams` or :class:`TwoLinkParams`).
         gyro_bias_dps: (s,) the bias about z of each sensor.
     """

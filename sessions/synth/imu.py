@@ -1,6 +1,6 @@
 """A body-worn 6-axis IMU: what it reads from a segment's sagittal motion, with a datasheet's errors.
 
-The sensor's axes nominally align with its segment's (ISB, as in :data:`sessions.schema.CHANNELS`): x
+The sensor's axes nominally align with its segment's (ISB, as in :data:`gaitscope.sessions.schema.CHANNELS`): x
 anterior, y along the segment toward proximal, z to the subject's right, so the segment's sagittal
 angle is a rotation about z. In the sagittal model the segment turns about z only; the mounting
 misalignment makes that rotation, and gravity, show on the other axes too.

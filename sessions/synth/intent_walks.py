@@ -4,7 +4,7 @@ Protocol (seed 001 Sec. III-A): the walker is at a steady, self-selected speed w
 (SU) or slow down (SD) is issued at a known step (the paper's command steps are 7 and 8), three trials of
 each per subject; and self-paced walks where the walker changes speed at steps of their own choosing.
 The cohort walks on a self-paced treadmill (the belt follows the walker), so the walker's speed is theirs,
-as overground. Every sample carries what the filter reads (:func:`sessions.synth.sensors.device_channels`:
+as overground. Every sample carries what the filter reads (:func:`gaitscope.sessions.synth.sensors.device_channels`:
 centre of mass relative to the stance foot, both hip angles, both feet's forces, the last step length) and
 the ground truth is in :class:`IntentTrial` (desired speed per stride, command time and direction).
 
@@ -36,8 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from sessions import schema as s
-from sessions.synth.cohort import (
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.synth.cohort import (
     CohortSpec,
     SensorNoise,
     SubjectParams,
@@ -46,7 +46,7 @@ from sessions.synth.cohort import (
     resample_walk,
     simulate_sensors,
 )
-from sessions.synth.normative import at_speed, normative
+from gaitscope.sessions.synth.normative import at_speed, normative
 
 __all__ = ["IntentProtocol", "IntentTrial", "commanded_trial", "intent_trials", "self_paced_trial", "speed_profile"]
 
@@ -106,7 +106,7 @@ class IntentTrial:
         stride_start_s: start time of each stride (ipsilateral heel strike).
         desired_m_s: the walker's desired speed in each stride.
         speed_m_s: the walker's mean speed in each stride.
-        sensors: the sensor frame at ``rate_hz`` (channel names of :mod:`sessions.schema`'s sensor frame,
+        sensors: the sensor frame at ``rate_hz`` (channel names of :mod:`gaitscope.sessions.schema`'s sensor frame,
             plus ``gt_*`` ground truth).
     """
 

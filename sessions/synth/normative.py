@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 from scipy.interpolate import CubicSpline
 
-from sessions.errors import DataFormatError
+from gaitscope.sessions.errors import DataFormatError
 
 DATA = Path(__file__).resolve().parent.parent / "data"
 CLASSES = ("very_slow", "slow", "free", "fast", "very_fast")

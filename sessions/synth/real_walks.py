@@ -44,9 +44,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from sessions import schema as s
-from sessions.synth.body import smooth_step
-from sessions.synth.cohort import (
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.synth.body import smooth_step
+from gaitscope.sessions.synth.cohort import (
     CohortSpec,
     SensorNoise,
     SubjectParams,

@@ -1,4 +1,4 @@
-"""Sensor simulation and resampling of clean walks from :mod:`sessions.synth.cohort`.
+"""Sensor simulation and resampling of clean walks from :mod:`gaitscope.sessions.synth.cohort`.
 
 :func:`simulate_sensors` turns a clean walk into the replay CSV's columns (``schema.REPLAY_*``) with
 white sensor noise whose default standard deviations are seed 000's sensor covariance
@@ -22,8 +22,8 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 import pandas as pd
 
-from sessions import schema as s
-from sessions.synth.imu import ImuSpec, draw_errors, imu_readings
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.synth.imu import ImuSpec, draw_errors, imu_readings
 
 EVENT_COLUMNS = (s.HEEL_STRIKE, s.TOE_OFF, s.HEEL_STRIKE_CONTRA)
 #: Columns constant within a stride: taken from the stride a resampled sample falls in.
@@ -91,7 +91,7 @@ def simulate_sensors(
         ``time_s``, the six ``REPLAY_SIGNALS``, ``heel_strike`` (0/1 int) and the ground truth
         ``gt_phase`` (0..1), ``gt_phase_rate`` (1/s), ``gt_stride_length_m``, ``gt_incline_deg``,
         ``gt_speed_m_s``, ``thigh_angle_deg``, then the other channels of
-        :data:`~sessions.schema.CHANNELS` the walk's columns allow, named as the channels.
+        :data:`~gaitscope.sessions.schema.CHANNELS` the walk's columns allow, named as the channels.
     """
     w = drop_duplicate_instants(walk)
     t = w[s.TIME_S].to_numpy(np.float64)

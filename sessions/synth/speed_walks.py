@@ -4,7 +4,7 @@ Protocol (seed 003, ``../shared/reference/estimators.md`` section 3): the treadm
 sinusoid between 0.4 and 1.2 m/s with a 20 s period, and the walk ends in a sudden stop. Here:
 
 - **speed** at each stride's start is ``mid + amp * sin(2 pi t / period)`` (0.8 +- 0.4 m/s); each stride
-  is its own block of :func:`sessions.synth.cohort.generate_walk`, so its curves, stride length and
+  is its own block of :func:`gaitscope.sessions.synth.cohort.generate_walk`, so its curves, stride length and
   cadence are the subject's at that speed and morph from the previous stride's (nothing jumps). The
   stride start times depend on the speeds and the speeds on the times: a fixed point, found in a few
   passes;
@@ -14,7 +14,7 @@ sinusoid between 0.4 and 1.2 m/s with a 20 s period, and the walk ends in a sudd
   rest over ``stop_s`` (0.3 s, **choice**: the walker brakes within one step; a treadmill's emergency
   stop takes a similar time), every clean signal sampled at the decelerating phase, then stands still
   for ``standing_s`` in that posture;
-- sensors as a device sends them (:func:`sessions.synth.sensors.simulate_sensors`, joint encoders
+- sensors as a device sends them (:func:`gaitscope.sessions.synth.sensors.simulate_sensors`, joint encoders
   included) at ``rate_hz`` (200 Hz, the paper's).
 
 Ground truth per sample: ``gt_stance_phase`` (0 at heel strike, 1 at toe-off: the gait phase divided by
@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from sessions import schema as s
-from sessions.synth.cohort import (
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.synth.cohort import (
     CohortSpec,
     SensorNoise,
     SubjectParams,
@@ -130,7 +130,7 @@ def _toe_off_phase(walk: pd.DataFrame) -> dict[int, float]:
 def speed_walk(subject: SubjectParams, protocol: SpeedProtocol | None = None, index: int = 0) -> pd.DataFrame:
     """One subject's walk: the sinusoidal speed for ``walk_s``, a sudden stop, standing (module docstring).
 
-    Columns: the sensor frame's channels as :func:`~sessions.synth.sensors.simulate_sensors` makes them
+    Columns: the sensor frame's channels as :func:`~gaitscope.sessions.synth.sensors.simulate_sensors` makes them
     (joint encoders ``hip_angle_deg``, ``knee_angle_deg``, ``ankle_angle_deg`` among them),
     ``heel_strike``, ``toe_off``, ``gt_stance_phase``, ``gt_stance_rate``, ``gt_speed_m_s``, ``condition``.
     """

@@ -13,10 +13,10 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from sessions import schema
-from sessions.formats.replay_io import ReplayInput
-from sessions.schema import TREADMILL_PROTOCOL
-from sessions.synth.cohort import (
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.replay_io import ReplayInput
+from gaitscope.sessions.schema import TREADMILL_PROTOCOL
+from gaitscope.sessions.synth.cohort import (
     CohortSpec,
     SensorNoise,
     generate_walk,

@@ -31,7 +31,7 @@ import pytest
 import yaml
 from sqlalchemy import make_url
 
-from server.settings import Settings
+from gaitscope.server.settings import Settings
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCKER = ROOT / "docker"

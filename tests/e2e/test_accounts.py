@@ -20,7 +20,7 @@ import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from server.bench.launch import free_port, start_server
+from gaitscope.server.bench.launch import free_port, start_server
 from tests.e2e import test_browser as tb
 from tests.e2e.accounts import PASSWORDS, Refused, client
 

@@ -22,7 +22,7 @@ from urllib.parse import urlsplit
 
 import pytest
 
-from server.bench.launch import LOOPBACK, free_port, start_server
+from gaitscope.server.bench.launch import LOOPBACK, free_port, start_server
 from tests.e2e.accounts import AUTH_ENV, add_users, client, log_in
 
 playwright_api = pytest.importorskip("playwright.sync_api")
@@ -177,7 +177,7 @@ def _number(text: str | None) -> float:
 
 
 def _replay_csv(path: Path, strides: int = 20) -> Path:
-    from sessions.synth.trials import replay_columns, sensor_trial
+    from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
 
     sensors, _, _ = sensor_trial(schedule=[(1.2, 0.0, strides)])
     replay_columns(sensors).to_csv(path, index=False)

@@ -54,9 +54,9 @@ GP_URL = r"/api/sessions/\d+/gp-learning"
 def _walk() -> tuple[list[dict[str, Any]], np.ndarray]:
     """Seed 003's walk of the cohort's first subject (90 s at 0.4-1.2 m/s), as device frames, and its true
     stance phase sample by sample (0..1, NaN in swing)."""
-    from sessions.live.sources import frames_from_table
-    from sessions.synth.cohort import CohortSpec, make_subjects
-    from sessions.synth.speed_walks import SpeedProtocol, speed_walk
+    from gaitscope.sessions.live.sources import frames_from_table
+    from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+    from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_walk
 
     walk = speed_walk(make_subjects(CohortSpec())[0], SpeedProtocol(walk_s=90.0, standing_s=1.0, rate_hz=RATE))
     frames = [{"type": "frame", "t": f.t, **f.model_dump(include=set(CHANNELS))} for f in frames_from_table(walk)]

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from websockets.sync.connection import Connection
 
-from estimators.imu_frontend import imu_inputs
+from gaitscope.estimators.imu_frontend import imu_inputs
 from tests.e2e import test_browser as tb
 from tests.e2e.devices import StreamingDevice, device_session
 from tests.e2e.test_fingerprints import _call, _record
@@ -49,8 +49,8 @@ HIP, KNEE, SDRE = "hip (thigh from vertical)", "knee (thigh − shank)", "knee, 
 def _walk() -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
     """A simulated walk's frames, raw IMU channels only, and its true ``thigh`` angle and ``knee`` flexion
     (deg) sample by sample."""
-    from sessions.live.sources import frames_from_table
-    from sessions.synth.trials import sensor_trial
+    from gaitscope.sessions.live.sources import frames_from_table
+    from gaitscope.sessions.synth.trials import sensor_trial
 
     sensors, _, _ = sensor_trial([(1.0, 0.0, 12)], rate_hz=RATE)
     frames = [{"type": "frame", "t": f.t, **f.model_dump(include=set(CHANNELS))} for f in frames_from_table(sensors)]

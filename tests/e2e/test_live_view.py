@@ -26,7 +26,7 @@ from typing import IO
 import pytest
 from websockets.sync.connection import Connection
 
-from server.bench.launch import RunningServer, free_port, start_server
+from gaitscope.server.bench.launch import RunningServer, free_port, start_server
 from tests.e2e import test_browser as tb
 from tests.e2e.accounts import AUTH_ENV, add_users, log_in
 from tests.e2e.devices import StreamingDevice, device_session

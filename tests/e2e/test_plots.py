@@ -397,8 +397,8 @@ def test_pause_freezes_then_resume_catches_up(server: str, watched: tb.Watched) 
 
 @functools.cache
 def _walk() -> list[dict[str, Any]]:
-    from sessions.live.sources import frames_from_table
-    from sessions.synth.trials import sensor_trial
+    from gaitscope.sessions.live.sources import frames_from_table
+    from gaitscope.sessions.synth.trials import sensor_trial
 
     sensors, _, _ = sensor_trial([(1.2, 0.0, 40)], rate_hz=RATE)
     return [{"type": "frame", "t": f.t, **f.model_dump(include=set(CHANNELS))} for f in frames_from_table(sensors)]

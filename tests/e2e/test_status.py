@@ -25,7 +25,7 @@ import imageio.v3 as iio  # viser's own dependency (it reads and writes images w
 import numpy as np
 import pytest
 
-from server.bench.launch import LOOPBACK, RunningServer, free_port
+from gaitscope.server.bench.launch import LOOPBACK, RunningServer, free_port
 from tests.e2e import test_browser as tb
 from tests.e2e.accounts import AUTH_ENV, add_users, client
 

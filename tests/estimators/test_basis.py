@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from estimators import _kernels
-from estimators.basis import fourier, linear, n_terms, regressor
+from gaitscope.estimators import _kernels
+from gaitscope.estimators.basis import fourier, linear, n_terms, regressor
 
 ORDER = 20
 

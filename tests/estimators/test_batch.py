@@ -1,4 +1,4 @@
-"""``GaitStatePipeline.run`` (the compiled whole-trial loop of ``estimators._batch``) against ``step``.
+"""``GaitStatePipeline.run`` (the compiled whole-trial loop of ``gaitscope.estimators._batch``) against ``step``.
 
 Every output and the pipeline's whole state must match sample-by-sample streaming, on cohort trials
 and on adversarial input (NaN, infinities, huge and denormal values, gaps, forced divergence), for
@@ -19,12 +19,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from estimators import _batch, _kernels
-from estimators.phase_ekf import EKFConfig
-from estimators.pipeline import GaitStatePipeline, HealthLimits, PipelineConfig, TrainedModel
-from sessions.formats.models import default_model_path, load_model
-from sessions.offline.replay import measurements
-from sessions.synth.trials import replay_input, sensor_trial
+from gaitscope.estimators import _batch, _kernels
+from gaitscope.estimators.phase_ekf import EKFConfig
+from gaitscope.estimators.pipeline import GaitStatePipeline, HealthLimits, PipelineConfig, TrainedModel
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.offline.replay import measurements
+from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 
 FLOATS = ("phase", "phase_rate", "stride_length_m", "incline_deg", "torque_Nm", "tbe_phase")
 EXACT = ("heel_strike", "backup_reset", "fault", "implausible")

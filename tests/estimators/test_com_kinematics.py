@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from estimators.com_kinematics import KinematicCoM, LegGeometry, com_from_legs
+from gaitscope.estimators.com_kinematics import KinematicCoM, LegGeometry, com_from_legs
 
 G = LegGeometry(0.42, 0.41, 0.07)
 

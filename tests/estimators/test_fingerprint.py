@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from estimators.fingerprint import FingerprintEKF, FingerprintMap, basis, basis_dp, fit_map, fit_subject
-from estimators.protocol import Estimator, output_names
+from gaitscope.estimators.fingerprint import FingerprintEKF, FingerprintMap, basis, basis_dp, fit_map, fit_subject
+from gaitscope.estimators.protocol import Estimator, output_names
 
 
 def _subjects(n: int = 8, seed: int = 3) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], np.ndarray]:

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from estimators.basis import n_terms, regressor
-from estimators.gait_model import (
+from gaitscope.estimators.basis import n_terms, regressor
+from gaitscope.estimators.gait_model import (
     OUT_FOOT,
     SENSOR_VARIANCE,
     NoiseModel,

@@ -1,4 +1,4 @@
-"""Sparse GP regression (:mod:`estimators.gp`): the frozen numpy predictor against GPy's own prediction,
+"""Sparse GP regression (:mod:`gaitscope.estimators.gp`): the frozen numpy predictor against GPy's own prediction,
 FITC against an exact GP, the analytic mean derivative against finite differences, the compiled stack
 against the numpy path, and deterministic fits."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.gp import FitOptions, GPStack, SparseGP, fit_gpy, fit_sparse_gp, from_gpy, rbf_mean_2d
+from gaitscope.estimators.gp import FitOptions, GPStack, SparseGP, fit_gpy, fit_sparse_gp, from_gpy, rbf_mean_2d
 
 
 def _random_gp(rng: np.random.Generator, m: int, d: int) -> SparseGP:

@@ -1,5 +1,5 @@
 """Seed 003's GP-EKF (:mod:`estimators.gp_ekf`, :mod:`estimators.gp_ekf_estimator`) on the cohort's version of
-the paper's protocol (``sessions.synth.speed_walks``: treadmill speed 0.4-1.2 m/s over 20 s, then a sudden
+the paper's protocol (``gaitscope.sessions.synth.speed_walks``: treadmill speed 0.4-1.2 m/s over 20 s, then a sudden
 stop): the update against the paper's equations in numpy, tracking against the time-based estimate, the
 stop, retraining and its check, freeze and rollback, and finite outputs on any input."""
 
@@ -14,9 +14,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from estimators.gp import FitOptions
-from estimators.gp_ekf import GPEKF, GPEKFConfig, Offer
-from estimators.gp_ekf_estimator import (
+from gaitscope.estimators.gp import FitOptions
+from gaitscope.estimators.gp_ekf import GPEKF, GPEKFConfig, Offer
+from gaitscope.estimators.gp_ekf_estimator import (
     COHORT_COLUMNS,
     ControlSurface,
     GPEKFEstimator,
@@ -24,12 +24,12 @@ from estimators.gp_ekf_estimator import (
     default_arrays,
     load_default,
 )
-from estimators.gp_models import GPModelSet, TrainingWindow, check_models, fit_models, heldout_rmse
-from estimators.protocol import HEEL_STRIKE as HS
-from estimators.protocol import Estimator, input_names, output_names
-from sessions import schema as s
-from sessions.synth.cohort import CohortSpec, generate_cohort, make_subjects
-from sessions.synth.speed_walks import SpeedProtocol, speed_walk
+from gaitscope.estimators.gp_models import GPModelSet, TrainingWindow, check_models, fit_models, heldout_rmse
+from gaitscope.estimators.protocol import HEEL_STRIKE as HS
+from gaitscope.estimators.protocol import Estimator, input_names, output_names
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.synth.cohort import CohortSpec, generate_cohort, make_subjects
+from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_walk
 
 #: The population the first model is fitted to: level walking at the protocol's speeds, VC01 left out.
 POPULATION = CohortSpec(

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from estimators.heel_strike import DetectorConfig, HeelStrikeDetector, TimingBasedEstimator
+from gaitscope.estimators.heel_strike import DetectorConfig, HeelStrikeDetector, TimingBasedEstimator
 
 
 def test_tbe_uses_previous_stride_only() -> None:

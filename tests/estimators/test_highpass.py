@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from estimators.highpass import HighPassFilter
+from gaitscope.estimators.highpass import HighPassFilter
 
 
 def test_streaming_equals_batch() -> None:

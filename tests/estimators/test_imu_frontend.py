@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from estimators.imu_calibration import calibrate_standing
-from estimators.imu_frontend import CODES, G0, FrontEndConfig, ImuFrontEnd, imu_inputs
-from sessions.offline.imu_study import SEGMENTS, trial
-from sessions.synth.imu import ImuSpec, draw_errors, imu_readings
+from gaitscope.estimators.imu_calibration import calibrate_standing
+from gaitscope.estimators.imu_frontend import CODES, G0, FrontEndConfig, ImuFrontEnd, imu_inputs
+from gaitscope.sessions.offline.imu_study import SEGMENTS, trial
+from gaitscope.sessions.synth.imu import ImuSpec, draw_errors, imu_readings
 
 SPEC = ImuSpec()
 

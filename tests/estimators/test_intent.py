@@ -12,10 +12,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from estimators.intent import ISCI, UNINJURED, BKFConfig, ButtressedKF, D, fit_alpha, fit_kappa
-from estimators.intent_estimator import IntentEstimator
-from estimators.protocol import input_names
-from sessions.synth.trials import sensor_trial
+from gaitscope.estimators.intent import ISCI, UNINJURED, BKFConfig, ButtressedKF, D, fit_alpha, fit_kappa
+from gaitscope.estimators.intent_estimator import IntentEstimator
+from gaitscope.estimators.protocol import input_names
+from gaitscope.sessions.synth.trials import sensor_trial
 
 LEG = 0.9
 

@@ -8,13 +8,13 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from estimators.lock import LockConfig, LockSupervisor, ShankHeelStrike
-from estimators.phase_ekf_estimator import PhaseEKFEstimator
-from estimators.pipeline import PipelineConfig
-from sessions.formats.models import default_model_path, load_model
-from sessions.synth.cohort import CohortSpec, make_subjects
-from sessions.synth.real_walks import RealWalkSpec, real_walk
-from sessions.synth.trials import sensor_trial
+from gaitscope.estimators.lock import LockConfig, LockSupervisor, ShankHeelStrike
+from gaitscope.estimators.phase_ekf_estimator import PhaseEKFEstimator
+from gaitscope.estimators.pipeline import PipelineConfig
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.real_walks import RealWalkSpec, real_walk
+from gaitscope.sessions.synth.trials import sensor_trial
 
 MODEL, _ = load_model(default_model_path())
 

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from estimators.basis import n_terms
-from estimators.gait_model import SENSOR_VARIANCE, NoiseModel
-from estimators.phase_ekf import EKFConfig, PhaseEKF, pseudo_from_stride, stride_from_pseudo
-from estimators.reference import ReferencePhaseEKF
+from gaitscope.estimators.basis import n_terms
+from gaitscope.estimators.gait_model import SENSOR_VARIANCE, NoiseModel
+from gaitscope.estimators.phase_ekf import EKFConfig, PhaseEKF, pseudo_from_stride, stride_from_pseudo
+from gaitscope.estimators.reference import ReferencePhaseEKF
 
 
 def _model(seed: int = 0):

@@ -5,10 +5,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
-from sessions.offline.crossval import stride_rmse, wrapped
-from sessions.offline.replay import measurements
-from sessions.synth.trials import replay_input, sensor_trial
+from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from gaitscope.sessions.offline.crossval import stride_rmse, wrapped
+from gaitscope.sessions.offline.replay import measurements
+from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 
 SCHEDULE = [(1.2, 0.0, 12), (1.0, 5.0, 12), (0.8, -5.0, 12)]
 

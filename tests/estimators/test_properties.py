@@ -15,9 +15,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from estimators.phase_ekf import PhaseEKF
-from estimators.pipeline import CHANNEL_LIMITS, GaitStatePipeline, PipelineConfig, TrainedModel
-from sessions.formats.models import default_model_path, load_model
+from gaitscope.estimators.phase_ekf import PhaseEKF
+from gaitscope.estimators.pipeline import CHANNEL_LIMITS, GaitStatePipeline, PipelineConfig, TrainedModel
+from gaitscope.sessions.formats.models import default_model_path, load_model
 
 MAX_TORQUE = 30.0
 PROPERTY = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -1,4 +1,4 @@
-"""Every estimator a stack can run implements :class:`estimators.protocol.Estimator`, and behind the
+"""Every estimator a stack can run implements :class:`gaitscope.estimators.protocol.Estimator`, and behind the
 interface computes what it computed before (the pipeline's numbers, sample for sample)."""
 
 from __future__ import annotations
@@ -10,15 +10,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estimators.detector import HeelStrikeDetector
-from estimators.heel_strike import HeelStrikeBackup
-from estimators.phase_ekf_estimator import PhaseEKFEstimator
-from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
-from estimators.protocol import HEEL_STRIKE, SENSOR_CHANNELS, Estimator, elapsed, input_names, output_names
-from estimators.tbe import TimingBasedEstimator
-from sessions.offline.crossval import stride_rmse, wrapped
-from sessions.schema import SensorFrame
-from sessions.synth.trials import sensor_trial
+from gaitscope.estimators.detector import HeelStrikeDetector
+from gaitscope.estimators.heel_strike import HeelStrikeBackup
+from gaitscope.estimators.phase_ekf_estimator import PhaseEKFEstimator
+from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from gaitscope.estimators.protocol import HEEL_STRIKE, SENSOR_CHANNELS, Estimator, elapsed, input_names, output_names
+from gaitscope.estimators.tbe import TimingBasedEstimator
+from gaitscope.sessions.offline.crossval import stride_rmse, wrapped
+from gaitscope.sessions.schema import SensorFrame
+from gaitscope.sessions.synth.trials import sensor_trial
 
 LEG = 0.9
 CHANNELS = (*SENSOR_CHANNELS, HEEL_STRIKE)

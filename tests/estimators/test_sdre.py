@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from estimators.protocol import Estimator
-from estimators.sdre import (
+from gaitscope.estimators.protocol import Estimator
+from gaitscope.estimators.sdre import (
     ContinuousFilter,
     G,
     KneeParams,
@@ -21,7 +21,7 @@ from estimators.sdre import (
     rmx_knee_angle,
     rotation_z,
 )
-from estimators.sdre_estimator import SDREKnee
+from gaitscope.estimators.sdre_estimator import SDREKnee
 
 KNEE = KneeParams.from_table1("P1-L")
 LINKS = TwoLinkParams.from_anthropometry(knee=KNEE)
@@ -111,7 +111,7 @@ def test_compiled_kernel_matches_the_numpy_reference(params: KneeParams | TwoLin
 
 
 def test_sdre_tracks_a_simulated_seated_knee_from_a_wrong_start() -> None:
-    from sessions.synth.fes_leg import seated_trial
+    from gaitscope.sessions.synth.fes_leg import seated_trial
 
     tr = seated_trial("P2-L", 5, duration_s=12.0)
     y = np.column_stack([np.radians(tr.gyro[:, 1, 2]), -tr.accel[:, 1, 0]])

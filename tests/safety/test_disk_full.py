@@ -29,11 +29,11 @@ from fastapi.testclient import TestClient
 from sqlalchemy.exc import OperationalError
 from starlette.websockets import WebSocketDisconnect
 
-from server.app import create_app
-from server.settings import Settings
-from sessions.formats.mcap_io import read_messages, recover, recover_in_place
-from sessions.formats.recording import Recorder
-from sessions.live.manager import SessionManager
+from gaitscope.server.app import create_app
+from gaitscope.server.settings import Settings
+from gaitscope.sessions.formats.mcap_io import read_messages, recover, recover_in_place
+from gaitscope.sessions.formats.recording import Recorder
+from gaitscope.sessions.live.manager import SessionManager
 from tests.device_tokens import device_path
 
 #: Session time (s) streamed before the disk fills: several chunks on file.
@@ -212,7 +212,7 @@ def test_a_disk_full_injected_at_the_file_and_the_database(
         for name in ("finish_trial", "set_session_state", "add_event", "create_subject", "create_session",
                      "create_trial"):  # fmt: skip
             monkeypatch.setattr(store, name, full)
-        monkeypatch.setattr("sessions.formats.mcap_io.atomic_output", _no_room_for_a_copy)
+        monkeypatch.setattr("gaitscope.sessions.formats.mcap_io.atomic_output", _no_room_for_a_copy)
 
     try:
         reason = _stream_until_closed(client, sid, 0, fill)
@@ -342,7 +342,7 @@ def test_recover_in_place_cuts_chunks_off_until_the_index_fits(tmp_path: Path, m
     def fake_open(p: Path, mode: str) -> IO[bytes]:
         return _Disk(io.FileIO(p, "r+")) if mode == "r+b" else open(p, mode)
 
-    monkeypatch.setattr("sessions.formats.mcap_io.open", fake_open, raising=False)
+    monkeypatch.setattr("gaitscope.sessions.formats.mcap_io.open", fake_open, raising=False)
     result = recover_in_place(path)
     monkeypatch.undo()
     kept = sum(1 for _ in read_messages(path, ["/torque"]))

@@ -20,7 +20,7 @@ import pytest
 import websockets
 from websockets.sync.client import connect
 
-from server.bench.launch import start_server
+from gaitscope.server.bench.launch import start_server
 from tests.device_tokens import issue_token
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.

@@ -27,11 +27,11 @@ from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 from websockets.typing import Origin, Subprotocol
 
-import server.leg_view
-from server.app import create_app
-from server.bench.launch import LOOPBACK, free_port, start_server
-from server.leg_view import LegView
-from server.settings import Settings
+import gaitscope.server.leg_view
+from gaitscope.server.app import create_app
+from gaitscope.server.bench.launch import LOOPBACK, free_port, start_server
+from gaitscope.server.leg_view import LegView
+from gaitscope.server.settings import Settings
 from tests.device_tokens import issue_token
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
@@ -212,7 +212,7 @@ def test_leg_view_will_not_start_without_its_guard(monkeypatch: pytest.MonkeyPat
     def bypassed(allowed_hosts: Any, logged_in: Any = None, watch: Any = None) -> Iterator[list[int]]:
         yield []  # as if viser served some other way: the guard never went in
 
-    monkeypatch.setattr(server.leg_view, "_guarded_serve", bypassed)
+    monkeypatch.setattr(gaitscope.server.leg_view, "_guarded_serve", bypassed)
     with pytest.raises(RuntimeError, match="no host guard"):
         LegView(port=0)
 

@@ -1,8 +1,8 @@
-"""Assistance follows intent (``intent_gain_boost``, :mod:`sessions.intent_boost`): whatever the intent
+"""Assistance follows intent (``intent_gain_boost``, :mod:`gaitscope.sessions.intent_boost`): whatever the intent
 estimator says, the torque on the wire is finite and within ``[0, max_torque_Nm]`` and never steps; with
 the setting on, the torque rises when the walker speeds up; off, nothing changes.
 
-Driven through the real :class:`~sessions.live.runtime.SessionRuntime` (the torque the device is sent), with
+Driven through the real :class:`~gaitscope.sessions.live.runtime.SessionRuntime` (the torque the device is sent), with
 an intent estimator double that says anything (NaN, infinities, huge values, any code) or the real one on a
 simulated walk whose speed changes.
 """
@@ -21,11 +21,11 @@ from hypothesis import strategies as st
 from numpy.typing import NDArray
 from pydantic import ValidationError
 
-from sessions import registry, schema
-from sessions.intent_boost import MAX_STEP_S, IntentBoost
-from sessions.live.runtime import SessionRuntime, SettingRejected
-from sessions.live.sources import LiveDevice, frames_from_table
-from sessions.synth.trials import sensor_trial
+from gaitscope.sessions import registry, schema
+from gaitscope.sessions.intent_boost import MAX_STEP_S, IntentBoost
+from gaitscope.sessions.live.runtime import SessionRuntime, SettingRejected
+from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
+from gaitscope.sessions.synth.trials import sensor_trial
 
 ANY_FLOAT = st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True)
 OUTPUT = st.one_of(ANY_FLOAT, st.sampled_from([-1.0, 0.0, 1.0, 1e300, -1e300]), st.floats(-10.0, 10.0))

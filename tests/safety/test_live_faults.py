@@ -21,8 +21,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from starlette.websockets import WebSocketDisconnect
 
-from sessions.schema import SENSOR_LIMITS
-from sessions.synth.trials import replay_input, sensor_trial
+from gaitscope.sessions.schema import SENSOR_LIMITS
+from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 from tests.device_tokens import device_path
 
 MAX_TORQUE = 20.0

@@ -14,8 +14,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from server.cli import main
-from sessions import schema
+from gaitscope.server.cli import main
+from gaitscope.sessions import schema
 
 MAX_TORQUE = 35.0
 ANY = st.floats(allow_nan=False, allow_infinity=False, allow_subnormal=True)  # the CSV refuses NaN and inf cells

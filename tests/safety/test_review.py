@@ -1,7 +1,7 @@
 """Review shows what ran: a default re-run of a trial reproduces its recorded gait states, setting
 changes included; a what-if holds other settings over the whole trial; bad time bounds are 422.
 
-Recordings are made by a real :class:`~sessions.live.runtime.SessionRuntime` (driven frame by frame, or live
+Recordings are made by a real :class:`~gaitscope.sessions.live.runtime.SessionRuntime` (driven frame by frame, or live
 in the app) and read back through the real API on a temporary data folder.
 """
 
@@ -16,13 +16,13 @@ import pytest
 from fastapi.testclient import TestClient
 from mcap.reader import make_reader
 
-from sessions import registry, schema
-from sessions.estimation import DEFAULT_PERIOD, estimate
-from sessions.formats.mcap_io import SERIES_COLUMNS, read_messages
-from sessions.formats.recording import METADATA_NAME, SAMPLE_PERIOD_KEY, Recorder
-from sessions.live.runtime import SessionRuntime
-from sessions.live.sources import LiveDevice, frames_from_table
-from sessions.synth.trials import replay_columns, sensor_trial
+from gaitscope.sessions import registry, schema
+from gaitscope.sessions.estimation import DEFAULT_PERIOD, estimate
+from gaitscope.sessions.formats.mcap_io import SERIES_COLUMNS, read_messages
+from gaitscope.sessions.formats.recording import METADATA_NAME, SAMPLE_PERIOD_KEY, Recorder
+from gaitscope.sessions.live.runtime import SessionRuntime
+from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
+from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
 from tests.uploads import upload
 
 RATE_HZ = 100.0  # the device's rate; the live estimator, not told it, runs with DEFAULT_PERIOD

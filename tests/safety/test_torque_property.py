@@ -18,12 +18,12 @@ from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
-from sessions.estimation import FrameEstimator, FrameRefused, torque_json
-from sessions.live.runtime import safe_torque
-from sessions.live.sources import frames_from_table
-from sessions.schema import SENSOR_LIMITS, SensorFrame, SessionSettings
-from sessions.synth.trials import sensor_trial
+from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from gaitscope.sessions.estimation import FrameEstimator, FrameRefused, torque_json
+from gaitscope.sessions.live.runtime import safe_torque
+from gaitscope.sessions.live.sources import frames_from_table
+from gaitscope.sessions.schema import SENSOR_LIMITS, SensorFrame, SessionSettings
+from gaitscope.sessions.synth.trials import sensor_trial
 from tests.device_tokens import device_path
 from tests.estimator_doubles import Scripted
 
@@ -156,7 +156,7 @@ GP_FRAMES = _frames(("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "foot
 def test_the_gp_ekf_as_primary_keeps_the_torque_finite_and_bounded(
     small_model: TrainedModel, frames: list[dict], switch: tuple[int, str]
 ) -> None:
-    """The GP-EKF drives the torque with its own control surface (``sessions.stack``): whatever the joint
+    """The GP-EKF drives the torque with its own control surface (``gaitscope.sessions.stack``): whatever the joint
     encoders and heel strikes say, and across primary switches, the command stays within the bound."""
     settings = SessionSettings(
         torque_gain=3.0, max_torque_Nm=MAX_TORQUE, primary="gp_ekf", estimators=["tbe", "gp_ekf"]

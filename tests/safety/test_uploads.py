@@ -31,15 +31,15 @@ import pytest
 from fastapi.testclient import TestClient
 from mcap.writer import Writer
 
-from server.app import create_app
-from server.settings import Settings
-from sessions import schema
-from sessions.formats.locohub import write_table
-from sessions.formats.mcap_io import read_messages
-from sessions.formats.models import default_model_path, load_model
-from sessions.live.sources import frames_from_table
-from sessions.synth.cohort import CohortSpec, generate_cohort
-from sessions.synth.trials import replay_columns, sensor_trial
+from gaitscope.server.app import create_app
+from gaitscope.server.settings import Settings
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.locohub import write_table
+from gaitscope.sessions.formats.mcap_io import read_messages
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.live.sources import frames_from_table
+from gaitscope.sessions.synth.cohort import CohortSpec, generate_cohort
+from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
 
 SUBJECT: dict[str, Any] = {"code": "P01", "leg_length_m": 0.9, "mass_kg": 70.0}
 
@@ -150,7 +150,7 @@ def _parquet(frame: pd.DataFrame) -> bytes:
 
 def _recording(tmp_path: Path) -> bytes:
     """A gaitscope recording (``/sensor``, ``/gait_state``, ...) made by importing the replay CSV."""
-    from sessions.formats.imports import ImportJob, import_log
+    from gaitscope.sessions.formats.imports import ImportJob, import_log
 
     csv_path, target = tmp_path / "walk.csv", tmp_path / "walk.mcap"
     csv_path.write_bytes(_replay_csv())
@@ -528,7 +528,7 @@ def _synthetic_csv(path: Path, rows: int) -> int:
 
 @pytest.mark.slow
 def test_import_memory_does_not_grow_with_the_file(tmp_path: Path) -> None:
-    from sessions.formats.imports import ImportJob, import_log
+    from gaitscope.sessions.formats.imports import ImportJob, import_log
 
     subject = schema.Subject(id=1, created_utc="2024-01-01T00:00:00+00:00", **SUBJECT)
     model = load_model(default_model_path())[0]

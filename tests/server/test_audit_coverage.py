@@ -16,12 +16,12 @@ import pytest
 from fastapi.routing import APIRoute
 from fastapi.testclient import TestClient
 
-from server.app import create_app
-from server.auth import CSRF_HEADER
-from server.origin import SAFE_METHODS
-from server.settings import Settings
-from sessions import schema
-from sessions.gp_models import GP_EKF
+from gaitscope.server.app import create_app
+from gaitscope.server.auth import CSRF_HEADER
+from gaitscope.server.origin import SAFE_METHODS
+from gaitscope.server.settings import Settings
+from gaitscope.sessions import schema
+from gaitscope.sessions.gp_models import GP_EKF
 from tests.safety.test_uploads import _replay_csv
 from tests.server.test_fingerprints import _recorded, _walk
 from tests.server.test_imu_calibration import IMU_CHANNELS

@@ -23,16 +23,16 @@ from starlette.responses import JSONResponse, Response, StreamingResponse
 from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket
 
-from server.app import create_app
-from server.audit_middleware import BODY_MAX, AuditMiddleware
-from server.auth import COOKIE, CSRF_HEADER
-from server.cli import main
-from server.settings import Settings
-from sessions import schema
-from sessions.audit import AuditLog
-from sessions.audit.export import COLUMNS
-from sessions.audit.tables import drop_triggers
-from sessions.store import Store
+from gaitscope.server.app import create_app
+from gaitscope.server.audit_middleware import BODY_MAX, AuditMiddleware
+from gaitscope.server.auth import COOKIE, CSRF_HEADER
+from gaitscope.server.cli import main
+from gaitscope.server.settings import Settings
+from gaitscope.sessions import schema
+from gaitscope.sessions.audit import AuditLog
+from gaitscope.sessions.audit.export import COLUMNS
+from gaitscope.sessions.audit.tables import drop_triggers
+from gaitscope.sessions.store import Store
 
 SUBJECT = {"code": "AB01", "leg_length_m": 0.9, "mass_kg": 70.0}
 PASSWORD = "correct horse battery"

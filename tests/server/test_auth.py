@@ -13,10 +13,10 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
-from server.app import create_app
-from server.auth import COOKIE, CSRF_HEADER
-from server.cli import main
-from sessions import schema
+from gaitscope.server.app import create_app
+from gaitscope.server.auth import COOKIE, CSRF_HEADER
+from gaitscope.server.cli import main
+from gaitscope.sessions import schema
 from tests.server.test_api import SHORT, _wait_samples
 from tests.server.test_roles import PASSWORD, _settings, login
 

@@ -24,9 +24,9 @@ from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 from starlette.websockets import WebSocketDisconnect
 
-from server.app import create_app
-from server.settings import Settings
-from sessions import schema
+from gaitscope.server.app import create_app
+from gaitscope.server.settings import Settings
+from gaitscope.sessions import schema
 
 BAD_IDS = [str(2**63), str(2**64), "-1", "0", "abc", "1e308", "nan"]
 

@@ -8,11 +8,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from server.cli import main
-from sessions import schema
-from sessions.formats.locohub import write_table
-from sessions.formats.models import load_model
-from sessions.synth.trials import replay_columns, sensor_trial
+from gaitscope.server.cli import main
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.locohub import write_table
+from gaitscope.sessions.formats.models import load_model
+from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
 
 
 @pytest.fixture(scope="module")
@@ -115,7 +115,7 @@ def test_loadbench_and_wire_commands_are_there(capsys) -> None:
 
 
 def test_bench_passes_its_options_to_the_bench(monkeypatch: pytest.MonkeyPatch) -> None:
-    from sessions.offline import bench
+    from gaitscope.sessions.offline import bench
 
     calls: list[dict[str, object]] = []
     monkeypatch.setattr(bench, "run_bench", lambda **kw: calls.append(kw) or {})

@@ -4,9 +4,9 @@ Reproduces issue 21 (01eb3ed, a 2-core machine): beside a device that declared 2
 channel at that rate, a steady 200 Hz device got 31 replies in 7 s (p95 540 ms); beside one sending 5 MB
 frames at 200 Hz, 36; three 6.9 MB frames of 500,000 unknown keys stalled the server 14-20 s each and were
 each answered with a 42 MB notice. Now a frame's size is bounded before it is read whole (the websocket's
-``ws_max_kb``) and before it is parsed (:data:`~sessions.schema.MAX_FRAME_BYTES`), a device declares at
-most :data:`~sessions.schema.MAX_DEVICE_RATE_HZ`, notices are short, and each device's work on the event
-loop is budgeted (:class:`~sessions.live.sources.DeviceBudget`).
+``ws_max_kb``) and before it is parsed (:data:`~gaitscope.sessions.schema.MAX_FRAME_BYTES`), a device declares at
+most :data:`~gaitscope.sessions.schema.MAX_DEVICE_RATE_HZ`, notices are short, and each device's work on the event
+loop is budgeted (:class:`~gaitscope.sessions.live.sources.DeviceBudget`).
 
 The misbehaving device runs in a process of its own (its frames are built and sent without holding this
 process's interpreter), reconnecting at once whenever the server closes it, as a hostile one would.
@@ -32,8 +32,8 @@ import pytest
 import websockets
 from websockets.sync.client import connect
 
-from server.bench.launch import RunningServer, start_server
-from sessions import schema
+from gaitscope.server.bench.launch import RunningServer, start_server
+from gaitscope.sessions import schema
 from tests.device_tokens import issue_token
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.

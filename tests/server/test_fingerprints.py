@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from sessions.live.runtime import SessionRuntime
-from sessions.live.sources import LiveDevice, frames_from_table
-from sessions.schema import SensorFrame
-from sessions.synth.cohort import CohortSpec, make_subjects
-from sessions.synth.trials import sensor_trial
+from gaitscope.sessions.live.runtime import SessionRuntime
+from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
+from gaitscope.sessions.schema import SensorFrame
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.trials import sensor_trial
 
 RATE_HZ = 100.0
 

@@ -14,10 +14,10 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.testclient import WebSocketTestSession
 
-from estimators.imu_frontend import G0, ImuFrontEnd, imu_inputs
-from sessions.formats.mcap_io import read_events, read_messages
-from sessions.live.sources import frames_from_table
-from sessions.synth.trials import sensor_trial
+from gaitscope.estimators.imu_frontend import G0, ImuFrontEnd, imu_inputs
+from gaitscope.sessions.formats.mcap_io import read_events, read_messages
+from gaitscope.sessions.live.sources import frames_from_table
+from gaitscope.sessions.synth.trials import sensor_trial
 from tests.device_tokens import device_path
 
 RATE = 100.0

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from sessions.formats.mcap_io import read_events, read_messages
-from sessions.live.sources import frames_from_table
-from sessions.registry import DECLARED
-from sessions.synth.trials import replay_columns, sensor_trial
+from gaitscope.sessions.formats.mcap_io import read_events, read_messages
+from gaitscope.sessions.live.sources import frames_from_table
+from gaitscope.sessions.registry import DECLARED
+from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
 from tests.device_tokens import device_path
 from tests.uploads import upload
 

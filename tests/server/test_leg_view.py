@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 import viser
 
-from estimators.gait_model import OUT_FOOT, OUT_SHANK, evaluate
-from estimators.pipeline import TrainedModel
-from server.leg_view import LegView, knee_flexion_deg, quat_y, segment_angles_for, status_markdown
-from sessions.formats.models import default_model_path, load_model
-from sessions.schema import GaitState
-from sessions.synth.cohort import ANKLE_HEIGHT_FRAC, FOOT_FRAC, HEEL_BACK_FRAC, SHANK_FRAC, THIGH_FRAC
+from gaitscope.estimators.gait_model import OUT_FOOT, OUT_SHANK, evaluate
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.server.leg_view import LegView, knee_flexion_deg, quat_y, segment_angles_for, status_markdown
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.schema import GaitState
+from gaitscope.sessions.synth.cohort import ANKLE_HEIGHT_FRAC, FOOT_FRAC, HEEL_BACK_FRAC, SHANK_FRAC, THIGH_FRAC
 
 LEG = 0.9
 H = LEG / 0.53

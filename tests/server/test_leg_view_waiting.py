@@ -12,7 +12,7 @@ import pytest
 import viser
 from viser import _messages
 
-from server.leg_view import (
+from gaitscope.server.leg_view import (
     CAMERA_FOV_DEG,
     CAMERA_LOOK_AT,
     CAMERA_POSITION,
@@ -22,7 +22,7 @@ from server.leg_view import (
     WAITING_TEXT,
     LegView,
 )
-from sessions.schema import GaitState
+from gaitscope.sessions.schema import GaitState
 
 SEGMENTS = [f"{LEG}{node}/segment" for node in ("/thigh", "/thigh/shank", "/thigh/shank/foot")]
 BLUE, GREY = (40, 110, 200), (150, 150, 150)

@@ -8,7 +8,7 @@ import time
 
 from fastapi.testclient import TestClient
 
-from sessions.live.subscribers import HISTORY_S, attach_history
+from gaitscope.sessions.live.subscribers import HISTORY_S, attach_history
 
 SIM = {"kind": "simulated", "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 200}], "rate_hz": 200}
 

@@ -19,9 +19,9 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 from websockets.typing import Origin, Subprotocol
 
-from server.app import create_app
-from server.auth import CSRF_HEADER
-from sessions import schema
+from gaitscope.server.app import create_app
+from gaitscope.server.auth import CSRF_HEADER
+from gaitscope.sessions import schema
 from tests.server.test_roles import PASSWORD, _settings, login
 
 SIM = {"kind": "simulated", "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 400}], "rate_hz": 200}

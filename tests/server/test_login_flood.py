@@ -5,8 +5,8 @@ Reproduces issue 21 (01eb3ed, a 2-core machine): 16 anonymous clients guessing p
 write transaction (``BEGIN IMMEDIATE``), so the logins were one at a time and any other write (here a
 clinician's annotation of the session, made on the event loop at 01eb3ed) waited behind the queue of them,
 holding up the loop and every device's torque with it. Now a login's hash runs outside any
-transaction, one at a time in threads of their own (:meth:`~sessions.accounts.Accounts.login_async`),
-and failed logins are throttled (:mod:`sessions.accounts.throttle`).
+transaction, one at a time in threads of their own (:meth:`~gaitscope.sessions.accounts.Accounts.login_async`),
+and failed logins are throttled (:mod:`gaitscope.sessions.accounts.throttle`).
 
 The guessers run in a process of their own, so that their requests are not made with this process's
 interpreter, which times the device.
@@ -33,9 +33,9 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 import websockets
 
-from server.bench.launch import RunningServer, start_server
-from server.cli import main
-from sessions.synth.trials import replay_input, sensor_trial
+from gaitscope.server.bench.launch import RunningServer, start_server
+from gaitscope.server.cli import main
+from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
 pytestmark = pytest.mark.slow

@@ -12,9 +12,9 @@ import pytest
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from server.app import create_app
-from sessions import schema
-from sessions.accounts import LoginThrottle
+from gaitscope.server.app import create_app
+from gaitscope.sessions import schema
+from gaitscope.sessions.accounts import LoginThrottle
 from tests.server.test_roles import PASSWORD, _settings, login
 
 

@@ -12,7 +12,7 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
-from server.origin import (
+from gaitscope.server.origin import (
     LOOPBACK_HOSTS,
     AllowedHostsMiddleware,
     SameOriginMiddleware,

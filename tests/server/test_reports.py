@@ -13,8 +13,8 @@ import pytest
 from fastapi.testclient import TestClient
 from pypdf import PdfReader
 
-from sessions.reports.estimates_csv import CSV_COLUMNS
-from sessions.reports.pdf import FIGURE_TITLES
+from gaitscope.sessions.reports.estimates_csv import CSV_COLUMNS
+from gaitscope.sessions.reports.pdf import FIGURE_TITLES
 
 TWO_SPEEDS = {
     "kind": "simulated",
@@ -38,8 +38,8 @@ def _wait(client: TestClient, session_id: int, seconds: float) -> None:
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Any:
     """One app with one stopped session: ~11 s of walking, a torque-gain change, an annotation."""
-    from server.app import create_app
-    from server.settings import Settings
+    from gaitscope.server.app import create_app
+    from gaitscope.server.settings import Settings
 
     tmp = tmp_path_factory.mktemp("reports")
     settings = Settings(

@@ -1,7 +1,7 @@
 """Every route's rule, for every role: the OpenAPI document and the app's websockets are enumerated, each
 route must be in :data:`EXPECTED` (a new route without a rule fails here), must declare that rule, and
 answers each role as the rule says: 401 to nobody, 403 to a role without the permission, anything else
-to a role with it; what each role gets is :data:`EXPECTED` read through ``server.auth.PERMISSIONS``, the one
+to a role with it; what each role gets is :data:`EXPECTED` read through ``gaitscope.server.auth.PERMISSIONS``, the one
 table the guard itself reads. The real app with accounts on, a real SQLite file, real logins with argon2 hashes.
 
 The gaps issue #21 found are pinned in :data:`EXPECTED` (``compare`` re-runs a trial: ``run``, as ``rerun``;
@@ -22,10 +22,10 @@ from fastapi.routing import APIRoute, APIWebSocketRoute
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
-from server.app import create_app
-from server.auth import COOKIE, CSRF_HEADER, PERMISSIONS, _device, _Guard, _public
-from server.settings import Settings
-from sessions import schema
+from gaitscope.server.app import create_app
+from gaitscope.server.auth import COOKIE, CSRF_HEADER, PERMISSIONS, _device, _Guard, _public
+from gaitscope.server.settings import Settings
+from gaitscope.sessions import schema
 
 PASSWORD = "correct horse battery"
 #: (method, path) -> the permission it needs; "public": anyone; "device": its session's device token.

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from pydantic import ValidationError
 
-from server.settings import Settings
+from gaitscope.server.settings import Settings
 
 
 def test_defaults_are_local_and_embedded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 import websockets
 
-from server.bench.launch import start_server
+from gaitscope.server.bench.launch import start_server
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
 pytestmark = pytest.mark.slow

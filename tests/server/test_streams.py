@@ -10,10 +10,10 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
-from sessions.live.runtime import SUBSCRIBER_CAPACITY, Subscriber
-from sessions.live.sources import DeviceBudget
-from sessions.schema import MAX_FRAME_BYTES, MAX_NOTICE_ERRORS, GaitState
-from sessions.synth.trials import replay_input, sensor_trial
+from gaitscope.sessions.live.runtime import SUBSCRIBER_CAPACITY, Subscriber
+from gaitscope.sessions.live.sources import DeviceBudget
+from gaitscope.sessions.schema import MAX_FRAME_BYTES, MAX_NOTICE_ERRORS, GaitState
+from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 from tests.device_tokens import device_path
 
 SIM = {

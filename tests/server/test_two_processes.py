@@ -22,7 +22,7 @@ from typing import Any
 
 import pytest
 
-from server.bench.launch import RunningServer, start_server
+from gaitscope.server.bench.launch import RunningServer, start_server
 
 pytestmark = [
     pytest.mark.slow,

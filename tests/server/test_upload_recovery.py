@@ -10,9 +10,9 @@ import httpx2 as httpx
 import pytest
 from fastapi.testclient import TestClient
 
-from server.routes.uploads import RECOVERABLE, RECOVERABLE_HEADER
-from sessions.errors import DataFormatError
-from sessions.formats.mcap_io import check_mcap
+from gaitscope.server.routes.uploads import RECOVERABLE, RECOVERABLE_HEADER
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats.mcap_io import check_mcap
 
 SHORT = {"kind": "simulated", "protocol": [{"speed_m_s": 1.0, "incline_deg": 0.0, "strides": 200}], "rate_hz": 200}
 

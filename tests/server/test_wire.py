@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from server.routes import streams
-from server.wire import COMMAND, render
-from sessions import registry, schema
+from gaitscope.server.routes import streams
+from gaitscope.server.wire import COMMAND, render
+from gaitscope.sessions import registry, schema
 
 WIRE_JS = Path(__file__).resolve().parents[2] / "web" / "wire.js"
 

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sessions.estimation import frame_json, torque_json
-from sessions.schema import SensorFrame, TorqueCommand
+from gaitscope.sessions.estimation import frame_json, torque_json
+from gaitscope.sessions.schema import SensorFrame, TorqueCommand
 
 
 @pytest.mark.parametrize(
@@ -47,12 +47,12 @@ def test_a_device_sending_raw_imus_only_gets_the_derived_angles_in_its_gait_stat
     the IMU front ends' (issue #10), close to the true ones once the filters have settled."""
     import numpy as np
 
-    from sessions.estimation import FrameEstimator
-    from sessions.formats.models import default_model_path, load_model
-    from sessions.formats.replay_io import RAW_IMUS
-    from sessions.live.sources import frames_from_table
-    from sessions.schema import SessionSettings
-    from sessions.synth.trials import sensor_trial
+    from gaitscope.sessions.estimation import FrameEstimator
+    from gaitscope.sessions.formats.models import default_model_path, load_model
+    from gaitscope.sessions.formats.replay_io import RAW_IMUS
+    from gaitscope.sessions.live.sources import frames_from_table
+    from gaitscope.sessions.schema import SessionSettings
+    from gaitscope.sessions.synth.trials import sensor_trial
 
     sensors, leg, mass = sensor_trial([(1.1, 0.0, 12)], rate_hz=100.0)
     raw = sensors[["time_s", *RAW_IMUS["foot"], *RAW_IMUS["shank"], *RAW_IMUS["thigh"]]]

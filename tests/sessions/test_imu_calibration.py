@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from estimators.imu_frontend import G0, imu_inputs
-from sessions import schema
-from sessions.imu_calibration import StandingCollector
-from sessions.store import Conflict, NotFound, Store
+from gaitscope.estimators.imu_frontend import G0, imu_inputs
+from gaitscope.sessions import schema
+from gaitscope.sessions.imu_calibration import StandingCollector
+from gaitscope.sessions.store import Conflict, NotFound, Store
 
 
 def _frame(t: float, segments: dict[str, float], rng: np.random.Generator) -> schema.SensorFrame:

@@ -22,9 +22,9 @@ from alembic.runtime.migration import MigrationContext
 from sqlalchemy import Connection, create_engine, inspect, make_url
 from sqlalchemy.pool import NullPool
 
-from server.cli import main
-from sessions import migrations, schema
-from sessions.store import Store, all_metadata, make_engine, write_transaction
+from gaitscope.server.cli import main
+from gaitscope.sessions import migrations, schema
+from gaitscope.sessions.store import Store, all_metadata, make_engine, write_transaction
 
 POSTGRES = os.environ.get("GAITSCOPE_TEST_POSTGRES", "")
 NO_POSTGRES = "GAITSCOPE_TEST_POSTGRES is not set (bash scripts/postgres.sh .venv/bin/python -m pytest ...)"
@@ -121,7 +121,7 @@ def test_a_new_database_is_migrated_to_head_and_down_to_base_and_up_again(empty_
 
 
 def test_the_migrations_make_what_the_models_declare(empty_url: str) -> None:
-    # Fails while a module declares tables (sessions.accounts.tables, sessions.audit.tables) that no
+    # Fails while a module declares tables (gaitscope.sessions.accounts.tables, gaitscope.sessions.audit.tables) that no
     # revision creates yet: each new table or column needs its revision.
     Store(empty_url).close()
     engine = make_engine(empty_url)
@@ -255,8 +255,8 @@ def test_a_database_from_before_review_notes_gets_the_missing_table(tmp_path: Pa
 
 _OPEN = """
 import sys
-from sessions import schema
-from sessions.store import Store
+from gaitscope.sessions import schema
+from gaitscope.sessions.store import Store
 store = Store(sys.argv[1])
 store.create_subject(schema.SubjectCreate(code=sys.argv[2], leg_length_m=0.9, mass_kg=70.0))
 store.close()

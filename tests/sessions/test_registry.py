@@ -1,5 +1,5 @@
 """The registry's declarations (what a screen and a review's picker know without building anything) match
-the estimators it builds, and :func:`~sessions.registry.feeds` says which ones a log's channels can run."""
+the estimators it builds, and :func:`~gaitscope.sessions.registry.feeds` says which ones a log's channels can run."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from dataclasses import replace
 
 import pytest
 
-from estimators.pipeline import TrainedModel
-from sessions.formats.models import default_model_path, load_model
-from sessions.registry import DECLARED, ESTIMATORS, Feed, MissingChannels, StackContext, feeds, resolve
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.registry import DECLARED, ESTIMATORS, Feed, MissingChannels, StackContext, feeds, resolve
 
 HS = "heel_strike"
 

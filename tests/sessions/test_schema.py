@@ -7,7 +7,7 @@ import json
 import pytest
 from pydantic import BaseModel, TypeAdapter, ValidationError
 
-from sessions import schema
+from gaitscope.sessions import schema
 
 EXAMPLES: dict[type[BaseModel], dict] = {
     schema.SubjectCreate: {"code": "AB01", "leg_length_m": 0.9, "mass_kg": 70.0},

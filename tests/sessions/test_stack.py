@@ -12,17 +12,17 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from estimators.pipeline import TrainedModel
-from sessions import registry, schema
-from sessions.estimation import FrameEstimator
-from sessions.formats.mcap_io import read_messages
-from sessions.live.runtime import SessionRuntime, SettingRejected
-from sessions.live.sources import LiveDevice, frames_from_table
-from sessions.registry import ESTIMATORS, MissingChannels, StackContext, resolve
-from sessions.schema import PRIMARY_BLEND_S, GaitState, SensorFrame, SessionSettings
-from sessions.synth.cohort import CohortSpec, make_subjects
-from sessions.synth.speed_walks import SpeedProtocol, speed_walk
-from sessions.synth.trials import replay_columns, sensor_trial
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions import registry, schema
+from gaitscope.sessions.estimation import FrameEstimator
+from gaitscope.sessions.formats.mcap_io import read_messages
+from gaitscope.sessions.live.runtime import SessionRuntime, SettingRejected
+from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
+from gaitscope.sessions.registry import ESTIMATORS, MissingChannels, StackContext, resolve
+from gaitscope.sessions.schema import PRIMARY_BLEND_S, GaitState, SensorFrame, SessionSettings
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_walk
+from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
 from tests.estimator_doubles import Scripted
 from tests.uploads import upload
 
@@ -428,7 +428,7 @@ def test_standing_still_takes_the_torque_to_zero_and_walking_again_restarts_with
     """A walk with bouts between standing (issue #10): the session's torque is 0 while the walker stands
     (after the ramp), each standing and each resumption is a note for the event log, and the torque is
     finite and within the bound throughout."""
-    from sessions.synth.real_walks import RealWalkSpec, real_walk
+    from gaitscope.sessions.synth.real_walks import RealWalkSpec, real_walk
 
     subject = make_subjects(CohortSpec())[0]
     walk = real_walk(subject, RealWalkSpec(bouts=2, dropouts_per_min=0.0))
@@ -452,8 +452,8 @@ def test_standing_still_takes_the_torque_to_zero_and_walking_again_restarts_with
 
 
 def test_an_imu_front_end_whose_sensor_sends_nothing_derives_no_channel(small_model: TrainedModel) -> None:
-    from estimators.imu_frontend import G0, ImuFrontEnd, imu_inputs
-    from sessions.stack import EstimatorStack
+    from gaitscope.estimators.imu_frontend import G0, ImuFrontEnd, imu_inputs
+    from gaitscope.sessions.stack import EstimatorStack
 
     front = [ImuFrontEnd("foot"), Scripted("timing")]
     stack = EstimatorStack(front, small_model.torque, 0.9, 70.0, primary="timing")

@@ -15,9 +15,9 @@ from pydantic import ValidationError
 from sqlalchemy import text
 from sqlalchemy.exc import IntegrityError
 
-from sessions import schema
-from sessions import store as store_module
-from sessions.store import Conflict, NotFound, Store
+from gaitscope.sessions import schema
+from gaitscope.sessions import store as store_module
+from gaitscope.sessions.store import Conflict, NotFound, Store
 
 T0 = dt.datetime(2024, 5, 1, 12, 0, 0, tzinfo=dt.UTC)
 

@@ -12,9 +12,9 @@ from collections.abc import Iterator
 
 import pytest
 
-from sessions import schema
-from sessions.store import NotFound, Store
-from sessions.store_writer import StoreWriter, WriterClosed
+from gaitscope.sessions import schema
+from gaitscope.sessions.store import NotFound, Store
+from gaitscope.sessions.store_writer import StoreWriter, WriterClosed
 
 
 @pytest.fixture

@@ -11,7 +11,7 @@ what a database made before migrations holds. Ids and integer columns are BIGINT
 INTEGER on SQLite (where only ``INTEGER PRIMARY KEY`` is the rowid that numbers rows by itself).
 
 A table that already exists is left as it is: a database made before migrations that predates some
-of these tables gets just the missing ones (:func:`sessions.migrations.migrate` stamps one that has
+of these tables gets just the missing ones (:func:`gaitscope.sessions.migrations.migrate` stamps one that has
 them all instead of running this).
 """
 

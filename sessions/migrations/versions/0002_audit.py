@@ -4,8 +4,8 @@ Revision ID: 0002_audit
 Revises: 0001_baseline
 
 Runs on SQLite and PostgreSQL. The table is written out here, as it is at this revision (a later change of
-:class:`sessions.audit.tables.AuditRow` gets its own revision); the triggers' DDL is shared with the tests
-(:func:`sessions.audit.tables.create_triggers`), so that what the tests check is what the migration makes.
+:class:`gaitscope.sessions.audit.tables.AuditRow` gets its own revision); the triggers' DDL is shared with the tests
+(:func:`gaitscope.sessions.audit.tables.create_triggers`), so that what the tests check is what the migration makes.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-from sessions.audit.tables import create_triggers, drop_triggers
+from gaitscope.sessions.audit.tables import create_triggers, drop_triggers
 
 revision: str = "0002_audit"
 down_revision: str | Sequence[str] | None = "0001_baseline"

@@ -3,7 +3,7 @@
 Revision ID: 0003_accounts
 Revises: 0002_audit
 
-Runs on SQLite and PostgreSQL. The tables as :mod:`sessions.accounts.tables` declares them at this revision.
+Runs on SQLite and PostgreSQL. The tables as :mod:`gaitscope.sessions.accounts.tables` declares them at this revision.
 """
 
 from __future__ import annotations

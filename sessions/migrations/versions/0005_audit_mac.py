@@ -5,7 +5,7 @@ Revises: 0004_session_node
 
 Runs on SQLite and PostgreSQL. Existing entries keep no MAC (null): the key did not exist when they were written,
 and making their MACs now would vouch for whatever the table holds today. The first server start after the
-upgrade appends an ``audit.keyed`` entry, the first with a MAC (:meth:`sessions.audit.AuditLog.ensure_keyed`);
+upgrade appends an ``audit.keyed`` entry, the first with a MAC (:meth:`gaitscope.sessions.audit.AuditLog.ensure_keyed`);
 verification checks the entries before it by the SHA-256 chain alone, and says so.
 
 The downgrade drops the column, and with it the MACs (the code of revision 0004 cannot check them). On SQLite the
@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-from sessions.audit.tables import create_triggers
+from gaitscope.sessions.audit.tables import create_triggers
 
 revision: str = "0005_audit_mac"
 down_revision: str | Sequence[str] | None = "0004_session_node"

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from server.bench.load import Stream, _summary
+from gaitscope.server.bench.load import Stream, _summary
 
 
 def _result(streams: list[Stream]) -> dict[str, object]:

@@ -15,9 +15,9 @@ from typing import Any
 import pytest
 from argon2 import PasswordHasher
 
-from sessions import schema
-from sessions.accounts import REFUSED, Accounts, LoginFailed, LoginThrottle
-from sessions.store import Store
+from gaitscope.sessions import schema
+from gaitscope.sessions.accounts import REFUSED, Accounts, LoginFailed, LoginThrottle
+from gaitscope.sessions.store import Store
 
 PASSWORD = "correct horse battery"
 

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sessions.accounts.throttle import LoginThrottle
+from gaitscope.sessions.accounts.throttle import LoginThrottle
 
 
 class Clock:

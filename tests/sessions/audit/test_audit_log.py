@@ -24,12 +24,12 @@ from sqlalchemy import create_engine, inspect
 from sqlalchemy.exc import DBAPIError
 from sqlalchemy.pool import NullPool
 
-from sessions import migrations, schema
-from sessions.audit import AuditKeyMismatch, AuditLog, audit_key, checkpoint_mac, entry_hash, entry_mac
-from sessions.audit import log as log_module
-from sessions.audit.tables import TRIGGERS, create_triggers, drop_triggers
-from sessions.errors import DataFormatError
-from sessions.store import Store, make_engine, write_transaction
+from gaitscope.sessions import migrations, schema
+from gaitscope.sessions.audit import AuditKeyMismatch, AuditLog, audit_key, checkpoint_mac, entry_hash, entry_mac
+from gaitscope.sessions.audit import log as log_module
+from gaitscope.sessions.audit.tables import TRIGGERS, create_triggers, drop_triggers
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.store import Store, make_engine, write_transaction
 
 T0 = dt.datetime(2026, 3, 1, 8, 0, 0, tzinfo=dt.UTC)
 KEY = b"k" * 32

@@ -1,4 +1,4 @@
-"""Tests for sessions.formats.locohub: LocoHub tables in and out, and every way a table can be malformed."""
+"""Tests for gaitscope.sessions.formats.locohub: LocoHub tables in and out, and every way a table can be malformed."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.formats import locohub
-from sessions.formats.locohub import parse_task_info, read_table, write_table
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats import locohub
+from gaitscope.sessions.formats.locohub import parse_task_info, read_table, write_table
 
 SIGNALS = (schema.FOOT_ANGLE, schema.SHANK_ANGLE, schema.HEEL_FORWARD, schema.HEEL_UP, schema.ANKLE_MOMENT)
 

@@ -8,7 +8,7 @@ import random
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from sessions.formats._mcap_fast import message_adder
+from gaitscope.sessions.formats._mcap_fast import message_adder
 
 
 def _file(fast: bool, messages: list[tuple[int, int, bytes]], chunk_size: int) -> bytes:

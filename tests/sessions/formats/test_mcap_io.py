@@ -8,9 +8,9 @@ from pathlib import Path
 
 from mcap.writer import Writer
 
-from sessions import schema
-from sessions.formats.mcap_io import check_mcap, iter_sensor_frames, read_messages, read_sensor_frames
-from sessions.formats.recording import Recorder
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.mcap_io import check_mcap, iter_sensor_frames, read_messages, read_sensor_frames
+from gaitscope.sessions.formats.recording import Recorder
 
 START_NS = 1_700_000_000_000_000_000
 #: The /sensor JSON schema version 1 recordings carry (gaitscope.SensorFrame before the channel registry).

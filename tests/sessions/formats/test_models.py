@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimators.pipeline import TrainedModel
-from sessions.errors import DataFormatError
-from sessions.formats.models import default_model_path, load_model, provenance, save_model
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats.models import default_model_path, load_model, provenance, save_model
 
 
 def _prov():

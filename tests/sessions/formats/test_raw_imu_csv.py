@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from sessions.errors import DataFormatError
-from sessions.formats.mcap_io import read_messages
-from sessions.formats.replay_io import RAW_IMUS, read_replay_csv
-from sessions.synth.trials import sensor_trial
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats.mcap_io import read_messages
+from gaitscope.sessions.formats.replay_io import RAW_IMUS, read_replay_csv
+from gaitscope.sessions.synth.trials import sensor_trial
 from tests.uploads import upload
 
 

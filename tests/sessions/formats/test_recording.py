@@ -26,10 +26,10 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import Writer
 from pydantic import BaseModel
 
-from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.formats import mcap_io, recording
-from sessions.formats.mcap_io import (
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats import mcap_io, recording
+from gaitscope.sessions.formats.mcap_io import (
     check_mcap,
     decimate,
     read_events,
@@ -38,7 +38,7 @@ from sessions.formats.mcap_io import (
     read_series,
     recover,
 )
-from sessions.formats.recording import FLUSH_INTERVAL_S, Recorder, RecordingError
+from gaitscope.sessions.formats.recording import FLUSH_INTERVAL_S, Recorder, RecordingError
 
 START_NS = 1_700_000_000_123_456_789
 RATE_HZ = 200.0
@@ -475,7 +475,7 @@ _CRASHING_RECORDER = textwrap.dedent(
     import sys, time
     from pathlib import Path
     from tests.sessions.formats.test_recording import frame, state, torque
-    from sessions.formats.recording import Recorder
+    from gaitscope.sessions.formats.recording import Recorder
 
     rec = Recorder(Path(sys.argv[1]), time.time_ns(), {"subject": "S01"})
     print("recording", flush=True)
@@ -760,7 +760,7 @@ def test_a_real_full_disk_keeps_the_data_up_to_the_failure(tmp_path: Path, tmpfs
 def test_series_of_a_long_recording_needs_memory_for_max_points_only(tmp_path: Path) -> None:
     import tracemalloc
 
-    from sessions.schema import GaitState
+    from gaitscope.sessions.schema import GaitState
 
     path = tmp_path / "long.mcap"
     n = 30_000  # 2.5 min at 200 Hz

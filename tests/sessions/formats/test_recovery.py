@@ -12,14 +12,14 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-from server.app import create_app
-from server.bench.launch import start_server
-from server.settings import Settings
-from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.formats.mcap_io import check_mcap, read_messages
-from sessions.formats.recording import Recorder
-from sessions.store import Store
+from gaitscope.server.app import create_app
+from gaitscope.server.bench.launch import start_server
+from gaitscope.server.settings import Settings
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats.mcap_io import check_mcap, read_messages
+from gaitscope.sessions.formats.recording import Recorder
+from gaitscope.sessions.store import Store
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
 pytestmark = pytest.mark.slow

@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.formats.replay_io import ReplayInput, read_replay_csv, write_replay_output
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats.replay_io import ReplayInput, read_replay_csv, write_replay_output
 
 GOOD = """time_s,foot_angle_deg,note,heel_strike,shank_vel_dps
 0.00,-10.5,a,1,3

@@ -11,10 +11,10 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from sessions import schema
-from sessions.errors import DataFormatError
-from sessions.formats import replay_io
-from sessions.formats.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, ReplayInput, read_replay_csv
+from gaitscope.sessions import schema
+from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats import replay_io
+from gaitscope.sessions.formats.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, ReplayInput, read_replay_csv
 
 PROPERTY = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 KNOWN = (schema.REPLAY_TIME, *schema.REPLAY_SIGNALS, schema.REPLAY_HEEL_STRIKE)

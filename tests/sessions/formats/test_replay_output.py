@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sessions import schema
-from sessions.formats import _fastcsv
-from sessions.formats.replay_io import ReplayOutput, write_replay_output
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats import _fastcsv
+from gaitscope.sessions.formats.replay_io import ReplayOutput, write_replay_output
 
 
 def _columns(n: int, seed: int = 0) -> dict[str, np.ndarray]:

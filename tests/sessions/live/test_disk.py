@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from server.bench.disk_rate import CHANNEL_SETS, measure
-from sessions.live.disk import MIB, DiskGuard, GrowthRate, estimated_bytes_per_s, free_bytes, minutes
+from gaitscope.server.bench.disk_rate import CHANNEL_SETS, measure
+from gaitscope.sessions.live.disk import MIB, DiskGuard, GrowthRate, estimated_bytes_per_s, free_bytes, minutes
 
 
 class FakeDisk:

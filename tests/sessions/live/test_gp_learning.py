@@ -25,20 +25,20 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.testclient import WebSocketTestSession
 
-from estimators.gp import FitOptions
-from estimators.gp_models import GPModelSet, TrainingWindow, fit_models
-from estimators.pipeline import TrainedModel
-from sessions import schema
-from sessions.estimation import FrameEstimator
-from sessions.formats.mcap_io import read_events, read_messages
-from sessions.gp_models import models_of, window_text
-from sessions.live import gp_learning
-from sessions.live.gp_learning import GPLearning, GPTrainer, Note
-from sessions.live.runtime import SessionRuntime
-from sessions.live.sources import frames_from_table
-from sessions.schema import SensorFrame, SessionSettings
-from sessions.synth.cohort import CohortSpec, make_subjects
-from sessions.synth.speed_walks import SpeedProtocol, speed_walk
+from gaitscope.estimators.gp import FitOptions
+from gaitscope.estimators.gp_models import GPModelSet, TrainingWindow, fit_models
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions import schema
+from gaitscope.sessions.estimation import FrameEstimator
+from gaitscope.sessions.formats.mcap_io import read_events, read_messages
+from gaitscope.sessions.gp_models import models_of, window_text
+from gaitscope.sessions.live import gp_learning
+from gaitscope.sessions.live.gp_learning import GPLearning, GPTrainer, Note
+from gaitscope.sessions.live.runtime import SessionRuntime
+from gaitscope.sessions.live.sources import frames_from_table
+from gaitscope.sessions.schema import SensorFrame, SessionSettings
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_walk
 from tests.device_tokens import device_path
 
 CHANNELS = ["hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "heel_strike"]

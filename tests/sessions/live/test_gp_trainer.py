@@ -1,4 +1,4 @@
-"""The GP-EKF's shared fitting worker (:class:`sessions.live.gp_learning.GPTrainer`): one fit at a time,
+"""The GP-EKF's shared fitting worker (:class:`gaitscope.sessions.live.gp_learning.GPTrainer`): one fit at a time,
 within its duty budget, the session that has asked longest first. On a fake clock and a fit that returns
 when told, in a worker thread, so that every step is deterministic."""
 
@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from sessions.live import gp_learning as gl
+from gaitscope.sessions.live import gp_learning as gl
 
 
 @pytest.fixture

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sessions.live.subscribers import HISTORY_S, SessionHistory, Subscriber
-from sessions.schema import GaitState
+from gaitscope.sessions.live.subscribers import HISTORY_S, SessionHistory, Subscriber
+from gaitscope.sessions.schema import GaitState
 
 
 def _state(i: int, rate: float = 200.0, heel_strike: bool = False) -> GaitState:

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from estimators.imu_frontend import CODES, ImuFrontEnd, imu_inputs
-from sessions.live import manager
-from sessions.live.imu_events import PROBLEMS, SEVERITY, ImuEvent, ImuWatch
-from sessions.live.sources import LiveDevice, frames_from_table
-from sessions.synth.trials import sensor_trial
+from gaitscope.estimators.imu_frontend import CODES, ImuFrontEnd, imu_inputs
+from gaitscope.sessions.live import manager
+from gaitscope.sessions.live.imu_events import PROBLEMS, SEVERITY, ImuEvent, ImuWatch
+from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
+from gaitscope.sessions.synth.trials import sensor_trial
 from tests.device_tokens import device_path
 
 PERIOD = 0.01

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sessions.live.intent_events import IntentOnset, IntentOnsets
+from gaitscope.sessions.live.intent_events import IntentOnset, IntentOnsets
 
 NAMES = ("phase_ekf", "intent")
 OUTPUTS = (

@@ -11,12 +11,12 @@ import time
 import pytest
 from fastapi.testclient import TestClient
 
-from sessions import schema
-from sessions.formats.mcap_io import read_events
-from sessions.live.runtime import ChangeNotSaved, SessionRuntime, SettingRejected
-from sessions.live.sources import LiveDevice, frames_from_table
-from sessions.store_writer import StoreWriter
-from sessions.synth.trials import sensor_trial
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.mcap_io import read_events
+from gaitscope.sessions.live.runtime import ChangeNotSaved, SessionRuntime, SettingRejected
+from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
+from gaitscope.sessions.store_writer import StoreWriter
+from gaitscope.sessions.synth.trials import sensor_trial
 
 
 def _runtime(client: TestClient, writer: StoreWriter, code: str = "RE01") -> SessionRuntime:

@@ -13,9 +13,9 @@ import pandas as pd
 import pytest
 from pydantic import ValidationError
 
-from sessions import schema
-from sessions.formats.replay_io import read_replay_csv
-from sessions.live.sources import (
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.replay_io import read_replay_csv
+from gaitscope.sessions.live.sources import (
     CONNECT_S,
     RECEIVE_S,
     DeviceBudget,
@@ -26,7 +26,7 @@ from sessions.live.sources import (
     frames_from_table,
     invalid_notice,
 )
-from sessions.synth.trials import replay_columns, sensor_trial
+from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
 
 V1_CHANNELS = {*schema.REPLAY_SIGNALS, "heel_strike"}
 

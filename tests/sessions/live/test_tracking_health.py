@@ -6,11 +6,11 @@ import time
 
 from fastapi.testclient import TestClient
 
-from sessions import schema
-from sessions.live.runtime import SessionRuntime
-from sessions.live.sources import LiveDevice, frames_from_table
-from sessions.synth.cohort import CohortSpec, make_subjects
-from sessions.synth.real_walks import RealWalkSpec, real_walk
+from gaitscope.sessions import schema
+from gaitscope.sessions.live.runtime import SessionRuntime
+from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.real_walks import RealWalkSpec, real_walk
 
 
 def test_health_reports_walking_and_standing_still(client: TestClient) -> None:

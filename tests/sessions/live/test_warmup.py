@@ -1,4 +1,4 @@
-"""The server's start-up warm-up (:mod:`sessions.live.warmup`) compiles every numba kernel a session calls:
+"""The server's start-up warm-up (:mod:`gaitscope.sessions.live.warmup`) compiles every numba kernel a session calls:
 in a fresh process, after :func:`warm_up`, sessions of every feedable estimator (opt-in ones included) over
 realistic walks compile nothing more. Run in a subprocess, since this process may have compiled kernels
 already; numba's on-disk cache may serve the compiled code (a cache load counts as compiled)."""
@@ -20,16 +20,16 @@ SCRIPT = textwrap.dedent(
     import numpy as np
     from numba.core.registry import CPUDispatcher
 
-    import estimators
-    from sessions.estimation import FrameEstimator
-    from sessions.formats.models import default_model_path, load_model
-    from sessions.live.sources import frames_from_table
-    from sessions.live.warmup import warm_up
-    from sessions.registry import channels_of, feeds
-    from sessions.schema import SessionSettings
-    from sessions.synth.cohort import CohortSpec, make_subjects
-    from sessions.synth.speed_walks import SpeedProtocol, speed_walk
-    from sessions.synth.trials import sensor_trial
+    from gaitscope import estimators
+    from gaitscope.sessions.estimation import FrameEstimator
+    from gaitscope.sessions.formats.models import default_model_path, load_model
+    from gaitscope.sessions.live.sources import frames_from_table
+    from gaitscope.sessions.live.warmup import warm_up
+    from gaitscope.sessions.registry import channels_of, feeds
+    from gaitscope.sessions.schema import SessionSettings
+    from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+    from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_walk
+    from gaitscope.sessions.synth.trials import sensor_trial
 
     def compiled():
         out = {}

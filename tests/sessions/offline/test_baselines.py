@@ -6,15 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.heel_strike import HeelStrikeBackup
-from estimators.phase_ekf import PhaseEKF
-from estimators.pipeline import TrainedModel
-from estimators.protocol import HEEL_STRIKE, input_names
-from sessions.formats.models import default_model_path, load_model
-from sessions.offline.baselines import BASELINES, PhaseEKFCore, ReferenceHeelStrikeBackup
-from sessions.offline.replay import measurements
-from sessions.registry import ESTIMATORS, StackContext
-from sessions.synth.trials import replay_input, sensor_trial
+from gaitscope.estimators.heel_strike import HeelStrikeBackup
+from gaitscope.estimators.phase_ekf import PhaseEKF
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.estimators.protocol import HEEL_STRIKE, input_names
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.offline.baselines import BASELINES, PhaseEKFCore, ReferenceHeelStrikeBackup
+from gaitscope.sessions.offline.replay import measurements
+from gaitscope.sessions.registry import ESTIMATORS, StackContext
+from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 
 TOL = 1e-9
 

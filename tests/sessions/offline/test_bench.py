@@ -8,9 +8,9 @@ import math
 
 import pytest
 
-from sessions.offline import bench
-from sessions.offline.baselines import BASELINES
-from sessions.registry import ESTIMATORS, OPT_IN
+from gaitscope.sessions.offline import bench
+from gaitscope.sessions.offline.baselines import BASELINES
+from gaitscope.sessions.registry import ESTIMATORS, OPT_IN
 
 SAMPLES, REFERENCE = 150, 40
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from sessions.offline.crossval import (
+from gaitscope.sessions.offline.crossval import (
     METRICS,
     PAPER,
     crossvalidate,
@@ -13,7 +13,7 @@ from sessions.offline.crossval import (
     to_markdown,
     wrapped,
 )
-from sessions.synth.cohort import CohortSpec
+from gaitscope.sessions.synth.cohort import CohortSpec
 
 
 def test_wrapped_phase_distance() -> None:

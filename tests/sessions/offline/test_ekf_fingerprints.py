@@ -9,11 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estimators.basis import Array
-from estimators.gait_model import N_OUTPUTS, evaluate, fit_outputs, gait_constraints
-from estimators.pipeline import TrainedModel
-from sessions.offline.crossval import evaluate_subject
-from sessions.offline.ekf_fingerprints import (
+from gaitscope.estimators.basis import Array
+from gaitscope.estimators.gait_model import N_OUTPUTS, evaluate, fit_outputs, gait_constraints
+from gaitscope.estimators.pipeline import TrainedModel
+from gaitscope.sessions.offline.crossval import evaluate_subject
+from gaitscope.sessions.offline.ekf_fingerprints import (
     AVERAGE,
     CHECK_SECONDS,
     SUBJECT,
@@ -26,8 +26,8 @@ from sessions.offline.ekf_fingerprints import (
     to_markdown,
     variant,
 )
-from sessions.offline.training import SAMPLES_PER_STRIDE, StrideData, fit_models, stride_data, subject_grams
-from sessions.synth.cohort import CohortSpec, SensorNoise, generate_cohort, make_subjects
+from gaitscope.sessions.offline.training import SAMPLES_PER_STRIDE, StrideData, fit_models, stride_data, subject_grams
+from gaitscope.sessions.synth.cohort import CohortSpec, SensorNoise, generate_cohort, make_subjects
 
 SPEC = CohortSpec(n_subjects=4, strides_per_condition=4, inclines_deg=(-5.0, 0.0, 5.0))
 HELD_OUT = 1  # VC02: far enough from the others' average for personalization to matter

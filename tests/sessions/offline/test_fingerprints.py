@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sessions.offline.fingerprints import (
+from gaitscope.sessions.offline.fingerprints import (
     SAMPLES_PER_STRIDE,
     SCHEDULE,
     SKIP_STRIDES,
@@ -13,7 +13,7 @@ from sessions.offline.fingerprints import (
     run_study,
     to_markdown,
 )
-from sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
 
 SPEC = CohortSpec(n_subjects=4, strides_per_condition=6)
 

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from estimators.gp import FitOptions
-from sessions.offline.gp_study import run_study, to_markdown, write_figure
-from sessions.synth.cohort import CohortSpec
-from sessions.synth.speed_walks import SpeedProtocol
+from gaitscope.estimators.gp import FitOptions
+from gaitscope.sessions.offline.gp_study import run_study, to_markdown, write_figure
+from gaitscope.sessions.synth.cohort import CohortSpec
+from gaitscope.sessions.synth.speed_walks import SpeedProtocol
 
 
 def test_the_gp_ekf_learns_beats_the_time_based_phase_and_freezes_at_a_stop(tmp_path: Path) -> None:

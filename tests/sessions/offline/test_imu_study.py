@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from sessions.offline.imu_study import ImuStudy, run_study, to_markdown
+from gaitscope.sessions.offline.imu_study import ImuStudy, run_study, to_markdown
 
 
 def test_the_front_end_beats_its_baselines_and_the_table_names_every_method() -> None:

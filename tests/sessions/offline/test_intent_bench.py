@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from sessions.offline.intent_bench import intent_cost
+from gaitscope.sessions.offline.intent_bench import intent_cost
 
 
 def test_the_row_times_both_between_and_at_events_and_the_baseline_agrees() -> None:

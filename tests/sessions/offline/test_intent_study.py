@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from server.cli import main
-from sessions.offline.intent_study import run_filter, run_study, step_data, to_markdown
-from sessions.synth.cohort import CohortSpec, make_subjects
-from sessions.synth.intent_walks import IntentProtocol, commanded_trial
+from gaitscope.server.cli import main
+from gaitscope.sessions.offline.intent_study import run_filter, run_study, step_data, to_markdown
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.intent_walks import IntentProtocol, commanded_trial
 
 
 def test_the_filter_sees_every_step_of_a_trial() -> None:

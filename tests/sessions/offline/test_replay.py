@@ -15,11 +15,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estimators.pipeline import GaitStatePipeline, PipelineConfig
-from server.cli import main
-from sessions import schema
-from sessions.formats.models import default_model_path, load_model
-from sessions.offline import replay
+from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig
+from gaitscope.server.cli import main
+from gaitscope.sessions import schema
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.offline import replay
 
 GOLDEN = Path(__file__).parents[2] / "data" / "golden"
 TRIAL, EXPECTED = GOLDEN / "trial_20s.csv", GOLDEN / "trial_20s_replay.csv"
@@ -89,8 +89,8 @@ def test_a_failure_during_the_replay_leaves_no_output(tmp_path: Path, monkeypatc
 
 
 def test_a_replay_runs_the_filter_as_a_live_session_does_unless_as_published(tmp_path: Path) -> None:
-    from sessions.synth.cohort import CohortSpec, make_subjects
-    from sessions.synth.real_walks import RealWalkSpec, real_walk
+    from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+    from gaitscope.sessions.synth.real_walks import RealWalkSpec, real_walk
 
     subject = make_subjects(CohortSpec())[0]
     walk = real_walk(subject, RealWalkSpec(bouts=2, dropouts_per_min=0.0))

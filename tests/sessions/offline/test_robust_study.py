@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import math
 
-from sessions.offline.robust_study import ESTIMATORS, SUBSETS, WALKING, run_study, to_markdown
-from sessions.synth.cohort import CohortSpec
-from sessions.synth.real_walks import RealWalkSpec
+from gaitscope.sessions.offline.robust_study import ESTIMATORS, SUBSETS, WALKING, run_study, to_markdown
+from gaitscope.sessions.synth.cohort import CohortSpec
+from gaitscope.sessions.synth.real_walks import RealWalkSpec
 
 
 def test_the_study_reports_every_subset_estimator_and_condition() -> None:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sessions.offline import sdre_study
-from sessions.synth.fes_leg import seated_trial, two_link_trial
+from gaitscope.sessions.offline import sdre_study
+from gaitscope.sessions.synth.fes_leg import seated_trial, two_link_trial
 
 
 def test_estimators_of_the_seated_study_track_a_trial_to_within_a_few_degrees() -> None:

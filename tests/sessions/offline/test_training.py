@@ -4,8 +4,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sessions import schema
-from sessions.offline.training import SAMPLES_PER_STRIDE, StrideData, fit_models, stride_data
+from gaitscope.sessions import schema
+from gaitscope.sessions.offline.training import SAMPLES_PER_STRIDE, StrideData, fit_models, stride_data
 
 
 def test_strides_are_arranged_with_their_task(small_data: StrideData) -> None:
@@ -39,7 +39,7 @@ def test_noise_model_needs_two_training_subjects(small_data: StrideData) -> None
 
 
 def test_fitted_model_reproduces_its_training_data(small_data: StrideData, small_model) -> None:
-    from estimators.gait_model import evaluate
+    from gaitscope.estimators.gait_model import evaluate
 
     s = small_data.subject == 0
     P = np.broadcast_to(small_data.p, (int(s.sum()), SAMPLES_PER_STRIDE)).reshape(-1)
@@ -51,7 +51,7 @@ def test_fitted_model_reproduces_its_training_data(small_data: StrideData, small
 
 
 def test_a_table_without_heel_positions_trains_a_model_that_ignores_them(small_cohort: pd.DataFrame) -> None:
-    from estimators.pipeline import GaitStatePipeline
+    from gaitscope.estimators.pipeline import GaitStatePipeline
 
     data = stride_data(small_cohort.drop(columns=list(schema.OPTIONAL_TRAINING_COLUMNS)))
     assert data.outputs == (True, True, False, False)
@@ -64,7 +64,7 @@ def test_a_table_without_heel_positions_trains_a_model_that_ignores_them(small_c
 
 
 def test_time_indexed_tables_are_resampled_to_the_phase_grid() -> None:
-    from sessions.synth.cohort import CohortSpec, generate_cohort, resample_walk
+    from gaitscope.sessions.synth.cohort import CohortSpec, generate_cohort, resample_walk
 
     phase_table = generate_cohort(CohortSpec(n_subjects=2, strides_per_condition=3, inclines_deg=(0.0, 5.0)))
     groups = phase_table.groupby([schema.SUBJECT, schema.TASK_ID], sort=False)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sessions.formats.models import default_model_path, load_model
-from sessions.personalization.calibration import MIN_STRIDES, CalibrationRefused, CalibrationWalk, calibrate
-from sessions.synth.trials import sensor_trial
+from gaitscope.sessions.formats.models import default_model_path, load_model
+from gaitscope.sessions.personalization.calibration import MIN_STRIDES, CalibrationRefused, CalibrationWalk, calibrate
+from gaitscope.sessions.synth.trials import sensor_trial
 
 
 def _walk(strides: int = 20) -> CalibrationWalk:

@@ -6,8 +6,8 @@ import io
 
 from pypdf import PdfReader
 
-from sessions import schema
-from sessions.reports.pdf import FIGURE_TITLES, render_pdf
+from gaitscope.sessions import schema
+from gaitscope.sessions.reports.pdf import FIGURE_TITLES, render_pdf
 
 NASTY = '#panic("boom") *bold* $x^2$ <lbl> @ref // not a comment'
 

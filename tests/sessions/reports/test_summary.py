@@ -1,11 +1,11 @@
-"""Stride segmentation, curves and words of :mod:`sessions.reports.summary`, on made-up gait states."""
+"""Stride segmentation, curves and words of :mod:`gaitscope.sessions.reports.summary`, on made-up gait states."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from sessions import schema
-from sessions.reports import summary as sm
+from gaitscope.sessions import schema
+from gaitscope.sessions.reports import summary as sm
 
 TRIAL = schema.Trial(id=1, session_id=1, name="t", status="finished", path="x.mcap", started_utc="2026-01-01T00:00:00Z")
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
-from sessions.reports.svg import Line, _ticks, line_chart
+from gaitscope.sessions.reports.svg import Line, _ticks, line_chart
 
 NS = "{http://www.w3.org/2000/svg}"
 

@@ -1,11 +1,11 @@
-"""The A/B figures and mean stride of ``sessions.review.compare`` on hand-made walks with known answers."""
+"""The A/B figures and mean stride of ``gaitscope.sessions.review.compare`` on hand-made walks with known answers."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from sessions.review.compare import STRIDE_POINTS, Truth, _keep, _wrap, run_figures, stride_mean
+from gaitscope.sessions.review.compare import STRIDE_POINTS, Truth, _keep, _wrap, run_figures, stride_mean
 
 
 def _walk(period: float = 1.0, strides: int = 4, rate: float = 100.0) -> dict[str, np.ndarray]:

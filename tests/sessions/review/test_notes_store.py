@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from sessions import schema
-from sessions.store import NotAllowed, NotFound, Store
+from gaitscope.sessions import schema
+from gaitscope.sessions.store import NotAllowed, NotFound, Store
 
 
 @pytest.fixture

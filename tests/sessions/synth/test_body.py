@@ -8,9 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sessions import schema as s
-from sessions.synth.body import COM_HEIGHT_FRAC, STEP_WIDTH_M, second_derivative
-from sessions.synth.cohort import CONTRA_EXCURSION_RANGE, CohortSpec, generate_walk, make_subjects
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.synth.body import COM_HEIGHT_FRAC, STEP_WIDTH_M, second_derivative
+from gaitscope.sessions.synth.cohort import CONTRA_EXCURSION_RANGE, CohortSpec, generate_walk, make_subjects
 
 N = 150
 SUBJECT = make_subjects(CohortSpec())[0]

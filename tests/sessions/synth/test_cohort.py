@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sessions import schema as s
-from sessions.synth.cohort import (
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.synth.cohort import (
     CohortSpec,
     SensorNoise,
     cohort_subject_metadata,
@@ -17,7 +17,7 @@ from sessions.synth.cohort import (
     resample_walk,
     simulate_sensors,
 )
-from sessions.synth.sensors import drop_duplicate_instants
+from gaitscope.sessions.synth.sensors import drop_duplicate_instants
 
 SPEC = CohortSpec(n_subjects=2, speeds_m_s=(0.8, 1.2), inclines_deg=(-10.0, 10.0), strides_per_condition=5)
 N = SPEC.samples_per_stride

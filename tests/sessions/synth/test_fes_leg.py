@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from estimators.sdre import G
-from sessions.synth.fes_leg import rest_angle, seated_trial, stimulation, two_link_trial
+from gaitscope.estimators.sdre import G
+from gaitscope.sessions.synth.fes_leg import rest_angle, seated_trial, stimulation, two_link_trial
 
 
 def test_seated_trial_is_deterministic_and_starts_at_rest() -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sessions.synth.imu import G0, ImuErrors, ImuSpec, draw_errors, imu_readings, rotation
+from gaitscope.sessions.synth.imu import G0, ImuErrors, ImuSpec, draw_errors, imu_readings, rotation
 
 SPEC = ImuSpec()
 RATE_HZ = 200.0

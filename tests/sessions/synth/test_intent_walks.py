@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sessions.synth.cohort import CohortSpec, make_subjects
-from sessions.synth.intent_walks import IntentProtocol, commanded_trial, self_paced_trial, speed_profile
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.intent_walks import IntentProtocol, commanded_trial, self_paced_trial, speed_profile
 
 SUBJECT = make_subjects(CohortSpec())[3]
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sessions import schema as s
-from sessions.synth.cohort import CohortSpec, make_subjects
-from sessions.synth.real_walks import CONDITIONS, RealWalkSpec, real_walk
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.real_walks import CONDITIONS, RealWalkSpec, real_walk
 
 SUBJECT = make_subjects(CohortSpec())[2]
 

@@ -8,11 +8,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sessions import schema as s
-from sessions.synth.cohort import CohortSpec, SensorNoise, generate_walk, make_subjects, resample_walk
-from sessions.synth.imu import G0, ImuSpec
-from sessions.synth.sensors import DeviceSensors, simulate_sensors
-from sessions.synth.trials import sensor_trial
+from gaitscope.sessions import schema as s
+from gaitscope.sessions.synth.cohort import CohortSpec, SensorNoise, generate_walk, make_subjects, resample_walk
+from gaitscope.sessions.synth.imu import G0, ImuSpec
+from gaitscope.sessions.synth.sensors import DeviceSensors, simulate_sensors
+from gaitscope.sessions.synth.trials import sensor_trial
 
 RATE_HZ = 200.0
 V1_COLUMNS = 14  # time, the six replay signals, heel strike, five ground truths, the thigh angle

@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sessions.synth.cohort import CohortSpec, make_subjects
-from sessions.synth.speed_walks import SpeedProtocol, speed_at, speed_walk
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_at, speed_walk
 
 SUBJECT = make_subjects(CohortSpec())[1]
 PROTOCOL = SpeedProtocol(walk_s=25.0, standing_s=2.0)
