@@ -121,7 +121,7 @@ GP_EKF_COHORT: Final = CohortSpec(
 @cache
 def gp_ekf_default() -> tuple[GPModelSet, ControlSurface]:
     """The GP-EKF's first observation models and its torque control surface (see :data:`GP_EKF_MODEL_NAME`)."""
-    path = resources.files("sessions") / "data" / GP_EKF_MODEL_NAME
+    path = resources.files("gaitscope.sessions") / "data" / GP_EKF_MODEL_NAME
     if path.is_file():
         with resources.as_file(path) as file, np.load(file) as arrays:
             return load_default(dict(arrays))

@@ -32,7 +32,7 @@ DEFAULT_MODEL_NAME = "default_model.npz"
 
 def default_model_path() -> Path:
     """The model that ships with gaitscope, trained on the default cohort."""
-    return Path(str(resources.files("sessions") / "data" / DEFAULT_MODEL_NAME))
+    return Path(str(resources.files("gaitscope.sessions") / "data" / DEFAULT_MODEL_NAME))
 
 
 def gaitscope_version() -> str:
