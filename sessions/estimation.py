@@ -21,6 +21,7 @@ from gaitscope.sessions.intent_boost import IntentBoost
 from gaitscope.sessions.registry import StackContext, build_stack, channels_of
 from gaitscope.sessions.schema import GaitState, SensorFrame, SessionSettings
 from gaitscope.sessions.stack import EstimatorStack, StackSample
+from gaitscope.sessions.torque_gain import TorqueGain
 
 #: Assumed sample period until the source's rate is known (s).
 DEFAULT_PERIOD = 0.005
@@ -66,7 +67,8 @@ class FrameEstimator:
     and again after every restart or reset of the primary, so that assistance never starts as a step.
     The intent boost (:mod:`gaitscope.sessions.intent_boost`) stays within the same ramp: the effective gain
     ``gain x (1 + boost)`` never exceeds the ramp's ``0.5 gain/s x time since it started``, nor the
-    torque the ramped bound. Deterministic in session time, so a re-run reproduces it.
+    torque the ramped bound. Deterministic in session time, so a re-run reproduces it. The set gain, the
+    ramp and the boost have one owner, :attr:`gain` (:class:`~gaitscope.sessions.torque_gain.TorqueGain`).
 
     Attributes:
         stack: the estimators and the torque.
@@ -124,9 +126,8 @@ class FrameEstimator:
             _outputs_templates(name, outs) for name, outs in zip(self.stack.names, self.stack.outputs, strict=True)
         ]
         self.settings = settings
-        #: assistance follows intent (the ``intent_gain_boost`` setting; off by default)
-        self.intent_boost = IntentBoost(self.stack.names, self.stack.outputs)
-        self.soft_start = soft_start
+        #: the one owner of the effective torque gain: the set gain, the soft start's ramp, the intent boost
+        self.gain = TorqueGain(self.stack, settings, soft_start)
         self.max_jump_s = max_jump_s
         self.reorder_window_s = reorder_window_s
         self.last: StackSample | None = None
@@ -138,8 +139,6 @@ class FrameEstimator:
         self._t_offset = time_origin
         #: The last frame stepped: its session time and foot and shank angles (None: none yet).
         self._prev: tuple[float, float | None, float | None, float | None] | None = None
-        self._ramp_t0 = 0.0
-        self._ramping = soft_start
         self._standing = False
         #: when and why the primary last lost track (:mod:`gaitscope.estimators.lock`); None: never
         self.last_lost: tuple[float, str] | None = None
@@ -152,6 +151,16 @@ class FrameEstimator:
         """The estimator driving the torque now (the settings' unless it failed; None: none)."""
         return self.stack.primary
 
+    @property
+    def soft_start(self) -> bool:
+        """Whether assistance ramps up (:attr:`gain` owns the ramp)."""
+        return self.gain.soft_start
+
+    @property
+    def intent_boost(self) -> IntentBoost:
+        """Assistance follows intent (the ``intent_gain_boost`` setting; off by default; :attr:`gain` applies it)."""
+        return self.gain.boost
+
     def retune(self, s: SessionSettings) -> None:
         """Take new settings from the next frame on (the soft start, if running, still caps the torque).
 
@@ -160,11 +169,9 @@ class FrameEstimator:
                 other settings are applied.
         """
         self.settings = s
-        self.stack.retune_torque(s.torque_gain, s.max_torque_Nm)
+        self.gain.set(s, self.last_t)
         self.stack.retune(measurement_noise_scale=s.measurement_noise_scale, process_noise_scale=s.process_noise_scale)
         self.events.extend(self.stack.take_events())
-        if self._ramping:
-            self._apply_ramp(self.last_t)
         if s.primary != self.stack.requested:
             self.stack.set_primary(s.primary)
 
@@ -271,8 +278,7 @@ class FrameEstimator:
             HEEL_STRIKE: math.nan if frame.heel_strike is None else float(frame.heel_strike),
         }
         self._derive_velocities(channels, t)
-        if self._ramping:
-            self._apply_ramp(t)
+        self.gain.before_step(t)
         e = self.stack.step(t, channels)
         self.events.extend(e.events)
         if e.fault:
@@ -294,21 +300,14 @@ class FrameEstimator:
                 "resumed": "walking resumed after standing still",
             }[e.fault]
             self.notes.append(f"estimator restarted at {t:.3f} s ({what}); assistance ramps up again")
-            if self.soft_start:
-                self._ramp_t0, self._ramping = t, True
-                self._apply_ramp(t)
+            self.gain.restart(t)
         elif e.fault == "torque":
             self.notes.append(f"torque forced to 0 at {t:.3f} s: the torque model gave no finite value")
         self.last = e
         self.last_t = t
         self._last_recv_ns = recv_ns
         self._prev = (t, frame.foot_angle_deg, frame.shank_angle_deg, frame.thigh_angle_deg)
-        torque = e.torque_Nm
-        s = self.settings
-        if self.intent_boost.active(s.intent_gain_boost):  # one comparison while it is off
-            self.intent_boost.update(t, e.outputs, s.intent_gain_boost, s.torque_gain)
-            headroom, bound = self._ramp_limits(t)
-            torque = self.intent_boost.torque(torque, bound, headroom)
+        torque = self.gain.torque(t, e.outputs, e.torque_Nm)
         return GaitState(
             seq=frame.seq,
             t=t,
@@ -336,30 +335,6 @@ class FrameEstimator:
         if name is None or name not in self.stack.names:
             return "lost track"
         return str(getattr(self.stack.estimators[self.stack.names.index(name)], "lost_reason", "") or "lost track")
-
-    def _ramp_limits(self, t: float) -> tuple[float, float]:
-        """What the soft start allows the intent boost at session time ``t``: the factor over the stack's torque
-        (the ramp's gain over the gain the stack runs at: 1 while the gain itself ramps, then growing at
-        0.5/gain per second, so that the boost comes in as a ramp too, never as a step) and the torque bound."""
-        s = self.settings
-        if not self.soft_start:
-            return math.inf, s.max_torque_Nm
-        elapsed = max(0.0, t - self._ramp_t0)
-        ramp_gain = schema.SETTING_LIMITS["torque_gain"][2] * elapsed
-        headroom = max(1.0, ramp_gain / s.torque_gain) if s.torque_gain > 0.0 else math.inf
-        return headroom, min(s.max_torque_Nm, schema.SETTING_LIMITS["max_torque_Nm"][2] * elapsed)
-
-    def _apply_ramp(self, t: float) -> None:
-        """Cap gain and bound at their rate limits times the time since the ramp started."""
-        s = self.settings
-        elapsed = max(0.0, t - self._ramp_t0)
-        gain_rate = schema.SETTING_LIMITS["torque_gain"][2]
-        bound_rate = schema.SETTING_LIMITS["max_torque_Nm"][2]
-        gain = min(s.torque_gain, gain_rate * elapsed)
-        bound = min(s.max_torque_Nm, bound_rate * elapsed)
-        self.stack.retune_torque(gain, bound)
-        if gain >= s.torque_gain and bound >= s.max_torque_Nm:
-            self._ramping = False
 
     def _derive_velocities(self, channels: dict[str, float], t: float) -> None:
         """Backward-difference velocities for a device without gyroscopes."""
