@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import datetime as dt
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -89,8 +90,10 @@ class SessionManager:
         node: str | None = None,
         disk_room: Callable[[], int | None] | None = None,
         writer: StoreWriter | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ):
         self.store = store
+        self.clock = clock  # monotonic seconds, handed to every session (SessionRuntime's clock)
         self.node = node  # this process's name in the shared database (Settings.node)
         self.data_dir = data_dir
         self.models = models
@@ -188,6 +191,7 @@ class SessionManager:
                 on_end=self._ended,
                 gp_trainer=self.gp_trainer,
                 writer=self.writer,
+                clock=self.clock,
             )
         except ValueError as e:  # the estimator stack: unknown names, missing channels (MissingChannels)
             with contextlib.suppress(Exception):

@@ -136,6 +136,8 @@ class SessionRuntime:
             own if its stack runs ``gp_ekf`` (and stops it with the session).
         writer: the thread that makes the session's database writes (:mod:`gaitscope.sessions.store_writer`; the
             server's, shared); None: the session starts its own (and closes it when it stops).
+        clock: monotonic seconds, for the rate limits of settings changes and events and the disk's growth rate
+            (injected: a test drives it instead of sleeping).
 
     Raises:
         ValueError: the settings name an unknown estimator, or a primary the stack cannot run.
@@ -156,8 +158,10 @@ class SessionRuntime:
         on_end: Callable[[SessionRuntime, schema.SessionState, str], Awaitable[None]] | None = None,
         gp_trainer: GPTrainer | None = None,
         writer: StoreWriter | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ):
         self.session = session
+        self.clock = clock
         self.subject = subject
         self.model = model
         self.source = source
@@ -355,7 +359,7 @@ class SessionRuntime:
         state = self.disk_check()
         if self.recorder is not None:
             with contextlib.suppress(OSError):
-                self.disk_rate.update(self.recorder.path.stat().st_size, time.monotonic())
+                self.disk_rate.update(self.recorder.path.stat().st_size, self.clock())
         room = self.disk_room() if self.disk_room is not None else None
         self.disk_minutes = None if room is None else round(minutes(room, self.disk_rate.bytes_per_s), 1)
         if state != self.disk:
@@ -443,7 +447,7 @@ class SessionRuntime:
     def _notes(self) -> None:
         """Turn the estimator's notes into system events, at most one per NOTE_INTERVAL_S."""
         notes = self.estimator.notes
-        now = time.monotonic()
+        now = self.clock()
         if now - self._last_note < NOTE_INTERVAL_S:
             self._suppressed_notes += len(notes)
         else:
@@ -733,7 +737,7 @@ class SessionRuntime:
             for k, v in change.model_dump(exclude={"actor", "reason"}).items()
             if v is not None and v != getattr(current, k)
         }
-        now = time.monotonic()
+        now = self.clock()
         for name, value in updates.items():
             if name == "primary":
                 self._check_primary(value, now)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 import threading
 import time
+from collections.abc import Callable
 
 import pytest
 from fastapi.testclient import TestClient
@@ -19,7 +20,9 @@ from gaitscope.sessions.store_writer import StoreWriter
 from gaitscope.sessions.synth.trials import sensor_trial
 
 
-def _runtime(client: TestClient, writer: StoreWriter, code: str = "RE01") -> SessionRuntime:
+def _runtime(
+    client: TestClient, writer: StoreWriter, code: str = "RE01", clock: Callable[[], float] = time.monotonic
+) -> SessionRuntime:
     ctx = client.app.state.ctx  # type: ignore[attr-defined]
     r = client.post("/api/subjects", json={"code": code, "leg_length_m": 0.9, "mass_kg": 70})
     body = {
@@ -31,7 +34,26 @@ def _runtime(client: TestClient, writer: StoreWriter, code: str = "RE01") -> Ses
     session = ctx.store.get_session(client.post("/api/sessions", json=body).json()["id"])
     model, _ = ctx.models.get(session.settings.model)
     subject = ctx.store.get_subject(session.subject_id)
-    return SessionRuntime(session, subject, model, LiveDevice(), ctx.store, ctx.settings.data_dir, writer=writer)
+    data_dir = ctx.settings.data_dir
+    return SessionRuntime(session, subject, model, LiveDevice(), ctx.store, data_dir, writer=writer, clock=clock)
+
+
+def test_the_rate_limits_of_settings_changes_read_the_injected_clock(client: TestClient) -> None:
+    """A step of 0.1 in the gain (0.5/s) needs 0.2 s before the next: the session's clock says when, not the
+    machine's."""
+    now = [100.0]
+    writer = StoreWriter()
+    try:
+        runtime = _runtime(client, writer, "RE04", clock=lambda: now[0])
+        runtime.change_settings(schema.SettingsChange(torque_gain=0.9, actor="ann"))
+        now[0] += 0.19
+        with pytest.raises(SettingRejected, match=r"torque_gain changed 0\.19 s ago.*try again in 0\.01 s"):
+            runtime.change_settings(schema.SettingsChange(torque_gain=0.8, actor="ann"))
+        assert runtime.settings.torque_gain == 0.9
+        now[0] += 0.02
+        assert runtime.change_settings(schema.SettingsChange(torque_gain=0.8, actor="ann")).settings.torque_gain == 0.8
+    finally:
+        writer.close()
 
 
 def test_intent_events_wait_for_no_database_write_and_are_stored_sent_and_recorded_in_order(
