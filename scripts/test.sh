@@ -19,6 +19,12 @@ echo "== ruff"
 .venv/bin/ruff check .
 echo "== mypy"
 .venv/bin/mypy
+# The browser code (web/*.js): TypeScript's type check of its JSDoc types (jsconfig.json) and ESLint's
+# recommended rules (eslint.config.js), both from the locked package-lock.json.
+echo "== tsc, eslint (web/)"
+npm ci --no-audit --no-fund --loglevel=error
+npx --no-install tsc --noEmit -p jsconfig.json
+npx --no-install eslint web
 echo "== pytest (SQLite)"
 env -u GAITSCOPE_TEST_POSTGRES .venv/bin/python -m pytest -q "$@"
 # The suite without the browser tests on a throwaway PostgreSQL server (each test gets its own database

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import re
+import typing
 from pathlib import Path
 from typing import Any, Final
 
@@ -37,6 +38,8 @@ _LIMIT_KEYS: Final = {
 }
 _IDENTIFIER: Final = re.compile(r"^[A-Za-z_$][A-Za-z0-9_$]*$")
 _WIDTH: Final = 110
+#: The largest integer a JavaScript number holds exactly (``Number.MAX_SAFE_INTEGER``).
+_SAFE_INTEGER: Final = 2**53 - 1
 
 _HEADER: Final = f"""\
 // GENERATED from sessions/schema.py and sessions/registry.py by `{COMMAND}`:
@@ -54,6 +57,7 @@ def render() -> str:
     classes = _classes()
     parts = [_HEADER]
     parts += [_typedef(name, sch) for name, sch in classes.items()]
+    parts.append(_browser_message())
     parts.append(
         "/** Freezes an object and every object in it. */\n"
         "function deepFreeze(o) {\n"
@@ -105,15 +109,41 @@ def render() -> str:
     )
     limits = {name: lim for name, sch in classes.items() if (lim := _field_limits(sch))}
     parts.append(
+        _comment(
+            [
+                "The bounds of one field (`FIELD_LIMITS`); a field has only those its schema states.",
+                "@typedef {object} FieldLimit",
+                *(
+                    f"@property {{{'string' if key == 'pattern' else 'number'}}} [{key}]"
+                    for key in _LIMIT_KEYS.values()
+                ),
+            ]
+        )
+    )
+    parts.append(
         _const(
             "FIELD_LIMITS",
             limits,
             "Bounds of every bounded field, per class: `min`, `max` (inclusive), `exclusiveMin`, `exclusiveMax`,\n"
             "`minLength`, `maxLength`, `pattern` (a regular expression source), `minItems`, `maxItems`.",
-            "Readonly<Record<string, Record<string, Record<string, number | string>>>>",
+            "Readonly<Record<string, Record<string, FieldLimit>>>",
         )
     )
     return "\n".join(parts)
+
+
+def _browser_message() -> str:
+    """The union of the messages a browser's session socket receives (``streams.BrowserMessage``), each
+    told apart by its ``type``: the type of ``openSessionStream``'s messages (``web/api.js``)."""
+    from gaitscope.server.routes.streams import BrowserMessage  # the socket's own statement of what it sends
+
+    names = " | ".join(cls.__name__ for cls in typing.get_args(BrowserMessage))
+    return _comment(
+        [
+            "A message of a session's stream to the browser (`/ws/sessions/{id}`), told apart by its `type`.",
+            f"@typedef {{{names}}} BrowserMessage",
+        ]
+    )
 
 
 def write(path: Path) -> bool:
@@ -153,7 +183,10 @@ def _typedef(name: str, sch: dict[str, Any]) -> str:
     for field, prop in sch.get("properties", {}).items():
         label = field if field in required else f"[{field}{_default(prop)}]"
         note = " ".join(p for p in (prop.get("description", ""), _bounds(prop)) if p)
-        lines.append(f"@property {{{_type(prop)}}} {label}{' ' + note if note else ''}")
+        # TypeScript reads a note that starts with a digit after ``[name]`` as part of a default value ("1x
+        # real time": error TS1351); JSDoc's " - " separator says where the note begins.
+        sep = " - " if note[:1].isdigit() else " "
+        lines.append(f"@property {{{_type(prop)}}} {label}{sep + note if note else ''}")
     return _comment(lines)
 
 
@@ -231,6 +264,12 @@ def _const(name: str, value: Any, doc: str, type_: str) -> str:
 
 def _js(value: Any, indent: int) -> str:
     """A JavaScript literal of JSON data: on one line if it fits, else one key per line."""
+    if isinstance(value, list):
+        return "[" + ", ".join(_js(v, indent) for v in value) + "]"
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > _SAFE_INTEGER:
+        # A JavaScript number cannot hold it (int64's maximum as a bound): the double it becomes anyway,
+        # written so that the literal says the value the browser holds.
+        return repr(float(value))
     if not isinstance(value, dict):
         return json.dumps(value)
     if not value:

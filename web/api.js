@@ -8,6 +8,8 @@ export class ApiError extends Error {
     this.name = "ApiError";
     this.status = status;
     this.detail = detail;
+    /** @type {boolean | undefined} an upload the server kept, that a retry can resume (upload.js) */
+    this.recoverable = undefined;
   }
 }
 
@@ -157,7 +159,7 @@ function _isFinalClose(code) {
  * `hello`). Closed by the server with 1013 (this client fell behind) it reconnects like any other drop.
  *
  * @param {number} sessionId
- * @param {{onMessage: (msg: object) => void, onStatus?: (status: string, info?: object) => void}} handlers
+ * @param {{onMessage: (msg: import("./wire.js").BrowserMessage) => void, onStatus?: (status: string, info?: object) => void}} handlers
  *   status is "connecting", "open", "reconnecting" (info.delayMs, info.code) or "closed" (info.code).
  * @param {{maxRateHz?: number, batchMs?: number}} [opts]
  * @returns {{close: () => void}}

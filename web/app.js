@@ -18,6 +18,7 @@ import { mountSubjects } from "./subjects.js";
 import { h } from "./ui.js";
 import { mountUsers } from "./users.js";
 
+/** @type {Array<[RegExp, (el: HTMLElement, m: RegExpMatchArray) => {unmount?: () => void}]>} */
 const ROUTES = [
   [/^#?\/?$/, (el) => mountSessions(el)],
   [/^#\/sessions\/(\d+)$/, (el, m) => mountLive(el, Number(m[1]))],
@@ -83,7 +84,7 @@ async function firstVisit() {
 function showUser() {
   document.querySelector(".topbar").append(userBadge());
   const adminLinks = () => {
-    for (const a of document.querySelectorAll("[data-admin-only]")) a.hidden = !may("admin");
+    for (const a of document.querySelectorAll("[data-admin-only]")) /** @type {HTMLElement} */ (a).hidden = !may("admin");
   };
   onUserChange(adminLinks);
   adminLinks();

@@ -30,6 +30,7 @@ export function estimatorStyle(name) {
 }
 
 /** Which outputs are overlaid on which review plot (`PLOT_SPECS` key), and how they read there. */
+/** @type {Array<{output: string, plot: string, what: string, scale?: number}>} */
 const OVERLAID = [
   { output: "phase", plot: "phase", what: "phase", scale: 100 },
   { output: "phase_rate", plot: "phase_rate", what: "phase rate" },
@@ -62,7 +63,7 @@ export function rerunEstimators(res) {
  * The overlay of a re-run's estimators: per plot key its series (`{label, color, dash, points?, col}`),
  * the columns they draw (in the plot's unit), and per estimator what it draws (for the legend). An
  * estimator without a phase shows its heel strikes as dots at 0 % on the phase plot.
- * @param {string[]} names @param {Record<string, unknown[]>} res
+ * @param {string[]} names @param {Record<string, any[]>} res columns: numbers (booleans for heel strikes)
  */
 export function estimatorOverlay(names, res) {
   const series = {};
@@ -101,9 +102,9 @@ function swatch(name, dot) {
   svg.setAttribute("aria-hidden", "true");
   const style = estimatorStyle(name);
   const mark = document.createElementNS(ns, dot ? "circle" : "line");
-  if (dot) Object.entries({ cx: 18, cy: 6, r: 5, fill: style.color }).forEach(([k, v]) => mark.setAttribute(k, v));
+  if (dot) Object.entries({ cx: 18, cy: 6, r: 5, fill: style.color }).forEach(([k, v]) => mark.setAttribute(k, String(v)));
   else {
-    Object.entries({ x1: 0, y1: 6, x2: 36, y2: 6, stroke: style.color, "stroke-width": 3 }).forEach(([k, v]) => mark.setAttribute(k, v));
+    Object.entries({ x1: 0, y1: 6, x2: 36, y2: 6, stroke: style.color, "stroke-width": 3 }).forEach(([k, v]) => mark.setAttribute(k, String(v)));
     if (style.dash) mark.setAttribute("stroke-dasharray", style.dash.join(" "));
   }
   svg.append(mark);

@@ -428,6 +428,7 @@ export function mountLive(root, sessionId) {
   }
 
   const handlers = {
+    /** @param {import("./wire.js").BrowserMessage} msg */
     onMessage(msg) {
       switch (msg.type) {
         case "hello":

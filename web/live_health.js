@@ -57,6 +57,7 @@ const _RANK = { ok: 0, amber: 1, red: 2 };
  * @returns {{level: "ok" | "amber" | "red", live: boolean, reasons: string[]}}
  */
 export function judgeHealth(f) {
+  /** @type {"ok" | "amber" | "red"} */
   let level = "ok";
   const reasons = [];
   const raise = (to, why) => {

@@ -12,7 +12,7 @@ const _KEY = "gaitscope.live.layout.";
 /**
  * A stored layout made to fit the panels there are: unknown ids dropped, missing ones added in their default
  * place, sizes checked; null for what cannot be read.
- * @param {unknown} stored @param {{id: string, size: number}[]} panels defaults, in order
+ * @param {any} stored parsed JSON, of any shape @param {{id: string, size: number}[]} panels defaults, in order
  * @returns {{order: string[], size: Record<string, number>, hidden: string[]}}
  */
 export function normalizeLayout(stored, panels) {

@@ -141,14 +141,16 @@ export class Plot {
         sync: { key: this.group.key, setSeries: false, filters: { pub: (type) => type === "mousemove" || type === "mouseleave" } },
         bind: {
           mousedown: (u, targ, fn, onlyTarg) => (e) => {
-            if (e.button !== 0 || (onlyTarg && e.target !== targ)) return;
+            if (e.button !== 0 || (onlyTarg && e.target !== targ)) return null;
             if (zoom && (e.shiftKey || this.group.panMode)) this._pan(e);
             else fn(e);
+            return null;
           },
           dblclick: (u, targ, fn, onlyTarg) => (e) => {
-            if (e.button !== 0 || (onlyTarg && e.target !== targ)) return;
+            if (e.button !== 0 || (onlyTarg && e.target !== targ)) return null;
             if (zoom) this.group.resetX();
             else fn(e);
+            return null;
           },
         },
       },
@@ -165,7 +167,7 @@ export class Plot {
         draw: [(u) => drawMarkers(u, [...this.group.markers, ...this.markers], this.drawnMarkers, uPlot.pxRatio)],
         setCursor: [(u) => this._showTip(u)],
         // no unit after a missing value ("–")
-        setLegend: [(u) => {
+        setLegend: [() => {
           for (const v of this._values) v.classList.toggle("gs-none", v.textContent === "–");
         }],
       },
@@ -179,7 +181,7 @@ export class Plot {
     this._values = [];
     this.u.root.querySelectorAll(".u-legend .u-series").forEach((row, i) => {
       const unit = i === 0 ? "" : this._unit(series[i - 1]);
-      const v = row.querySelector(".u-value");
+      const v = /** @type {HTMLElement | null} */ (row.querySelector(".u-value"));
       if (!unit || !v) return;
       v.dataset.unit = unit;
       v.classList.toggle("gs-none", v.textContent === "–");

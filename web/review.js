@@ -40,6 +40,11 @@ const INTENT_RERUN_SERIES = INTENT_SPEC.series.map((s) => ({ ...s, label: `${s.l
  * @param {Record<string, (number | null)[]>} series a `/series` or re-run answer
  * @param {number} maxPoints the `max_points` it was asked with
  */
+/**
+ * @param {Record<string, any>} series columns by name (`t`, then one per channel)
+ * @param {number} maxPoints
+ * @returns {Record<string, any>} the columns, and the derived ones
+ */
 function derive(series, maxPoints) {
   const pct = (a) => (a || []).map((v) => (v == null ? null : v * 100));
   const decimated = (series.t || []).length >= maxPoints;

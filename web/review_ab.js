@@ -14,12 +14,14 @@ const MAX_RUNS = 4; // MAX_COMPARED_RUNS in sessions/schema.py
 const LETTERS = "ABCD";
 
 /** The figures table's columns: [figure key, heading, digits]; the error ones only with a ground truth. */
+/** @type {Array<[string, string, number]>} key in RunFigures, column head, decimals */
 const FIGURES = [
   ["strides", "Strides", 0],
   ["peak_torque_Nm", "Peak torque (N·m)", 2],
   ["mean_phase_rate_1_s", "Mean phase rate (strides/s)", 3],
   ["mean_stride_length_m", "Stride length (m)", 3],
 ];
+/** @type {Array<[string, string, number]>} */
 const ERRORS = [
   ["phase_rmse_pct", "Phase error (%)", 2],
   ["phase_rate_rmse_1_s", "Phase-rate error (strides/s)", 3],

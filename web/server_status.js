@@ -31,12 +31,10 @@ async function checkHealth() {
     let resp;
     try {
       resp = await fetch("/api/health", { cache: "no-store", signal: ctrl.signal, headers: { Accept: "application/json" } });
-    } catch (err) {
-      const e = new Error(ctrl.signal.aborted
+    } catch {
+      throw Object.assign(new Error(ctrl.signal.aborted
         ? `no answer within ${HEALTH_TIMEOUT_MS / 1000} s`
-        : "it cannot be reached");
-      e.lost = ctrl.signal.aborted ? "timeout" : "refused";
-      throw e;
+        : "it cannot be reached"), { lost: ctrl.signal.aborted ? "timeout" : "refused" });
     }
     if (!resp.ok) throw new Error(`it answered with error ${resp.status}`);
     return await resp.json();

@@ -165,6 +165,7 @@ export function mountSessions(root) {
       const subjectId = Number(sessSubject.value);
       if (!subjectId) throw new ValidationError("Choose a subject (create one first).");
       const kind = sessionForm.querySelector("input[name=source-kind]:checked").value;
+      /** @type {{kind: string, [field: string]: unknown}} */
       let source;
       if (kind === "simulated") {
         source = { kind };

@@ -109,6 +109,7 @@ export class SettingsEditor {
    * @returns {Record<string, number>}
    */
   reachable(now = performance.now()) {
+    /** @type {Record<string, number>} */
     const out = {};
     for (const key of SETTING_KEYS) {
       const { rate } = SETTING_LIMITS[key];

@@ -258,6 +258,7 @@ export function mountSubject(root, subjectId) {
     st.live = null;
   }
 
+  /** @param {import("./wire.js").BrowserMessage} msg */
   function onLive(msg) {
     if (msg.type !== "states" || !msg.states.length) return;
     const gf = (msg.estimators || {}).fp_gf;

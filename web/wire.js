@@ -415,7 +415,7 @@
 /**
  * One estimator's outputs at one sample, recorded on its own channel (``/estimators/<name>``).
  *
- * ``values`` maps each output the estimator declares (``estimators.protocol.Estimator.outputs``) to its
+ * ``values`` maps each output the estimator declares (``gaitscope.estimators.protocol.Estimator.outputs``) to its
  * value (booleans as 1.0 / 0.0), None for all of them once the estimator has failed.
  * @typedef {object} EstimatorOutputs
  * @property {number} seq
@@ -451,7 +451,7 @@
  * @typedef {object} Personalization
  * @property {number} id
  * @property {number} subject_id
- * @property {number} version 1, 2, ... per subject
+ * @property {number} version - 1, 2, ... per subject
  * @property {string} model the model whose fingerprint map this fingerprint belongs to
  * @property {Array<number>} fingerprint g_1..g_k, deg RMS each
  * @property {number} fit_rmse_avg_deg thigh-angle RMSE of the average model on the calibration walk
@@ -696,7 +696,7 @@
  * The answer of ``POST /api/trials/{id}/compare``.
  * @typedef {object} Comparison
  * @property {Array<number>} t session time (s) of the rows, decimated keeping every series' extremes
- * @property {Array<number>} stride_pct 0-100 % of the stride, the x of the runs' mean strides
+ * @property {Array<number>} stride_pct - 0-100 % of the stride, the x of the runs' mean strides
  * @property {string | null} ground_truth where the truth the errors are against comes from; null: none known
  * @property {Array<ComparedRun>} runs
  */
@@ -814,14 +814,14 @@
  */
 
 /**
- * One entry of the audit trail (``sessions.audit``): who did what to what, when, and how it ended.
+ * One entry of the audit trail (``gaitscope.sessions.audit``): who did what to what, when, and how it ended.
  *
  * ``before`` and ``after`` are JSON text exactly as hashed (null: nothing). ``hash`` is the SHA-256 of the
  * entry's canonical JSON including ``prev_hash``, the previous entry's ``hash`` (``sessions/audit/log.py``
  * says how, so that anyone can re-check the chain with other tools).
  * @typedef {object} AuditEntry
  * @property {number} id
- * @property {number} seq 1, 2, 3... without gaps: a missing number is a deleted entry (>= 1)
+ * @property {number} seq - 1, 2, 3... without gaps: a missing number is a deleted entry (>= 1)
  * @property {string} time_utc ISO-8601 UTC, to the millisecond
  * @property {string} user
  * @property {string} role the user's role then; 'none' for a caller nobody knows
@@ -919,7 +919,7 @@
  */
 
 /**
- * One sensor's result (``estimators.imu_calibration.SensorCalibration``): the offsets its front end
+ * One sensor's result (``gaitscope.estimators.imu_calibration.SensorCalibration``): the offsets its front end
  * ``imu_<segment>`` takes, or why it was refused.
  * @typedef {object} ImuSensorCalibration
  * @property {string} segment foot, shank, thigh, foot_contra, ...
@@ -949,7 +949,7 @@
  * @typedef {object} ReplaySource
  * @property {"replay"} [kind="replay"]
  * @property {number} trial_id (1..9223372036854775807)
- * @property {number} [speed=1.0] 1x real time or faster (1..50)
+ * @property {number} [speed=1.0] - 1x real time or faster (1..50)
  * @property {boolean} [loop=false]
  */
 
@@ -1021,6 +1021,11 @@
  * @typedef {object} UploadSource
  * @property {"upload"} [kind="upload"]
  * @property {string} filename
+ */
+
+/**
+ * A message of a session's stream to the browser (`/ws/sessions/{id}`), told apart by its `type`.
+ * @typedef {Hello | StreamBatch | Health | EventMessage | SettingsMessage} BrowserMessage
  */
 
 /** Freezes an object and every object in it. */
@@ -1268,9 +1273,23 @@ export const ESTIMATORS = deepFreeze({
 });
 
 /**
+ * The bounds of one field (`FIELD_LIMITS`); a field has only those its schema states.
+ * @typedef {object} FieldLimit
+ * @property {number} [min]
+ * @property {number} [max]
+ * @property {number} [exclusiveMin]
+ * @property {number} [exclusiveMax]
+ * @property {number} [minLength]
+ * @property {number} [maxLength]
+ * @property {string} [pattern]
+ * @property {number} [minItems]
+ * @property {number} [maxItems]
+ */
+
+/**
  * Bounds of every bounded field, per class: `min`, `max` (inclusive), `exclusiveMin`, `exclusiveMax`,
  * `minLength`, `maxLength`, `pattern` (a regular expression source), `minItems`, `maxItems`.
- * @type {Readonly<Record<string, Record<string, Record<string, number | string>>>>}
+ * @type {Readonly<Record<string, Record<string, FieldLimit>>>}
  */
 export const FIELD_LIMITS = deepFreeze({
   SubjectCreate: {
@@ -1285,7 +1304,7 @@ export const FIELD_LIMITS = deepFreeze({
     mass_kg: { min: 20.0, max: 250.0 },
     notes: { maxLength: 2000 },
   },
-  SessionCreate: { subject_id: { min: 1, max: 9223372036854775807 } },
+  SessionCreate: { subject_id: { min: 1, max: 9.223372036854776e+18 } },
   SessionSettings: {
     torque_gain: { min: 0.0, max: 3.0 },
     max_torque_Nm: { min: 0.0, max: 80.0 },
@@ -1314,13 +1333,13 @@ export const FIELD_LIMITS = deepFreeze({
       maxLength: 200,
       pattern: "^[^/\\\\\\x00-\\x1f\\x7f-\\x9f\\u2028\\u2029\\u200e\\u200f\\u202a-\\u202e\\u2066-\\u2069]+\\.([Mm][Cc][Aa][Pp]|[Cc][Ss][Vv]|[Pp][Aa][Rr][Qq][Uu][Ee][Tt])$",
     },
-    size: { min: 1, max: 9223372036854775807 },
-    subject_id: { min: 1, max: 9223372036854775807 },
+    size: { min: 1, max: 9.223372036854776e+18 },
+    subject_id: { min: 1, max: 9.223372036854776e+18 },
   },
-  RerunRequest: { estimators: { maxItems: 16 }, personalization_id: { min: 1, max: 9223372036854775807 } },
-  ViewerFocus: { session_id: { min: 1, max: 9223372036854775807 } },
-  ViewerShow: { trial_id: { min: 1, max: 9223372036854775807 }, t: { min: -1000000000.0, max: 1000000000.0 } },
-  SensorFrame: { seq: { min: 0, max: 9223372036854775807 }, sent_ns: { min: 0, max: 9223372036854775807 } },
+  RerunRequest: { estimators: { maxItems: 16 }, personalization_id: { min: 1, max: 9.223372036854776e+18 } },
+  ViewerFocus: { session_id: { min: 1, max: 9.223372036854776e+18 } },
+  ViewerShow: { trial_id: { min: 1, max: 9.223372036854776e+18 }, t: { min: -1000000000.0, max: 1000000000.0 } },
+  SensorFrame: { seq: { min: 0, max: 9.223372036854776e+18 }, sent_ns: { min: 0, max: 9.223372036854776e+18 } },
   ModelProvenance: {
     n_samples: { min: 1 },
     n_strides: { min: 1 },
@@ -1329,7 +1348,7 @@ export const FIELD_LIMITS = deepFreeze({
     torque_fourier_order: { min: 1 },
   },
   CalibrationRequest: {
-    trial_id: { min: 1, max: 9223372036854775807 },
+    trial_id: { min: 1, max: 9.223372036854776e+18 },
     model: { pattern: "^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$" },
     actor: { minLength: 1, maxLength: 64 },
     note: { maxLength: 500 },
@@ -1343,7 +1362,7 @@ export const FIELD_LIMITS = deepFreeze({
     fingerprint: { minItems: 1, maxItems: 16 },
     fit_rmse_avg_deg: { min: 0 },
     fit_rmse_personal_deg: { min: 0 },
-    strides_used: { min: 0, max: 9223372036854775807 },
+    strides_used: { min: 0, max: 9.223372036854776e+18 },
     seconds_used: { min: 0 },
     created_utc: { maxLength: 40 },
     note: { maxLength: 500 },
@@ -1360,7 +1379,7 @@ export const FIELD_LIMITS = deepFreeze({
   ImuCalibrationStatus: { progress: { min: 0.0, max: 1.0 } },
   GPArray: { shape: { maxItems: 4 } },
   GPModelRecord: {
-    version: { min: 0, max: 9223372036854775807 },
+    version: { min: 0, max: 9.223372036854776e+18 },
     steps: { minItems: 2, maxItems: 2 },
     span_s: { minItems: 2, maxItems: 2 },
     reason: { maxLength: 2000 },
@@ -1369,7 +1388,7 @@ export const FIELD_LIMITS = deepFreeze({
   GPModelInfo: { steps: { minItems: 2, maxItems: 2 }, span_s: { minItems: 2, maxItems: 2 } },
   GPPendingFit: { steps: { minItems: 2, maxItems: 2 }, span_s: { minItems: 2, maxItems: 2 } },
   GPLearningControl: {
-    version: { min: 0, max: 9223372036854775807 },
+    version: { min: 0, max: 9.223372036854776e+18 },
     actor: { minLength: 1, maxLength: 64 },
     reason: { maxLength: 500 },
   },
@@ -1415,7 +1434,7 @@ export const FIELD_LIMITS = deepFreeze({
     since: { maxLength: 40 },
     until: { maxLength: 40 },
     limit: { min: 1, max: 1000 },
-    offset: { min: 0, max: 9223372036854775807 },
+    offset: { min: 0, max: 9.223372036854776e+18 },
   },
   ComparedRunSpec: { name: { minLength: 1, maxLength: 40 }, estimators: { maxItems: 16 } },
   DeviceSource: { rate_hz: { min: 1.0, max: 1000.0 }, channels: { maxItems: 256 } },
@@ -1430,12 +1449,12 @@ export const FIELD_LIMITS = deepFreeze({
     incline_deg: { min: -15.0, max: 15.0 },
     strides: { min: 1, max: 2000 },
   },
-  ReplaySource: { trial_id: { min: 1, max: 9223372036854775807 }, speed: { min: 1.0, max: 50.0 } },
+  ReplaySource: { trial_id: { min: 1, max: 9.223372036854776e+18 }, speed: { min: 1.0, max: 50.0 } },
   SimulatedSource: {
     protocol: { minItems: 1, maxItems: 200 },
     rate_hz: { min: 20.0, max: 1000.0 },
     cohort_subject: { min: 0, max: 9 },
-    seed: { min: 0, max: 9223372036854775807 },
+    seed: { min: 0, max: 9.223372036854776e+18 },
   },
   UploadSource: { filename: { maxLength: 200 } },
 });

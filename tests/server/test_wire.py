@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from gaitscope.server.routes import streams
-from gaitscope.server.wire import COMMAND, render
+from gaitscope.server.wire import _LIMIT_KEYS, COMMAND, render
 from gaitscope.sessions import registry, schema
 
 WIRE_JS = Path(__file__).resolve().parents[2] / "web" / "wire.js"
@@ -41,6 +41,8 @@ def test_every_wire_class_and_every_class_it_refers_to_is_typed_field_by_field()
         if m := re.search(r"@typedef \{object\} (\w+)", block):
             typedefs[m[1]] = re.findall(r"@property \{([^}]*)\} \[?(\w+)", block)
     schemas = _schemas()
+    # FIELD_LIMITS' entry type, not a wire class: one optional property per bound
+    assert typedefs.pop("FieldLimit") == [("string" if k == "pattern" else "number", k) for k in _LIMIT_KEYS.values()]
     assert set(typedefs) == set(schemas)
     for name, sch in schemas.items():
         assert [field for _, field in typedefs[name]] == list(sch["properties"]), name
@@ -53,7 +55,10 @@ def test_every_wire_class_and_every_class_it_refers_to_is_typed_field_by_field()
 
 
 def test_every_message_a_socket_sends_is_a_wire_class() -> None:
-    sent = set(typing.get_args(streams.BrowserMessage)) | set(typing.get_args(streams.DeviceMessage))
+    browser = typing.get_args(streams.BrowserMessage)
+    union = " | ".join(cls.__name__ for cls in browser)
+    assert f"@typedef {{{union}}} BrowserMessage" in render()  # the type of openSessionStream's messages
+    sent = set(browser) | set(typing.get_args(streams.DeviceMessage))
     assert sent == {schema.Hello, schema.StreamBatch, schema.Health, schema.EventMessage, schema.SettingsMessage,
                     schema.TorqueCommand, schema.DeviceNotice}  # fmt: skip
     assert sent <= set(schema.WIRE)
