@@ -384,16 +384,17 @@ def _run(
             _reset_diverged(prm, fs, ns, start, ekf, bk, tbe_x)
             fault = _DIVERGED
         l_norm = _kernels.stride_from_pseudo(ekf_x[2])[0]
+        stride_m = l_norm * prm.leg_length
         torque = 0.0
-        if fault != _DIVERGED:
-            torque = _torque_at(prm, coef4, ekf_x[0], l_norm, ekf_x[3])
+        if fault != _DIVERGED:  # the stack's rule: the stride in metres over the leg length (bit for bit)
+            torque = _torque_at(prm, coef4, ekf_x[0], stride_m / prm.leg_length, ekf_x[3])
             if not 0.0 <= torque <= prm.max_torque:
                 torque = 0.0
                 if fault == _OK:
                     fault = _TORQUE
         out[k, 0] = ekf_x[0]
         out[k, 1] = ekf_x[1]
-        out[k, 2] = l_norm * prm.leg_length
+        out[k, 2] = stride_m
         out[k, 3] = ekf_x[3]
         out[k, 4] = torque
         out[k, 5] = tbe_x[0]

@@ -273,18 +273,18 @@ class GaitStatePipeline:
             self._reset_diverged()
             fault = "diverged"
         ekf = self.ekf
-        l_norm = ekf.stride_length_norm
+        stride_m = ekf.stride_length_norm * cfg.leg_length
         torque = 0.0
-        if fault != "diverged":
+        if fault != "diverged":  # as the session's stack commands it: the stride in metres over the leg length
             torque = self.model.torque.torque_at(
-                ekf.phase, l_norm, ekf.incline, cfg.body_mass_kg * cfg.torque_gain, cfg.max_torque
+                ekf.phase, stride_m / cfg.leg_length, ekf.incline, cfg.body_mass_kg * cfg.torque_gain, cfg.max_torque
             )
             if not 0.0 <= torque <= cfg.max_torque:  # NaN fails too
                 torque, fault = 0.0, fault or "torque"
         return GaitEstimate(
             phase=ekf.phase,
             phase_rate=ekf.phase_rate,
-            stride_length_m=l_norm * cfg.leg_length,
+            stride_length_m=stride_m,
             incline_deg=ekf.incline,
             torque_Nm=torque,
             heel_strike=heel_strike,
