@@ -49,6 +49,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from gaitscope.estimators import channels
 from gaitscope.estimators.detector import DetectorConfig, HeelStrikeDetector
 from gaitscope.estimators.gp import FitOptions, SparseGP, fit_sparse_gp, rbf_mean_2d
 from gaitscope.estimators.gp_ekf import DIVERGED, GPEKF, HEEL_STRIKE, TOE_OFF, GPEKFConfig, Installed, Offer
@@ -80,7 +81,11 @@ COHORT_COLUMNS: Final = (
     "ankle_dorsiflexion_moment_ipsi_Nm",
     "subject_metadata",
 )
-_ANGLE_LIMIT, _VELOCITY_LIMIT = 180.0, 4000.0  # gaitscope.sessions.schema.SENSOR_LIMITS for angles and rates
+#: Bounds (deg, deg/s; symmetric about 0) of the angles it reads and of their velocities, from the channel
+#: table: a value beyond them (or non-finite) is missing. The joint velocities it derives have no channel of
+#: their own and take the segment rate's bound.
+_ANGLE_LIMIT: Final = channels.symmetric_bound("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "foot_angle_deg")
+_VELOCITY_LIMIT: Final = channels.symmetric_bound("foot_vel_dps")
 _GAP, _DIVERGED = 1.0, 2.0  # FAULTS.index("gap"), FAULTS.index("diverged")
 
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from gaitscope.estimators import _batch, _kernels
+from gaitscope.estimators import _batch, _kernels, channels
 from gaitscope.estimators.basis import Array
 from gaitscope.estimators.fingerprint import FingerprintMap
 from gaitscope.estimators.gait_model import N_CHANNELS, Z_FOOT_ANGLE, Z_FOOT_VEL, Z_HEEL_FORWARD, Z_HEEL_UP, NoiseModel
@@ -40,20 +40,13 @@ from gaitscope.estimators.heel_strike import (
 )
 from gaitscope.estimators.highpass import HighPassFilter
 from gaitscope.estimators.phase_ekf import EKFConfig, PhaseEKF
+from gaitscope.estimators.protocol import SENSOR_CHANNELS
 from gaitscope.estimators.torque import TorqueProfile
 
-#: Physically plausible range of each measurement channel, in channel order: segment angles within
-#: +/-180 deg, angular velocities within +/-4000 deg/s (the largest full scale of common MEMS gyros,
-#: e.g. ICM-42688 and BMI088 reach +/-2000, ADIS16 parts +/-4000) and raw heel positions within
-#: +/-3 m of the hip. ``gaitscope.sessions.schema.SENSOR_LIMITS`` states the same bounds on the wire.
-CHANNEL_LIMITS: tuple[tuple[float, float], ...] = (
-    (-180.0, 180.0),
-    (-4000.0, 4000.0),
-    (-180.0, 180.0),
-    (-4000.0, 4000.0),
-    (-3.0, 3.0),
-    (-3.0, 3.0),
-)
+#: Physically plausible range of each measurement channel, in channel order (:data:`SENSOR_CHANNELS`), from
+#: the channel table (:mod:`gaitscope.estimators.channels`, where the ranges are explained): segment angles
+#: within +/-180 deg, angular velocities within +/-4000 deg/s and raw heel positions within +/-3 m of the hip.
+CHANNEL_LIMITS: tuple[tuple[float, float], ...] = channels.limits(SENSOR_CHANNELS)
 
 
 @dataclass(frozen=True)

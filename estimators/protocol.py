@@ -7,8 +7,10 @@ channel and plot them, without knowing the algorithm:
 
 - ``name``: the estimator's name in a stack (``phase_ekf``, ``tbe``, ...).
 - ``inputs``: channels it needs (a source without one of them cannot run it); ``optional_inputs``:
-  channels it uses when present. Channel names are the wire names of ``gaitscope.sessions.schema.SensorFrame``
-  (``foot_angle_deg``, ..., ``heel_strike``), as plain strings: estimators do not import ``sessions``.
+  channels it uses when present. Channel names are those of the channel table
+  (:mod:`gaitscope.estimators.channels`, the fields of ``gaitscope.sessions.schema.SensorFrame``:
+  ``foot_angle_deg``, ..., ``heel_strike``); an estimator finds each in ``z`` by name
+  (:func:`~gaitscope.estimators.channels.positions` of its :func:`input_names`).
 - ``outputs``: ``(name, unit)`` pairs; ``step`` returns them in this order.
 - ``tunables``: the parameter names ``retune`` accepts (an empty tuple: nothing to tune).
 - ``step(t, z)``: one sample at time ``t`` (s, strictly increasing); ``z`` holds ``inputs`` then
@@ -50,7 +52,7 @@ __all__ = [
 #: ``deg``, ``bool`` (1.0 / 0.0) and ``code`` (a small integer documented by the estimator).
 Output = tuple[str, str]
 
-#: The measurement channels, in the phase EKF's order, by their wire names (``SensorFrame`` fields).
+#: The measurement channels, in the phase EKF's order, by their names in the channel table.
 SENSOR_CHANNELS: Final = (
     "foot_angle_deg",
     "foot_vel_dps",
@@ -59,7 +61,8 @@ SENSOR_CHANNELS: Final = (
     "heel_forward_m",
     "heel_up_m",
 )
-#: The segment angles (a source that sends an angle can always give its velocity by differentiation).
+#: The ipsilateral segment angles and their angular velocities, in the channel table (a source that sends an
+#: angle can always give its velocity by differentiation).
 ANGLE_CHANNELS: Final = {
     "foot_angle_deg": "foot_vel_dps",
     "shank_angle_deg": "shank_vel_dps",

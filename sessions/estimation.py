@@ -15,7 +15,14 @@ from dataclasses import dataclass
 from typing import Final, Literal
 
 from gaitscope.estimators.pipeline import TrainedModel
-from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, input_names
+from gaitscope.estimators.protocol import (
+    ANGLE_CHANNELS,
+    HEEL_STRIKE,
+    MAX_GAP_S,
+    SENSOR_CHANNELS,
+    Estimator,
+    input_names,
+)
 from gaitscope.sessions import schema
 from gaitscope.sessions.intent_boost import IntentBoost
 from gaitscope.sessions.registry import StackContext, build_stack, channels_of
@@ -121,7 +128,8 @@ class FrameEstimator:
         self._topics = list(schema.estimator_channels(self.stack.names))
         # channels an estimator of the stack reads beyond those every frame's step fills (below)
         read = dict.fromkeys(c for est in self.stack.estimators for c in input_names(est))
-        self._extra = tuple(c for c in read if c not in _STEPPED and c in schema.CHANNELS)
+        #: the channels each frame's step reads, by their names in the channel table
+        self._read: tuple[str, ...] = (*_STEPPED, *(c for c in read if c not in _STEPPED and c in schema.CHANNELS))
         self._json_templates = [
             _outputs_templates(name, outs) for name, outs in zip(self.stack.names, self.stack.outputs, strict=True)
         ]
@@ -265,18 +273,7 @@ class FrameEstimator:
             self._t_offset = frame.t - t
         frame, implausible = frame.plausible()
         self.implausible += implausible
-        channels = {
-            "foot_angle_deg": _or_nan(frame.foot_angle_deg),
-            "foot_vel_dps": _or_nan(frame.foot_vel_dps),
-            "shank_angle_deg": _or_nan(frame.shank_angle_deg),
-            "shank_vel_dps": _or_nan(frame.shank_vel_dps),
-            "heel_forward_m": _or_nan(frame.heel_forward_m),
-            "heel_up_m": _or_nan(frame.heel_up_m),
-            "thigh_angle_deg": _or_nan(frame.thigh_angle_deg),
-            "thigh_vel_dps": _or_nan(frame.thigh_vel_dps),
-            **{c: _value(getattr(frame, c)) for c in self._extra},
-            HEEL_STRIKE: math.nan if frame.heel_strike is None else float(frame.heel_strike),
-        }
+        channels = {c: _value(getattr(frame, c)) for c in self._read}
         self._derive_velocities(channels, t)
         self.gain.before_step(t)
         e = self.stack.step(t, channels)
@@ -337,15 +334,12 @@ class FrameEstimator:
         return str(getattr(self.stack.estimators[self.stack.names.index(name)], "lost_reason", "") or "lost track")
 
     def _derive_velocities(self, channels: dict[str, float], t: float) -> None:
-        """Backward-difference velocities for a device without gyroscopes."""
+        """Backward-difference velocities for a device without gyroscopes (``self._prev`` holds the last
+        frame's angles of ``ANGLE_CHANNELS``, foot, shank, thigh, in its order)."""
         prev = self._prev
         if prev is None or not t > prev[0]:
             return
-        for angle, vel, before in (
-            ("foot_angle_deg", "foot_vel_dps", prev[1]),
-            ("shank_angle_deg", "shank_vel_dps", prev[2]),
-            ("thigh_angle_deg", "thigh_vel_dps", prev[3]),
-        ):
+        for (angle, vel), before in zip(ANGLE_CHANNELS.items(), prev[1:], strict=True):
             if before is not None and math.isnan(channels[vel]) and not math.isnan(channels[angle]):
                 channels[vel] = (channels[angle] - before) / (t - prev[0])
 
@@ -394,20 +388,17 @@ def _sent_or_derived(sent: float | None, derived: float) -> float | None:
     return derived if math.isfinite(derived) else None
 
 
-def _or_nan(v: float | None) -> float:
-    return math.nan if v is None else v
-
-
 def _value(v: float | bool | None) -> float:
     """A channel's value for an estimator: NaN when absent, flags as 1.0 / 0.0."""
     return math.nan if v is None else float(v)
 
 
-#: The channels :meth:`FrameEstimator.step` fills for every frame (the rest only when an estimator reads them).
-_STEPPED: Final = frozenset(
-    ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps", "heel_forward_m", "heel_up_m",
-     "thigh_angle_deg", "thigh_vel_dps", HEEL_STRIKE)
-)  # fmt: skip
+#: The channels :meth:`FrameEstimator.step` fills for every frame (the rest only when an estimator reads them):
+#: the phase EKF's, the segment angles and their velocities (:meth:`FrameEstimator._derive_velocities` derives
+#: those a device does not send), the heel strike.
+_STEPPED: Final[tuple[str, ...]] = tuple(
+    dict.fromkeys((*SENSOR_CHANNELS, *(c for av in ANGLE_CHANNELS.items() for c in av), HEEL_STRIKE))
+)
 
 
 #: Left out of a recorded sensor frame's own JSON: its time, which the recording puts first in session time.
