@@ -63,8 +63,9 @@ def _as_published_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--as-published",
         action="store_true",
-        help="seed 000's filter alone, in one compiled pass (default: as a live session runs it, with the "
-        "lock supervisor: standing still, heel strikes from the shank, lock loss)",
+        help="the estimator stack with seed 000's filter as published, on its compiled fast path (default: the "
+        "stack as a live session runs it, with the lock supervisor: standing still, heel strikes from the shank, "
+        "lock loss)",
     )
 
 

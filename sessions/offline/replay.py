@@ -1,22 +1,30 @@
 """Replay a recorded trial (the replay CSV) through the estimator stack.
 
 Reads the input with full validation (:mod:`gaitscope.sessions.formats.replay_io`), derives missing angular velocities
-from the angles (``numpy.gradient`` in time), high-passes the raw heel positions over the whole trial
-(seed 000 II-B, discretised at the median sample period), runs :class:`GaitStatePipeline` over the
-whole trial in one compiled call (:meth:`~GaitStatePipeline.run`, the same outputs as stepping it sample
-by sample as a live device does; ``batch=False`` steps it, for comparison) and writes the output
-atomically.
+from the angles (``numpy.gradient`` in time) and runs the trial through a session's estimator stack
+(:func:`replay_stack`: :class:`~gaitscope.sessions.stack.EstimatorStack` with the phase EKF ``phase_ekf`` driving
+the torque and the timing-based estimate ``tbe``, as :func:`gaitscope.sessions.registry.build_stack` makes them
+for a live session), sample by sample as a device streams it: the estimates, the torque and its rule are the
+stack's, the one sensor-to-torque path of live sessions, re-runs and imports. The output is written atomically.
 
-``supervised=True`` (what ``gaitscope replay`` and ``gaitscope demo`` do unless ``--as-published``)
-runs the filter as a live session's ``phase_ekf`` does instead: sample by sample through
-:class:`~gaitscope.estimators.phase_ekf_estimator.PhaseEKFEstimator`, with its lock supervisor
-(:mod:`gaitscope.estimators.lock`: standing still, heel strikes from the shank, lock loss), the torque times
-``1 - standing`` and 0 at a lock-loss reset, as the session's stack commands it. The compiled path
-stays seed 000's filter as published, which the cross-validation reproduces.
+``supervised=True`` (what ``gaitscope replay`` and ``gaitscope demo`` do unless ``--as-published``) runs the phase
+EKF as a live session's ``phase_ekf`` does, with its lock supervisor (:mod:`gaitscope.estimators.lock`: standing
+still, heel strikes from the shank, lock loss; the stack takes the torque to 0 standing and at a lock-loss reset).
+``supervised=False`` is seed 000's filter as published (the supervisor off); the stack then has a fast path,
+``batch=True``: :meth:`GaitStatePipeline.run <gaitscope.estimators.pipeline.GaitStatePipeline.run>`, one compiled
+call per part, whose outputs equal the stack's bit for bit (``tests/sessions/offline/test_replay.py``).
+
+Not in a replay: a live session's soft start and intent boost (:class:`~gaitscope.sessions.estimation.FrameEstimator`),
+which ramp the assistance a person receives; a replay shows the command at the given gain from the first sample.
+
+:func:`run` and :func:`measurements` are the studies' path (the cross-validation reproduces seed 000): the heel
+positions high-passed over the whole trial (seed 000 II-B, at the median sample period) and the pipeline run in
+one compiled call.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,9 +36,11 @@ from gaitscope.estimators.highpass import HighPassFilter
 from gaitscope.estimators.lock import LockConfig
 from gaitscope.estimators.phase_ekf_estimator import PhaseEKFEstimator
 from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
-from gaitscope.estimators.protocol import FAULTS
+from gaitscope.estimators.protocol import HEEL_STRIKE
 from gaitscope.sessions import schema
 from gaitscope.sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv
+from gaitscope.sessions.registry import ESTIMATORS, StackContext
+from gaitscope.sessions.stack import EstimatorStack
 
 _VELOCITY_OF = {"foot_vel_dps": "foot_angle_deg", "shank_vel_dps": "shank_angle_deg"}
 
@@ -54,6 +64,8 @@ class ReplaySummary:
     supervised: bool = False
     standing_s: float = 0.0
     lost: int = 0
+    #: what the stack reported for a session's event log (an estimator that failed, the torque handed on)
+    events: tuple[str, ...] = ()
 
     def lines(self) -> list[str]:
         src = "detected from the foot signals" if self.heel_strikes_detected else "from the input"
@@ -71,6 +83,7 @@ class ReplaySummary:
             f"incline          {self.incline_range_deg[0]:.1f} .. {self.incline_range_deg[1]:.1f} deg",
             f"peak torque      {self.peak_torque_Nm:.1f} N m",
             f"wall time        {self.wall_s:.2f} s ({self.samples / max(self.wall_s, 1e-9):,.0f} samples/s)",
+            *(f"event            {e}" for e in self.events),
         ]
 
 
@@ -128,6 +141,29 @@ def run(
     return out, _estimate(pipe, data, z, out, 0, data.time_s.size, batch)
 
 
+def replay_stack(
+    model: TrainedModel, config: PipelineConfig, sample_period: float, lock: LockConfig | None = None
+) -> EstimatorStack:
+    """The estimator stack a replay runs: a live session's stack of ``phase_ekf`` (primary) and ``tbe``.
+
+    As :func:`~gaitscope.sessions.registry.build_stack` builds it for a session with those estimators (in
+    registry order, ``tbe`` timing the heel strikes ``phase_ekf`` finds; the torque profile of ``model``, the
+    subject and the assistance of ``config``), except that ``phase_ekf`` takes all of ``config``'s filter
+    settings and ``lock``'s supervisor thresholds (``LockConfig(enabled=False)``: seed 000's filter as published).
+    """
+    ctx = StackContext(model, config.leg_length, config.body_mass_kg, sample_period)
+    ekf = PhaseEKFEstimator(model, config, sample_period, lock)
+    return EstimatorStack(
+        [ekf, ESTIMATORS["tbe"](ctx)],
+        model.torque,
+        ctx.leg_length,
+        ctx.mass_kg,
+        primary=ekf.name,
+        torque_gain=config.torque_gain,
+        max_torque=config.max_torque,
+    )
+
+
 def replay_file(
     input_path: str | Path,
     output_path: str | Path,
@@ -139,22 +175,30 @@ def replay_file(
 ) -> ReplaySummary:
     """Replay ``input_path`` into ``output_path``; nothing is written if the input is invalid.
 
-    ``batch``: see :func:`run`; ``supervised``: the module docstring (``lock``: its thresholds). The
-    output is written in parts of :data:`PART` samples, each formatted while the next is estimated."""
+    ``supervised``: the module docstring (``lock``: its thresholds); ``batch``: without the supervisor, the
+    stack's compiled fast path (False steps the stack, the same bytes several times slower: for benchmarks
+    and tests). The output is written in parts of :data:`PART` samples, each formatted while the next is
+    estimated."""
     start = time.perf_counter()
     data = read_replay_csv(input_path)
-    pipe, z, out = _start(data, model, config)
     n = data.time_s.size
+    parts: _Stacked | _Compiled
+    if supervised or not batch:
+        parts = _Stacked(data, model, config, lock if supervised else LockConfig(enabled=False))
+    else:
+        parts = _Compiled(data, model, config)
+    out = {k: np.empty(n) for k in schema.REPLAY_OUTPUT}
+    out["time_s"][:] = data.time_s
     resets = 0
-    sup = _Supervised(data, model, config, lock) if supervised else None
     with ReplayOutput(output_path) as output:
         for a in range(0, n, PART):
             b = min(a + PART, n)
-            resets += _estimate(pipe, data, z, out, a, b, batch) if sup is None else sup.estimate(out, a, b)
+            resets += parts.estimate(out, a, b)
             output.add({k: v[a:b] for k, v in out.items()})
     wall = time.perf_counter() - start
+    stacked = parts if isinstance(parts, _Stacked) else None
     return ReplaySummary(
-        samples=data.time_s.size,
+        samples=n,
         duration_s=float(data.time_s[-1] - data.time_s[0]),
         heel_strikes=int(out["heel_strike"].sum()),
         heel_strikes_detected=data.heel_strike is None,
@@ -165,10 +209,16 @@ def replay_file(
         peak_torque_Nm=float(out["torque_Nm"].max()),
         channels=tuple(sorted(data.signals)),
         wall_s=wall,
-        supervised=sup is not None,
-        standing_s=0.0 if sup is None else sup.standing_s,
-        lost=0 if sup is None else sup.lost,
+        supervised=supervised,
+        standing_s=0.0 if stacked is None else stacked.standing_s,
+        lost=0 if stacked is None else stacked.lost,
+        events=() if stacked is None else tuple(stacked.events),
     )
+
+
+def _period(data: ReplayInput) -> float:
+    """The trial's nominal sample period (s): the median one."""
+    return float(np.median(np.diff(data.time_s))) if data.time_s.size > 1 else 0.01
 
 
 def _start(
@@ -208,46 +258,67 @@ def _estimate(
     return resets
 
 
-class _Supervised:
-    """A live session's ``phase_ekf`` over a trial, part by part: outputs as :func:`_estimate` writes them."""
+class _Stacked:
+    """A trial through :func:`replay_stack`, part by part, as a device streams it."""
 
     def __init__(self, data: ReplayInput, model: TrainedModel, config: PipelineConfig, lock: LockConfig | None):
-        self.data, self.model, self.config = data, model, config
-        self.z = measurements(data, highpass=False)
-        period = float(np.median(np.diff(data.time_s))) if data.time_s.size > 1 else 0.01
-        self.est = PhaseEKFEstimator(model, config, period, lock)
+        self.data = data
+        self.z = measurements(data, highpass=False)  # raw heel positions: phase_ekf filters them as it goes
+        self.stack = replay_stack(model, config, _period(data), lock)
+        self._ekf = self.stack.names.index(PhaseEKFEstimator.name)
+        self._standing = self.stack.outputs[self._ekf].index("standing")
+        self._t: float | None = None
+        #: time the supervisor held the walker standing, full weight (s); lock losses; the stack's events
         self.standing_s, self.lost = 0.0, 0
-        self._names = [name for name, _ in PhaseEKFEstimator.outputs]
+        self.events: list[str] = []
+
+    def estimate(self, out: dict[str, Array], a: int, b: int) -> int:
+        """Samples ``a`` to ``b`` into ``out``; returns the primary's backup resets among them."""
+        step, names, ekf, standing = self.stack.step, schema.REPLAY_SIGNALS, self._ekf, self._standing
+        t = self.data.time_s[a:b].tolist()
+        rows = self.z[a:b].tolist()
+        hs_in = self.data.heel_strike
+        given = [math.nan] * (b - a) if hs_in is None else hs_in[a:b].astype(np.float64).tolist()
+        columns: tuple[list[float], ...] = tuple([] for _ in range(7))
+        phase, rate, stride, incline, torque, hs, tbe = columns
+        resets = 0
+        for k, tk in enumerate(t):
+            channels = dict(zip(names, rows[k], strict=True))
+            channels[HEEL_STRIKE] = given[k]
+            e = step(tk, channels)
+            phase.append(e.phase)
+            rate.append(e.phase_rate)
+            stride.append(e.stride_length_m)
+            incline.append(e.incline_deg)
+            torque.append(e.torque_Nm)
+            hs.append(e.heel_strike)
+            tbe.append(e.tbe_phase)
+            resets += e.backup_reset
+            self.lost += e.fault == "lost"
+            if e.events:
+                self.events.extend(e.events)
+            y = e.outputs[ekf]
+            if y is not None and y[standing] >= 1.0 and self._t is not None:
+                self.standing_s += tk - self._t
+            self._t = tk
+        for name, values in zip(schema.REPLAY_OUTPUT[1:], columns, strict=True):
+            out[name][a:b] = values
+        return resets
+
+
+class _Compiled:
+    """The stack's fast path without the supervisor: :meth:`GaitStatePipeline.run`, one compiled call per part,
+    equal to :class:`_Stacked` bit for bit (the same heel high-pass as it goes, the same torque rule)."""
+
+    def __init__(self, data: ReplayInput, model: TrainedModel, config: PipelineConfig):
+        self.data = data
+        self.z = measurements(data, highpass=False)
+        self.pipe = GaitStatePipeline(model, config, sample_period=_period(data))
 
     def estimate(self, out: dict[str, Array], a: int, b: int) -> int:
         """Samples ``a`` to ``b`` into ``out``; returns the backup's resets among them."""
-        col = {name: i for i, name in enumerate(self._names)}
-        cfg, hs_in, t = self.config, self.data.heel_strike, self.data.time_s
-        z = np.empty(7)
-        resets = 0
-        for k in range(a, b):
-            z[:6] = self.z[k]
-            z[6] = np.nan if hs_in is None else float(hs_in[k])
-            y = self.est.step(float(t[k]), z)
-            still = float(y[col["standing"]])
-            fault = float(y[col["fault"]])
-            command = self.model.torque.torque_at(
-                float(y[col["phase"]]),
-                float(y[col["stride_length_m"]]) / cfg.leg_length,
-                float(y[col["incline_deg"]]),
-                cfg.body_mass_kg * cfg.torque_gain,
-                cfg.max_torque,
-            )
-            lost = fault == FAULTS.index("lost")
-            out["phase"][k] = y[col["phase"]]
-            out["phase_rate"][k] = y[col["phase_rate"]]
-            out["stride_length_m"][k] = y[col["stride_length_m"]]
-            out["incline_deg"][k] = y[col["incline_deg"]]
-            out["torque_Nm"][k] = 0.0 if lost or fault == FAULTS.index("diverged") else command * (1.0 - still)
-            out["heel_strike"][k] = y[col["heel_strike"]]
-            out["tbe_phase"][k] = self.est.pipeline.tbe.phase
-            resets += int(y[col["backup_reset"]] > 0.5)
-            self.lost += int(lost)
-            if still >= 1.0 and k > 0:
-                self.standing_s += float(t[k] - t[k - 1])
-        return resets
+        hs_in = self.data.heel_strike
+        est = self.pipe.run(self.data.time_s[a:b], self.z[a:b], None if hs_in is None else hs_in[a:b])
+        for column in schema.REPLAY_OUTPUT[1:]:
+            out[column][a:b] = est[column]
+        return int(est["backup_reset"].sum())
