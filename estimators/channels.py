@@ -26,7 +26,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Final, NamedTuple
 
-__all__ = ["CHANNELS", "GROUPS", "IMU_SEGMENTS", "LIMITS", "Channel", "limits", "positions", "symmetric_bound"]
+__all__ = ["CHANNELS", "GROUPS", "IMU_SEGMENTS", "LIMITS", "Channel", "limits", "positions", "span", "symmetric_bound"]
 
 
 class Channel(NamedTuple):
@@ -150,3 +150,17 @@ def positions(order: Sequence[str], *names: str) -> tuple[int, ...]:
         if n not in CHANNELS:
             raise KeyError(f"unknown sensor channel {n!r}")
     return tuple(list(order).index(n) for n in names)
+
+
+def span(order: Sequence[str], *names: str) -> slice:
+    """The slice of ``order`` that holds ``names``, one after the other (as :func:`positions`), so that an
+    estimator takes a block of ``z`` by name without copying it element by element.
+
+    Raises:
+        KeyError: a name is not a channel of :data:`CHANNELS`.
+        ValueError: no names, a name not in ``order``, or names not consecutive there in this order.
+    """
+    at = positions(order, *names)
+    if not at or at != tuple(range(at[0], at[0] + len(at))):
+        raise ValueError(f"{names} are not consecutive in {tuple(order)}")
+    return slice(at[0], at[0] + len(at))

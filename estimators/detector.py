@@ -12,14 +12,24 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Final
 
 import numpy as np
 from numpy.typing import NDArray
 
 from gaitscope.estimators.basis import Array
+from gaitscope.estimators.channels import positions, span
 from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Output, check_params, elapsed
 
 __all__ = ["DetectorConfig", "HeelStrikeDetector"]
+
+_INPUTS: Final = ("foot_angle_deg", "foot_vel_dps")
+_OPTIONAL: Final = ("heel_forward_m", "heel_up_m")
+#: Where :meth:`HeelStrikeDetector.step` finds each channel in ``z`` (its inputs, then its optional inputs).
+_ANGLE, _VEL, _HEEL_FORWARD, _HEEL_UP = positions(
+    (*_INPUTS, *_OPTIONAL), "foot_angle_deg", "foot_vel_dps", "heel_forward_m", "heel_up_m"
+)
+_HEEL: Final = span((*_INPUTS, *_OPTIONAL), "heel_forward_m", "heel_up_m")
 
 
 @dataclass(frozen=True)
@@ -47,8 +57,8 @@ class HeelStrikeDetector:
     """
 
     name = "hs_detector"
-    inputs: tuple[str, ...] = ("foot_angle_deg", "foot_vel_dps")
-    optional_inputs: tuple[str, ...] = ("heel_forward_m", "heel_up_m")
+    inputs: tuple[str, ...] = _INPUTS
+    optional_inputs: tuple[str, ...] = _OPTIONAL
     outputs: tuple[Output, ...] = ((HEEL_STRIKE, "bool"),)
     tunables: tuple[str, ...] = ("max_foot_angle_deg", "refractory_s", "accel_threshold")
 
@@ -91,12 +101,12 @@ class HeelStrikeDetector:
         if restart:
             self._start()
         self._t = t
-        angle, vel = float(z[0]), float(z[1])
+        angle, vel = float(z[_ANGLE]), float(z[_VEL])
         if not (math.isfinite(angle) and math.isfinite(vel)):
             return np.zeros(1)
         heel = None
-        if self.config.accel_threshold is not None and z.shape[0] >= 4:  # only the acceleration test uses them
-            heel = z[2:4] if math.isfinite(float(z[2])) and math.isfinite(float(z[3])) else None
+        if self.config.accel_threshold is not None and z.shape[0] >= _HEEL.stop:  # only the acceleration test
+            heel = z[_HEEL] if math.isfinite(float(z[_HEEL_FORWARD])) and math.isfinite(float(z[_HEEL_UP])) else None
         return np.ones(1) if self.detect(t, dt, angle, vel, heel) else np.zeros(1)
 
     def detect(self, t: float, dt: float, foot_angle: float, foot_vel: float, heel: Array | None = None) -> bool:

@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gaitscope.estimators._fp_kernel import fp_step
+from gaitscope.estimators.channels import positions
 from gaitscope.estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
 
 __all__ = [
@@ -272,6 +273,9 @@ class FingerprintConfig:
 
 
 _PARAMS: Final = ("measurement_noise_scale", "process_noise_scale")
+_INPUTS: Final = ("thigh_angle_deg", "thigh_vel_dps")
+#: Where :meth:`FingerprintEKF.step` finds each channel in ``z``.
+_THIGH, _THIGH_VEL = positions(_INPUTS, "thigh_angle_deg", "thigh_vel_dps")
 
 
 @dataclass
@@ -295,7 +299,7 @@ class FingerprintEKF:
     name: str = ""
     max_gap_s: float = MAX_GAP_S
 
-    inputs: tuple[str, ...] = ("thigh_angle_deg", "thigh_vel_dps")
+    inputs: tuple[str, ...] = _INPUTS
     optional_inputs: tuple[str, ...] = ()
     tunables: tuple[str, ...] = _PARAMS
 
@@ -413,8 +417,8 @@ class FingerprintEKF:
             lo,
             hi,
             dt,
-            float(z[0]),
-            float(z[1]),
+            float(z[_THIGH]),
+            float(z[_THIGH_VEL]),
             self.fmap.order,
             self._work,
         )

@@ -86,6 +86,13 @@ COHORT_COLUMNS: Final = (
 #: their own and take the segment rate's bound.
 _ANGLE_LIMIT: Final = channels.symmetric_bound("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "foot_angle_deg")
 _VELOCITY_LIMIT: Final = channels.symmetric_bound("foot_vel_dps")
+_INPUTS: Final = ("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg")
+_OPTIONAL: Final = (HS_CHANNEL, "foot_angle_deg", "foot_vel_dps")
+#: Where :meth:`GPEKFEstimator.step` finds each channel in ``z`` (its inputs, then its optional inputs).
+_HIP, _KNEE, _ANKLE, _HS, _FOOT, _FOOT_VEL = channels.positions(
+    (*_INPUTS, *_OPTIONAL), "hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", HS_CHANNEL, "foot_angle_deg",
+    "foot_vel_dps",
+)  # fmt: skip
 _GAP, _DIVERGED = 1.0, 2.0  # FAULTS.index("gap"), FAULTS.index("diverged")
 
 
@@ -304,8 +311,8 @@ class GPEKFEstimator:
     """
 
     name = "gp_ekf"
-    inputs: tuple[str, ...] = ("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg")
-    optional_inputs: tuple[str, ...] = (HS_CHANNEL, "foot_angle_deg", "foot_vel_dps")
+    inputs: tuple[str, ...] = _INPUTS
+    optional_inputs: tuple[str, ...] = _OPTIONAL
     outputs: tuple[Output, ...] = (
         ("phase", "1"),
         ("phase_rate", "1/s"),
@@ -444,13 +451,13 @@ class GPEKFEstimator:
             self._last[:] = self._vel[:] = np.nan
             fault = _GAP
         raw = self._raw
-        raw[0], raw[1], raw[2], raw[3] = z[0], z[1], z[2], z[4]
+        raw[0], raw[1], raw[2], raw[3] = z[_HIP], z[_KNEE], z[_ANKLE], z[_FOOT]
         _front(raw, dt, self._tau, self._last, self._vel, self._z, self._foot)
-        hs = float(z[3])
+        hs = float(z[_HS])
         if hs == hs:
             strike = hs > 0.5
         else:
-            foot, foot_vel = self._foot[0], float(z[5])
+            foot, foot_vel = self._foot[0], float(z[_FOOT_VEL])
             if not (math.isfinite(foot_vel) and abs(foot_vel) <= _VELOCITY_LIMIT):
                 foot_vel = self._foot[1]
             strike = foot == foot and foot_vel == foot_vel and self.detector.detect(t, dt, foot, foot_vel)

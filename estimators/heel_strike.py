@@ -20,12 +20,14 @@ both are re-exported here, where they used to live.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Final
 
 import numpy as np
 from numpy.typing import NDArray
 
 from gaitscope.estimators import _kernels
 from gaitscope.estimators.basis import Array
+from gaitscope.estimators.channels import positions, span
 from gaitscope.estimators.detector import DetectorConfig, HeelStrikeDetector
 from gaitscope.estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
 from gaitscope.estimators.phase_ekf import EKFConfig, PhaseEKF, pseudo_from_stride, stride_from_pseudo
@@ -33,6 +35,13 @@ from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Output, check_
 from gaitscope.estimators.tbe import TimingBasedEstimator
 
 __all__ = ["BackupConfig", "DetectorConfig", "HeelStrikeBackup", "HeelStrikeDetector", "TimingBasedEstimator"]
+
+_INPUTS: Final = (HEEL_STRIKE,)
+_OPTIONAL: Final = ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps")
+#: Where :meth:`HeelStrikeBackup.step` finds each channel in ``z`` (its inputs, then its optional inputs): the
+#: heel strike, and the block of the EKF's first four measurement channels.
+(_HS,) = positions((*_INPUTS, *_OPTIONAL), HEEL_STRIKE)
+_SENSORS: Final = span((*_INPUTS, *_OPTIONAL), "foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps")
 
 
 @dataclass(frozen=True)
@@ -70,9 +79,9 @@ class HeelStrikeBackup:
     """
 
     name = "hs_backup"
-    inputs: tuple[str, ...] = (HEEL_STRIKE,)
+    inputs: tuple[str, ...] = _INPUTS
     #: Angles and angular velocities only: heel positions need the high-pass the phase EKF stack runs.
-    optional_inputs: tuple[str, ...] = ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps")
+    optional_inputs: tuple[str, ...] = _OPTIONAL
     outputs: tuple[Output, ...] = (
         ("phase", "1"),
         ("phase_rate", "1/s"),
@@ -183,10 +192,10 @@ class HeelStrikeBackup:
             self._start()
         self._t = t
         zz = self._z
-        zz[:4] = z[1:5]
+        zz[:4] = z[_SENSORS]
         if self._mask is not None:
             zz[self._mask] = np.nan
-        self.track(t, dt, zz, bool(z[0] > 0.5))
+        self.track(t, dt, zz, bool(z[_HS] > 0.5))
         return np.array(
             [self.phase, self.phase_rate, self._leg_length * stride_from_pseudo(float(self.x[0])), self.x[1]]
         )

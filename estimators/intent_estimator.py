@@ -13,6 +13,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
+from gaitscope.estimators.channels import positions
 from gaitscope.estimators.intent import _VX, COHORT, BKFConfig, ButtressedKF
 from gaitscope.estimators.protocol import MAX_GAP_S, check_params
 
@@ -28,6 +29,19 @@ COM_LATERAL: Final = ("com_lateral_m", "com_lateral_vel_m_s")
 #: Channel values beyond these are treated as missing (absurd for a person walking): CoM position (m) and
 #: velocity (m/s), foot force (N), hip-angle difference (deg), step length (m).
 _MAX_COM, _MAX_FORCE_N, _MAX_HIP_DEG, _MAX_STEP_M = 100.0, 1e5, 360.0, 5.0
+_INPUTS: Final = (*COM_CHANNELS, "hip_angle_deg", "hip_angle_contra_deg", "foot_force_N", "foot_force_contra_N",
+                  "step_length_m")  # fmt: skip
+_OPTIONAL: Final = (*COM_LATERAL, "foot_contact", "foot_contact_contra", "motor_current_A")
+#: Where :meth:`IntentEstimator.step` finds each channel in ``z`` (its inputs, then its optional inputs).
+_HIP, _HIP_C, _FORCE, _FORCE_C, _CONTACT, _CONTACT_C, _CURRENT, _STEP = positions(
+    (*_INPUTS, *_OPTIONAL), "hip_angle_deg", "hip_angle_contra_deg", "foot_force_N", "foot_force_contra_N",
+    "foot_contact", "foot_contact_contra", "motor_current_A", "step_length_m",
+)  # fmt: skip
+#: The centre-of-mass channels in the filter's order: forward, lateral, up position, then velocity.
+_COM: Final = positions(
+    (*_INPUTS, *_OPTIONAL), "com_forward_m", "com_lateral_m", "com_up_m", "com_forward_vel_m_s",
+    "com_lateral_vel_m_s", "com_up_vel_m_s",
+)  # fmt: skip
 
 
 class IntentEstimator:
@@ -71,9 +85,8 @@ class IntentEstimator:
     """
 
     name = "intent"
-    inputs: tuple[str, ...] = (*COM_CHANNELS, "hip_angle_deg", "hip_angle_contra_deg", "foot_force_N",
-                               "foot_force_contra_N", "step_length_m")  # fmt: skip
-    optional_inputs: tuple[str, ...] = (*COM_LATERAL, "foot_contact", "foot_contact_contra", "motor_current_A")
+    inputs: tuple[str, ...] = _INPUTS
+    optional_inputs: tuple[str, ...] = _OPTIONAL
     outputs: tuple[tuple[str, str], ...] = (
         ("desired_speed_m_s", "m/s"),
         ("intent_m_s", "m/s"),
@@ -153,7 +166,8 @@ class IntentEstimator:
             self._last_mid = self._seen = t
         self._t = t
         v = z.tolist()  # plain floats: a sample between events does no numpy
-        hip_i, hip_c, f_i, f_c, contact_i, contact_c = v[4], v[5], v[6], v[7], v[11], v[12]
+        hip_i, hip_c, f_i, f_c = v[_HIP], v[_HIP_C], v[_FORCE], v[_FORCE_C]
+        contact_i, contact_c = v[_CONTACT], v[_CONTACT_C]
         if self._max_force < f_i < _MAX_FORCE_N:  # NaN compares False
             self._max_force = f_i
         if self._max_force < f_c < _MAX_FORCE_N:
@@ -175,12 +189,12 @@ class IntentEstimator:
             self._lost = True
             self._hip_diff, self._armed = math.nan, False  # no crossing across the gap
             self._hold()
-        current = v[13]
+        current = v[_CURRENT]
         if current == current and not double:
             self._current_sq += current * current
             self._current_n += 1
         if double and not self._double:
-            self._touchdown(v[8])
+            self._touchdown(v[_STEP])
         self._double = double
         if hip_ok:
             if (diff > 0) != (self._hip_diff > 0) and self._armed:  # a NaN _hip_diff is never armed
@@ -203,7 +217,7 @@ class IntentEstimator:
 
     def _midstance(self, t: float, v: list[float]) -> None:
         self._last_mid = t
-        com = [x if -_MAX_COM < x < _MAX_COM else math.nan for x in (v[0], v[9], v[1], v[2], v[10], v[3])]
+        com = [x if -_MAX_COM < x < _MAX_COM else math.nan for x in [v[i] for i in _COM]]
         if com[3] < self.min_speed_m_s:  # not walking forwards (a lost velocity is NaN: updates the rest)
             self._hold()
             return

@@ -15,10 +15,12 @@ reset), and ``foot_pred_deg``, ``shank_pred_deg``, the gait model at the prior (
 from __future__ import annotations
 
 import math
+from typing import Final
 
 import numpy as np
 from numpy.typing import NDArray
 
+from gaitscope.estimators.channels import positions, span
 from gaitscope.estimators.lock import LockConfig, LockSupervisor
 from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
 from gaitscope.estimators.protocol import HEEL_STRIKE, SENSOR_CHANNELS, Output, check_params
@@ -28,6 +30,14 @@ __all__ = ["PhaseEKFEstimator"]
 #: The pipeline's faults as :data:`~gaitscope.estimators.protocol.FAULTS` codes; its own torque is not an output.
 _FAULT_CODE = {"": 0.0, "gap": 1.0, "diverged": 2.0, "torque": 0.0}
 _LOST, _RESUMED = 4.0, 5.0  # FAULTS.index("lost"), FAULTS.index("resumed")
+_INPUTS: Final = ("foot_angle_deg",)
+_OPTIONAL: Final = (*SENSOR_CHANNELS[1:], HEEL_STRIKE)
+#: Where :meth:`PhaseEKFEstimator.step` finds each channel in ``z`` (its inputs, then its optional inputs),
+#: and the pipeline's measurement vector there (:data:`~gaitscope.estimators.protocol.SENSOR_CHANNELS`).
+_FOOT, _FOOT_VEL, _SHANK_VEL, _HS = positions(
+    (*_INPUTS, *_OPTIONAL), "foot_angle_deg", "foot_vel_dps", "shank_vel_dps", HEEL_STRIKE
+)
+_SENSORS: Final = span((*_INPUTS, *_OPTIONAL), *SENSOR_CHANNELS)
 
 
 class PhaseEKFEstimator:
@@ -45,8 +55,8 @@ class PhaseEKFEstimator:
     name = "phase_ekf"
     #: The foot angle drives heel-strike detection and is what every trained model predicts first; the
     #: EKF uses whatever else is present (measurement subsets, seed 000 II-C3).
-    inputs: tuple[str, ...] = ("foot_angle_deg",)
-    optional_inputs: tuple[str, ...] = (*SENSOR_CHANNELS[1:], HEEL_STRIKE)
+    inputs: tuple[str, ...] = _INPUTS
+    optional_inputs: tuple[str, ...] = _OPTIONAL
     outputs: tuple[Output, ...] = (
         ("phase", "1"),
         ("phase_rate", "1/s"),
@@ -105,7 +115,7 @@ class PhaseEKFEstimator:
     def step(self, t: float, z: NDArray[np.float64]) -> NDArray[np.float64]:
         """``z``: the six sensor channels (raw heel positions) then the heel strike (NaN: detect it)."""
         p, sup = self.pipeline, self.supervisor
-        foot, foot_dps, shank_dps, hs = float(z[0]), float(z[1]), float(z[3]), float(z[6])
+        foot, foot_dps, shank_dps, hs = float(z[_FOOT]), float(z[_FOOT_VEL]), float(z[_SHANK_VEL]), float(z[_HS])
         event = sup.motion(t, foot_dps, shank_dps, p.ekf.phase)
         if sup.standing:  # phase held, rate 0, the filters wait (they restart when walking resumes)
             ekf, pred = p.ekf, p.predicted
@@ -122,7 +132,7 @@ class PhaseEKFEstimator:
             if sup.config.backdate_resume and sup.onset is not None:  # walking began when the motion did
                 x0[0] += min(t - sup.onset, sup.config.still_s) * x0[1]
             p.restart(x0, sup.config.heel_settle_s)
-        e = p.step(t, z[:6], given)
+        e = p.step(t, z[_SENSORS], given)
         fault = _RESUMED if event == "resumed" else _FAULT_CODE[e.fault]
         why = sup.lost(t, e.heel_strike, e.phase_rate)
         phase, rate = e.phase, e.phase_rate
