@@ -22,7 +22,10 @@ With ``rho_m(x) = exp(-|x - z_m|^2 / (2 ell^2))`` (per-dimension lengthscales) a
 
 where ``a = s sigma_f^2 v`` and ``W = s^2 sigma_f^4 (Kmm^-1 - P)`` fold GPy's woodbury vector ``v`` and
 woodbury inverse, the RBF variance ``sigma_f^2`` and the standardization scale ``s`` into output units.
-"""
+
+Its compiled kernels are cached on disk by numba (``cache=True``) under ``gaitscope.estimators.gp``: a cache
+written when the folder was imported as plain ``estimators`` (before issue #22) names that module and is
+dropped, since this file changed with the move."""
 
 from __future__ import annotations
 

@@ -594,28 +594,40 @@ class _Scan:
         return head.end() + data + tail.end() + _MAGIC
 
 
-def _scan_records(f: IO[bytes], name: str) -> _Scan:
-    """The complete chunks (with their message indexes), schemas, channels and metadata of ``f``, in order,
-    up to the torn tail or the first damaged chunk."""
-    scan = _Scan()
+def _complete_records(f: IO[bytes]) -> Iterator[tuple[object, list[Any] | None, int]]:
+    """The records of ``f`` up to its torn tail (a record cut short by a crash, where reading stops), each
+    with, for a chunk, its records (``None``: the chunk is damaged or cut short), and the offset where the
+    record ends. Errors that are not damage to the file are raised."""
     records = StreamReader(f, skip_magic=False, emit_chunks=True).records
-    good_end = len(_MAGIC)
     while True:
         try:
             record = next(records)
         except StopIteration:
-            break
+            return
         except Exception as exc:
             if not _is_damage(exc):
                 raise
-            break  # the torn tail
-        begin, end = good_end, f.tell()
+            return  # the torn tail
+        end = f.tell()
+        contents: list[Any] | None = None
         if isinstance(record, Chunk):
             try:
-                contents = breakup_chunk(record, validate_crc=True)
+                contents = list(breakup_chunk(record, validate_crc=True))
             except Exception as exc:
                 if not _is_damage(exc):
                     raise
+        yield record, contents, end
+
+
+def _scan_records(f: IO[bytes], name: str) -> _Scan:
+    """The complete chunks (with their message indexes), schemas, channels and metadata of ``f``, in order,
+    up to the torn tail or the first damaged chunk."""
+    scan = _Scan()
+    good_end = len(_MAGIC)
+    for record, contents, end in _complete_records(f):
+        begin = good_end
+        if isinstance(record, Chunk):
+            if contents is None:
                 break  # damaged (or cut short): keep what comes before it
             counts: dict[int, int] = {}
             for inner in contents:
@@ -697,33 +709,20 @@ def _copy_complete_records(src: IO[bytes], dst: IO[bytes]) -> tuple[int, int]:
         elif isinstance(record, Attachment):
             writer.add_attachment(record.create_time, record.log_time, record.name, record.media_type, record.data)
 
-    records = StreamReader(src, skip_magic=False, emit_chunks=True).records
     good_end = len(_MAGIC)  # end of the last record carried over (or skipped as damaged)
-    while True:
-        try:
-            record = next(records)
-        except StopIteration:
-            break
-        except Exception as exc:
-            if not _is_damage(exc):
-                raise
-            break  # the torn tail: a record cut short by the crash
+    for record, contents, end in _complete_records(src):
         if isinstance(record, Chunk):
-            try:
-                contents = breakup_chunk(record, validate_crc=True)
-            except Exception as exc:
-                if not _is_damage(exc):
-                    raise
-                if src.tell() >= size:
+            if contents is None:
+                if end >= size:
                     break  # cut short by the crash
-                skipped += src.tell() - good_end  # damaged but complete: skip it, read on
-                good_end = src.tell()
+                skipped += end - good_end  # damaged but complete: skip it, read on
+                good_end = end
                 continue
             for inner in contents:
                 copy(inner)
         else:
             copy(record)
-        good_end = src.tell()
+        good_end = end
     start(None)
     writer.finish()
     dst.flush()
