@@ -187,7 +187,7 @@ def _declared(label: str, cls: Any) -> Declared:
     return Declared(label, tuple(cls.inputs), tuple(cls.outputs))
 
 
-_FP_INPUTS: Final = ("thigh_angle_deg", "thigh_vel_dps")
+_FP_INPUTS: Final = FingerprintEKF.inputs
 _FP_OUTPUTS: Final[tuple[Output, ...]] = (
     ("phase", "1"),
     ("phase_rate", "1/s"),

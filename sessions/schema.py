@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Final, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, create_model, field_validator, model_validator
 
-from gaitscope.estimators import channels
+from gaitscope.estimators import channels, protocol
 
 # --- LocoHub table: metadata columns -------------------------------------------------------------
 SUBJECT: Final = "subject"
@@ -99,16 +99,10 @@ OPTIONAL_TRAINING_COLUMNS: Final = (HEEL_FORWARD, HEEL_UP)
 
 # --- Replay CSV (gaitscope replay) ---------------------------------------------------------------
 REPLAY_TIME: Final = "time_s"
-REPLAY_SIGNALS: Final = (
-    "foot_angle_deg",
-    "foot_vel_dps",
-    "shank_angle_deg",
-    "shank_vel_dps",
-    "heel_forward_m",
-    "heel_up_m",
-)
+#: The replay CSV's signal columns: the phase EKF's measurement channels, in its order.
+REPLAY_SIGNALS: Final = protocol.SENSOR_CHANNELS
 REPLAY_ANGLES: Final = ("foot_angle_deg", "shank_angle_deg")
-REPLAY_HEEL_STRIKE: Final = "heel_strike"
+REPLAY_HEEL_STRIKE: Final = protocol.HEEL_STRIKE
 REPLAY_OUTPUT: Final = (
     "time_s",
     "phase",

@@ -52,6 +52,7 @@ def test_every_channel_has_a_unit_its_name_ends_in_a_group_and_a_range_unless_a_
 def test_the_schema_takes_its_channels_and_bounds_from_the_table() -> None:
     assert schema.CHANNELS is CHANNELS and schema.SENSOR_LIMITS is LIMITS and schema.Channel is channels.Channel
     assert schema.IMU_SEGMENTS is channels.IMU_SEGMENTS
+    assert schema.REPLAY_SIGNALS is SENSOR_CHANNELS and schema.REPLAY_HEEL_STRIKE == HEEL_STRIKE == "heel_strike"
     assert schema.SENSOR_LIMITS == {n: c.limits for n, c in CHANNELS.items() if c.limits is not None}
 
 
