@@ -26,13 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
+from gaitscope.estimators.gp_ekf_estimator import GPEKFEstimator
+from gaitscope.estimators.protocol import HEEL_STRIKE
 from gaitscope.server.bench.launch import start_server
 from gaitscope.sessions.formats.models import default_model_path, load_model
 from gaitscope.sessions.registry import StackContext, resolve
 from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 
 #: What a device adds for the GP-EKF (``--gp-ekf``): joint encoders and its heel-strike sensor.
-GP_EKF_CHANNELS = ("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "heel_strike")
+GP_EKF_CHANNELS = (*GPEKFEstimator.inputs, HEEL_STRIKE)
 
 TARGET_P95_MS = 50.0
 
