@@ -7,10 +7,11 @@ measured in one run; every comparison is against a baseline measured in the same
    model in vectorised numpy), on the same simulated trial with the shipped model; both filters run in
    lock step and the largest state and covariance difference over every sample is reported.
 2. Replay throughput of a 10-minute 100 Hz trial through the command-line path (CSV in, CSV out),
-   beyond start-up (after a first replay has loaded the compiled code): the streaming path
-   (:meth:`GaitStatePipeline.step` per sample) against the batch path (:meth:`GaitStatePipeline.run`,
-   the default), best of a few runs each; and the batch path's parts (reading, estimating, writing)
-   timed one by one.
+   beyond start-up (after a first replay has loaded the compiled code): the estimator stack stepped per
+   sample (:func:`gaitscope.sessions.offline.replay.replay_stack`, seed 000's filter as published), the same
+   with the lock supervisor (the default, as live) and the stack's compiled fast path
+   (:meth:`GaitStatePipeline.run`, ``--as-published``), best of a few runs each; and the batch path's parts
+   (reading, estimating, writing) timed one by one.
 3. Per-sample cost of every registered estimator (:data:`gaitscope.sessions.registry.ESTIMATORS`, the opt-in ones
    too), each on its own through the stack interface (``step(t, z)``, ``time.perf_counter_ns`` around
    each sample, fed the channels the default stack feeds it), against its library baseline where it has
@@ -403,7 +404,7 @@ def run_bench(
         f" (first replay in the process: {r['startup_s']:.2f} s), best of 3:"
     )
     print(
-        f"  streaming (step per sample)    {r['stream_samples_per_s']:>9,.0f} samples/s   ({r['stream_wall_s']:.2f} s)"
+        f"  stack, step per sample         {r['stream_samples_per_s']:>9,.0f} samples/s   ({r['stream_wall_s']:.2f} s)"
     )
     print(
         f"  supervised (default, as live)  {r['supervised_samples_per_s']:>9,.0f} samples/s   "
