@@ -273,7 +273,8 @@ class FrameEstimator:
             self._t_offset = frame.t - t
         frame, implausible = frame.plausible()
         self.implausible += implausible
-        channels = {c: _value(getattr(frame, c)) for c in self._read}
+        # a channel's value for an estimator: NaN when absent, flags as 1.0 / 0.0 (inline: per frame)
+        channels = {c: math.nan if (v := getattr(frame, c)) is None else float(v) for c in self._read}
         self._derive_velocities(channels, t)
         self.gain.before_step(t)
         e = self.stack.step(t, channels)
@@ -386,11 +387,6 @@ def _sent_or_derived(sent: float | None, derived: float) -> float | None:
     if sent is not None:
         return sent
     return derived if math.isfinite(derived) else None
-
-
-def _value(v: float | bool | None) -> float:
-    """A channel's value for an estimator: NaN when absent, flags as 1.0 / 0.0."""
-    return math.nan if v is None else float(v)
 
 
 #: The channels :meth:`FrameEstimator.step` fills for every frame (the rest only when an estimator reads them):
