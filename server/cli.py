@@ -1,8 +1,8 @@
 """The ``gaitscope`` command line.
 
 Subcommands: ``serve``, ``demo`` (replay the bundled default trial), ``replay``, ``train``, ``cohort``,
-``crossval``, ``bench``, ``loadbench`` and ``wire`` (the browser's wire types). Bad input exits with
-status 2 and a message naming the file, row and column.
+``crossval``, ``bench``, ``loadbench``, ``wire`` (the browser's wire types) and ``api-client`` (its REST
+client). Bad input exits with status 2 and a message naming the file, row and column.
 """
 
 from __future__ import annotations
@@ -373,6 +373,16 @@ def cmd_loadbench(a: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_api_client(a: argparse.Namespace) -> int:
+    from gaitscope.server.api_client import render, write
+
+    if a.out is None:
+        sys.stdout.write(render())
+    else:
+        print(f"{'wrote' if write(a.out) else 'unchanged:'} {a.out}")
+    return 0
+
+
 def cmd_wire(a: argparse.Namespace) -> int:
     from gaitscope.server.wire import render, write
 
@@ -491,6 +501,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", type=Path, help="file to write (e.g. web/wire.js); default: standard output")
     p.set_defaults(func=cmd_wire)
+
+    p = sub.add_parser(
+        "api-client",
+        help="generate the browser's REST client (web/api_client.js) from the app's OpenAPI document",
+    )
+    p.add_argument("--out", type=Path, help="file to write (e.g. web/api_client.js); default: standard output")
+    p.set_defaults(func=cmd_api_client)
 
     from gaitscope.server.users_cli import register as register_users
 

@@ -5,7 +5,8 @@
 // current one, the new one twice (at least PASSWORD_MIN characters, the server's rule from wire.js); the server
 // ends every login of the account after a change, so the page sends the user to log in again with the new one.
 
-import { ApiError, api } from "./api.js";
+import { ApiError } from "./api.js";
+import * as api from "./api_client.js";
 import { currentUser, forget, logIn } from "./auth.js";
 import { errorBox, field, h, runAction, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
@@ -105,7 +106,7 @@ export function mountPassword(root) {
       if (fresh.value.length > PASSWORD_MAX) throw new ValidationError(`The new password may have at most ${PASSWORD_MAX} characters.`);
       if (fresh.value !== repeat.value) throw new ValidationError("The two new passwords differ.");
       if (fresh.value === current.value) throw new ValidationError("The new password is the same as the current one.");
-      await api("POST", "/api/auth/password", { current: current.value, new: fresh.value });
+      await api.changePassword({ current: current.value, new: fresh.value });
       forget();
       loginNotice("Password changed: log in with the new one.");
       location.hash = "#/login";

@@ -129,10 +129,15 @@ export async function api(method, path, body) {
   return resp.json();
 }
 
-/** `PUT /api/uploads/{id}?offset=N` with raw bytes; returns the `Upload`. */
-export async function putChunk(uploadId, offset, blob) {
-  const resp = await authFetch(`/api/uploads/${encodeURIComponent(uploadId)}?offset=${offset}`, {
-    method: "PUT",
+/**
+ * Sends raw bytes (`application/octet-stream`, e.g. an upload's chunk) and returns the JSON answer.
+ * @param {string} method
+ * @param {string} path
+ * @param {Blob} blob
+ */
+export async function apiBytes(method, path, blob) {
+  const resp = await authFetch(path, {
+    method,
     headers: { "Content-Type": "application/octet-stream", Accept: "application/json" },
     body: blob,
   });

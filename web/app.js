@@ -6,7 +6,8 @@
 
 import { mountLogin, mountPassword } from "./account.js";
 import { mountAudit } from "./audit.js";
-import { api, loginHash } from "./api.js";
+import { loginHash } from "./api.js";
+import * as api from "./api_client.js";
 import { currentUser, loadMe, may, onUserChange, userBadge } from "./auth.js";
 import { mountLive } from "./live.js";
 import { mountReport } from "./report.js";
@@ -69,7 +70,7 @@ function route() {
 async function firstVisit() {
   if (location.hash) return false;
   try {
-    const live = (await api("GET", "/api/sessions")).find((s) => s.state === "running");
+    const live = (await api.listSessions()).find((s) => s.state === "running");
     if (live) {
       location.replace(`#/sessions/${live.id}`); // fires hashchange, which routes
       return true;

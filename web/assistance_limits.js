@@ -4,7 +4,7 @@
 // sees them next to the assistance settings, and a change beyond them is refused before it is sent, with the
 // reason; the server checks again and its 403 is shown as it says it.
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { fence } from "./auth.js";
 import { SETTING_LIMITS } from "./settings.js";
 import { errorBox, field, fmt, fmtUtc, h, readNumber, runAction, showError } from "./ui.js";
@@ -39,7 +39,7 @@ export function overLimits(changes, limits) {
 
 /** `GET` the subject's limits (null: none set). */
 export function loadLimits(subjectId) {
-  return api("GET", `/api/subjects/${subjectId}/assistance-limits`);
+  return api.assistanceLimits(subjectId);
 }
 
 /** The subject page's card: the limits for all to see; a form for those who may set them. */
@@ -75,7 +75,7 @@ export function limitsCard(subjectId) {
         const lim = FIELD_LIMITS.AssistanceLimits[k];
         body[k] = readNumber(inputs[k], { label: label(k), min: lim.min, max: lim.max });
       }
-      const saved = await api("PUT", `/api/subjects/${subjectId}/assistance-limits`, body);
+      const saved = await api.setAssistanceLimits(subjectId, body);
       show(saved);
       ok.textContent = "Saved: experimenters are held to these limits from their next change.";
     });

@@ -6,7 +6,7 @@
 // Dates are the browser's local days: "from" is that day's local midnight, "to" includes the whole day (the
 // server's `until` is the next local midnight, exclusive); both are sent as UTC instants.
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { fence } from "./auth.js";
 import { errorBox, field, fmtUtc, h, runAction, showError } from "./ui.js";
 
@@ -26,17 +26,21 @@ export function localDayStart(value, days = 0) {
   return new Date(y, m - 1, d + days).toISOString();
 }
 
-/** The query string of the filters (only those set), with paging when given. */
-export function auditQuery(filters, paging) {
-  const q = new URLSearchParams();
-  for (const k of ["user", "action", "outcome", "target"]) if (filters[k]) q.set(k, filters[k]);
-  if (filters.from) q.set("since", localDayStart(filters.from));
-  if (filters.to) q.set("until", localDayStart(filters.to, 1));
+/**
+ * The query parameters of the filters (only those set), with paging when given.
+ * @returns {{user?: string, action?: string, outcome?: any, target?: string, since?: string, until?: string,
+ *   limit?: number, offset?: number}}
+ */
+export function auditParams(filters, paging) {
+  const q = {};
+  for (const k of ["user", "action", "outcome", "target"]) if (filters[k]) q[k] = filters[k];
+  if (filters.from) q.since = localDayStart(filters.from);
+  if (filters.to) q.until = localDayStart(filters.to, 1);
   if (paging) {
-    q.set("limit", String(paging.limit));
-    q.set("offset", String(paging.offset));
+    q.limit = paging.limit;
+    q.offset = paging.offset;
   }
-  return q.toString();
+  return q;
 }
 
 /** A before/after JSON text shortened for a table cell (the full text in the cell's title). */
@@ -72,7 +76,7 @@ export function mountAudit(root) {
   const to = input("audit-to", { type: "date" });
   const apply = h("button", { type: "submit", class: "primary", "data-testid": "audit-apply", text: "Show" });
   const clear = h("button", { type: "button", "data-testid": "audit-clear", text: "Clear filters" });
-  const csv = h("a", { class: "button", "data-testid": "audit-csv", href: "/api/audit.csv", download: "",
+  const csv = h("a", { class: "button", "data-testid": "audit-csv", href: api.exportAuditUrl(), download: "",
     text: "Download CSV", title: "Every entry the filters keep, oldest first (the download is itself audited)" });
   const filterError = errorBox("audit-filter-error");
   const form = h("form", { class: "card form", "data-testid": "audit-filters", novalidate: true },
@@ -111,10 +115,10 @@ export function mountAudit(root) {
   }
 
   async function load() {
-    const query = auditQuery(st.filters, { limit: PAGE + 1, offset: st.offset }); // one more: is there an older page?
-    csv.href = `/api/audit.csv${auditQuery(st.filters) ? `?${auditQuery(st.filters)}` : ""}`;
+    const params = auditParams(st.filters, { limit: PAGE + 1, offset: st.offset }); // one more: is there an older page?
+    csv.href = api.exportAuditUrl(auditParams(st.filters));
     try {
-      const entries = await api("GET", `/api/audit?${query}`);
+      const entries = await api.listAudit(params);
       if (!st.alive) return;
       const shown = entries.slice(0, PAGE);
       rows.replaceChildren(...(shown.length ? shown.map(entryRow)
@@ -158,7 +162,7 @@ export function mountAudit(root) {
   });
   verify.addEventListener("click", () => runAction(verify, verifyError, async () => {
     verifyResult.hidden = true;
-    const v = await api("GET", "/api/audit/verify");
+    const v = await api.verifyAudit();
     verifyResult.className = v.ok ? "ok" : "error";
     verifyResult.textContent = v.ok
       ? `Chain intact: ${v.entries} entr${v.entries === 1 ? "y" : "ies"} checked.${v.last_hash ? ` Newest hash ${v.last_hash}.` : ""}`

@@ -7,7 +7,8 @@
 // happens. The UI only spares the user buttons that would be refused. With accounts off (the default on
 // loopback) the server answers `local` with the admin's permissions, and nobody logs in.
 
-import { api, loginHash, setCsrfToken, whenLoggedOut } from "./api.js";
+import { loginHash, setCsrfToken, whenLoggedOut } from "./api.js";
+import * as api from "./api_client.js";
 import { h } from "./ui.js";
 
 /** What each permission lets one do, in the words of the server's refusals (server/auth.py's DOES); only
@@ -57,7 +58,7 @@ whenLoggedOut(() => {
  * fails is thrown (the server is down: the page says so rather than asking for a password).
  */
 export async function loadMe() {
-  const resp = await fetch("/api/auth/me", { headers: { Accept: "application/json" }, cache: "no-store" });
+  const resp = await fetch(api.meUrl(), { headers: { Accept: "application/json" }, cache: "no-store" });
   if (resp.status === 401) {
     _set(null);
     return null;
@@ -70,7 +71,7 @@ export async function loadMe() {
 
 /** Logs in (the server sets the cookie); the `Me` on success, an ApiError with the server's reason otherwise. */
 export async function logIn(name, password) {
-  const me = await api("POST", "/api/auth/login", { name, password });
+  const me = await api.login({ name, password });
   _set(me);
   return me;
 }
@@ -78,7 +79,7 @@ export async function logIn(name, password) {
 /** Ends this login and goes to the login page. */
 export async function logOut() {
   try {
-    await api("POST", "/api/auth/logout");
+    await api.logout();
   } finally {
     _set(null);
     location.hash = "#/login";

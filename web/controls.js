@@ -4,7 +4,7 @@
 // take is fenced off with the reason (auth.js); an experimenter sees the subject's assistance limits next to
 // the settings, and a change beyond them is refused here, before it is sent.
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { limitsText, loadLimits, overLimits } from "./assistance_limits.js";
 import { fence, may } from "./auth.js";
 import { describeEvent } from "./events.js";
@@ -18,7 +18,6 @@ import { FIELD_LIMITS } from "./wire.js";
  * @param {{onEvent: (ev: object) => void, onSession: (s: object) => void}} hooks
  */
 export function mountControls(sessionId, hooks) {
-  const base = `/api/sessions/${sessionId}`;
 
   // --- settings ----------------------------------------------------------------------------------
   const editor = new SettingsEditor("setting", { rateLimited: true });
@@ -56,7 +55,7 @@ export function mountControls(sessionId, hooks) {
       const over = overLimits(changes, limits.value);
       if (over) throw new ValidationError(over);
     }
-    const session = await api("PATCH", `${base}/settings`, changes);
+    const session = await api.changeSettings(sessionId, changes);
     editor.setBaseline(session.settings);
     settingsOk.textContent = `Applied: ${Object.keys(changes).map(label).join(", ")}.`;
     hooks.onSession(session);
@@ -99,7 +98,7 @@ export function mountControls(sessionId, hooks) {
   undoBtn.addEventListener("click", () => {
     settingsOk.textContent = "";
     runAction(undoBtn, settingsError, async () => {
-      const session = await api("POST", `${base}/settings/undo`, {});
+      const session = await api.undoSettings(sessionId, {});
       editor.setBaseline(session.settings);
       settingsOk.textContent = "Undone: the settings are back to what they were before the last change.";
       hooks.onSession(session);
@@ -145,17 +144,17 @@ export function mountControls(sessionId, hooks) {
   recStart.addEventListener("click", () => runAction(recStart, recError, async () => {
     const name = recName.value.trim();
     if (name.length > 100) throw new ValidationError("The trial name may have at most 100 characters.");
-    rec.trial = await api("POST", `${base}/recording`, { action: "start", name });
+    rec.trial = await api.recording(sessionId, { action: "start", name });
     rec.recording = true;
     recName.value = "";
   }).then(renderRecording));
   recStop.addEventListener("click", () => runAction(recStop, recError, async () => {
-    rec.trial = await api("POST", `${base}/recording`, { action: "stop" });
+    rec.trial = await api.recording(sessionId, { action: "stop" });
     rec.recording = false;
   }).then(renderRecording));
   async function refreshRecording() {
     try {
-      const trials = await api("GET", `/api/trials?session_id=${sessionId}`);
+      const trials = await api.listTrials({ session_id: sessionId });
       const active = trials.find((t) => t.status === "recording");
       rec.trial = active || (trials.length ? trials.reduce((a, b) => (b.id > a.id ? b : a)) : null);
       rec.recording = !!active;
@@ -179,7 +178,7 @@ export function mountControls(sessionId, hooks) {
       const text = annText.value.trim();
       if (!text) throw new ValidationError("Write the annotation first.");
       if (text.length > 500) throw new ValidationError("An annotation may have at most 500 characters.");
-      const event = await api("POST", `${base}/annotations`, { text });
+      const event = await api.annotate(sessionId, { text });
       annText.value = "";
       hooks.onEvent(event);
     });
@@ -190,8 +189,8 @@ export function mountControls(sessionId, hooks) {
   const sessState = h("span", { class: "state", "data-testid": "session-state", text: "…" });
   const sessStartBtn = h("button", { type: "button", "data-testid": "session-start", text: "Start session", hidden: true });
   const sessStopBtn = armedButton({ class: "danger", "data-testid": "session-stop" }, "Stop session", "Tap again to stop",
-    () => runAction(sessStopBtn, sessError, async () => setSession(await api("POST", `${base}/stop`))));
-  sessStartBtn.addEventListener("click", () => runAction(sessStartBtn, sessError, async () => setSession(await api("POST", `${base}/start`))));
+    () => runAction(sessStopBtn, sessError, async () => setSession(await api.stopSession(sessionId))));
+  sessStartBtn.addEventListener("click", () => runAction(sessStartBtn, sessError, async () => setSession(await api.startSession(sessionId))));
   const sessionCard = h("section", { class: "card", "data-testid": "session-card" }, h("h2", { text: "Session" }),
     h("p", {}, "State: ", sessState), h("div", { class: "buttons" }, sessStartBtn, sessStopBtn), sessError);
   fence(settingsCard, "assist_within_limits");

@@ -5,7 +5,7 @@
 // revoked; revoking (`DELETE …/{token_id}`, two taps) refuses the next connection with it and disconnects a
 // device using it.
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { fence, may } from "./auth.js";
 import { armedButton, errorBox, fmtUtc, h, runAction, showError } from "./ui.js";
 
@@ -14,7 +14,6 @@ import { armedButton, errorBox, fmtUtc, h, runAction, showError } from "./ui.js"
  * @returns {{el: HTMLElement, setSession: (s: object) => void}}
  */
 export function deviceCredentialsCard(sessionId) {
-  const base = `/api/sessions/${sessionId}/device-tokens`;
   const issueBtn = h("button", { type: "button", class: "primary", "data-testid": "token-issue", text: "Issue a device token" });
   const error = errorBox("token-error");
   const tokenText = h("code", { class: "token-value", "data-testid": "token-value" });
@@ -38,7 +37,7 @@ export function deviceCredentialsCard(sessionId) {
     const rowError = errorBox("token-revoke-error");
     const revoke = t.revoked_utc ? null : armedButton({ class: "danger small", "data-testid": "token-revoke" }, "Revoke",
       "Tap again to revoke", () => runAction(revoke, rowError, async () => {
-        await api("DELETE", `${base}/${t.id}`);
+        await api.revokeToken(sessionId, t.id);
         await load();
       }));
     const li = h("li", { "data-testid": "token-row", "data-id": t.id, "data-revoked": t.revoked_utc ? "true" : "false" },
@@ -51,7 +50,7 @@ export function deviceCredentialsCard(sessionId) {
 
   async function load() {
     try {
-      const tokens = await api("GET", base);
+      const tokens = await api.listTokens(sessionId);
       list.replaceChildren(...(tokens.length ? tokens.map(row)
         : [h("li", { class: "hint", "data-testid": "token-none", text: "No token yet: the device cannot connect until one is issued." })]));
     } catch (err) {
@@ -60,7 +59,7 @@ export function deviceCredentialsCard(sessionId) {
   }
 
   issueBtn.addEventListener("click", () => runAction(issueBtn, error, async () => {
-    const t = await api("POST", base);
+    const t = await api.issueToken(sessionId);
     tokenText.textContent = t.token;
     copied.textContent = "";
     fresh.hidden = false;

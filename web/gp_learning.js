@@ -8,7 +8,8 @@
 // at once on a `gp_ekf` event; controls: `POST` the same (GPLearningControl), logged with the logged-in user.
 // Hidden for a session without `gp_ekf` (it is opt-in: the session's settings must name it).
 
-import { api, ApiError, errorText } from "./api.js";
+import { ApiError, errorText } from "./api.js";
+import * as api from "./api_client.js";
 import { fence } from "./auth.js";
 import { COLORS, Plot, Ring } from "./plots.js";
 import { errorBox, field, fmt, h, runAction } from "./ui.js";
@@ -66,7 +67,6 @@ function jointSeries(joint, current, compare) {
  * @param {number} sessionId
  */
 export function gpLearningCard(sessionId) {
-  const url = `/api/sessions/${sessionId}/gp-learning`;
   const badges = h("div", { class: "gp-badges", "data-testid": "gp-status", "aria-live": "polite" });
   const last = h("p", { class: "hint", "data-testid": "gp-last" });
   const stanceNow = h("span", { class: "gp-now", "data-testid": "gp-stance-now", text: "–" });
@@ -223,7 +223,7 @@ export function gpLearningCard(sessionId) {
     const mine = ++seq;
     try {
       const compare = st ? compareVersion(st) : null;
-      const state = await api("GET", compare === null ? url : `${url}?version=${compare}`);
+      const state = await api.gpLearning(sessionId, { version: compare });
       let complete = true;
       if (mine > shownSeq && !dead) {
         shownSeq = mine;
@@ -251,7 +251,7 @@ export function gpLearningCard(sessionId) {
 
   /** POST a control; the answer (the new state) is shown at once, newer than any poll under way. */
   async function control(body, done) {
-    const state = await api("POST", url, { ...body, reason: reason.value.trim() });
+    const state = await api.controlGpLearning(sessionId, { ...body, reason: reason.value.trim() });
     shownSeq = ++seq;
     reason.value = "";
     render(state);

@@ -2,7 +2,7 @@
 // ends (imu_foot, imu_shank, ...), a progress bar while the standing period is collected, then the offsets
 // each front end took, or the refusal with each sensor's reason. Hidden when the session has no IMU front end.
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { fence } from "./auth.js";
 import { errorBox, field, fmt, h, runAction, showError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
@@ -24,7 +24,6 @@ function sensorLines(cal) {
  * @returns {{el: HTMLElement, refresh: () => Promise<void>}}
  */
 export function imuCalibrationCard(sessionId) {
-  const url = `/api/sessions/${sessionId}/imu-calibration`;
   const duration = h("select", { id: "imu-duration", "data-testid": "imu-duration" },
     ...DURATIONS_S.map((s) => h("option", { value: String(s), text: `${s} s` })));
   duration.value = "5";
@@ -69,14 +68,14 @@ export function imuCalibrationCard(sessionId) {
   async function refresh() {
     if (!el.isConnected && timer) return; // the view was left
     try {
-      render(await api("GET", url));
+      render(await api.imuCalibration(sessionId));
     } catch (err) {
       showError(error, err);
     }
   }
 
   startBtn.addEventListener("click", () => runAction(startBtn, error, async () => {
-    render(await api("POST", url, { duration_s: Number(duration.value) }));
+    render(await api.startImuCalibration(sessionId, { duration_s: Number(duration.value) }));
   }));
   return { el, refresh };
 }

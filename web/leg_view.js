@@ -5,7 +5,8 @@
 // back as another process, the card asks the server for the view's address again (it may have moved to
 // another port), loads a fresh iframe, and tells the server again what to follow.
 
-import { api, errorText } from "./api.js";
+import { errorText } from "./api.js";
+import * as api from "./api_client.js";
 import { may } from "./auth.js";
 import { onServerChange } from "./server_status.js";
 import { h } from "./ui.js";
@@ -66,7 +67,7 @@ export function legView(focus, { onReload } = {}) {
 
   function load() {
     const mine = ++loads; // a newer load (another reconnection) wins
-    return api("GET", "/api/viewer").then((v) => {
+    return api.viewer().then((v) => {
       if (mine !== loads) return null;
       if (!v.url) {
         msg.textContent = "The leg view is switched off on this server.";
@@ -87,7 +88,7 @@ export function legView(focus, { onReload } = {}) {
       legend.hidden = false;
       if (mine > 1 && onReload) onReload();
       // The view is everyone's: choosing what it follows takes `run` (a viewer watches what others chose).
-      return focus && may("run") && api("POST", "/api/viewer/focus", focus);
+      return focus && may("run") && api.viewerFocus(focus);
     }).catch((err) => {
       if (mine === loads) msg.textContent = `The leg view is unavailable: ${errorText(err)}`;
     });

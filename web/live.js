@@ -15,7 +15,8 @@
 // server's history), so the plots open full. The health box judges the figures (`live_health.js`); the stream
 // reconnects by itself, at once when the server is back, and says what happened to a session that ended.
 
-import { api, openSessionStream } from "./api.js";
+import { openSessionStream } from "./api.js";
+import * as api from "./api_client.js";
 import { currentUser, fence } from "./auth.js";
 import { mountControls } from "./controls.js";
 import { deviceCredentialsCard } from "./device_credentials.js";
@@ -169,7 +170,7 @@ export function mountLive(root, sessionId) {
   const primaryBtn = h("button", { type: "button", "data-testid": "primary-apply", text: "Switch" });
   const primaryError = errorBox("primary-error");
   primaryBtn.addEventListener("click", () => runAction(primaryBtn, primaryError, async () => {
-    const session = await api("PATCH", `/api/sessions/${sessionId}/settings`, { primary: primarySelect.value });
+    const session = await api.changeSettings(sessionId, { primary: primarySelect.value });
     controls.setSession(session);
   }));
   healthBox.el.append(fence(h("div", { class: "inline", "data-testid": "primary-switch" },
@@ -412,7 +413,7 @@ export function mountLive(root, sessionId) {
   /** The session is not running (anymore): what happened, and the way to start again. */
   async function checkEnded() {
     try {
-      const [s, evs] = await Promise.all([api("GET", `/api/sessions/${sessionId}`), api("GET", `/api/sessions/${sessionId}/events`)]);
+      const [s, evs] = await Promise.all([api.getSession(sessionId), api.sessionEvents(sessionId)]);
       if (!alive) return;
       controls.setSession(s);
       addEvents(...evs);
@@ -511,7 +512,7 @@ export function mountLive(root, sessionId) {
       // The stream stays open, silent, when another screen stops the session: ask for its state.
       if (!verdict.live && !ended && healthBox.connected && now - lastStatePoll > 5000) {
         lastStatePoll = now;
-        api("GET", `/api/sessions/${sessionId}`).then((s) => {
+        api.getSession(sessionId).then((s) => {
           if (!alive) return;
           controls.setSession(s);
           if (s.state !== "running" && s.state !== "created") checkEnded();
@@ -539,7 +540,7 @@ export function mountLive(root, sessionId) {
   }
   raf = requestAnimationFrame(frame);
 
-  api("GET", `/api/sessions/${sessionId}/events`).then((evs) => addEvents(...evs)).catch((err) => showError(streamError, err));
+  api.sessionEvents(sessionId).then((evs) => addEvents(...evs)).catch((err) => showError(streamError, err));
 
   return {
     unmount() {

@@ -2,7 +2,7 @@
 // stopped from another screen, ended by itself or failed, said in plain words, with a button that starts a
 // new session for the same subject with the same source and settings.
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { errorBox, h, runAction } from "./ui.js";
 
 const clock = (iso) => (iso ? new Date(iso).toLocaleTimeString([], { hour: "2-digit", minute: "2-digit", second: "2-digit" }) : "");
@@ -36,7 +36,7 @@ export function sessionEndBanner() {
   let session = null;
   again.addEventListener("click", () => runAction(again, error, async () => {
     const { subject_id: subjectId, source, settings } = session;
-    const created = await api("POST", "/api/sessions", { subject_id: subjectId, source, settings, start: true });
+    const created = await api.createSession({ subject_id: subjectId, source, settings, start: true });
     location.hash = `#/sessions/${created.id}`;
   }));
   return {

@@ -1,7 +1,8 @@
 // "Record a calibration walk now" on the subject page (subject.js): a new trial of a running session of the subject,
 // stopped after the chosen duration and handed to the Fit flow. Split out of subject.js (one concept per module).
 
-import { api, ApiError, authHeaders, errorText, query } from "./api.js";
+import { ApiError, authHeaders, errorText } from "./api.js";
+import * as api from "./api_client.js";
 import { field, fmt, h, showError, ValidationError } from "./ui.js";
 
 const WALK_DURATIONS_S = [20, 30, 60]; // "record a calibration walk now": 20 s is ~18 strides at 1 m/s, 8 are needed
@@ -55,7 +56,7 @@ export function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
   let w = null; // the walk under way: {sid, seconds, trial, t0, checked, ending}
   let timer = 0;
   let alive = true;
-  const recording = (sid, action, name) => api("POST", `/api/sessions/${sid}/recording`, action === "start" ? { action, name } : { action });
+  const recording = (sid, action, name) => api.recording(sid, action === "start" ? { action, name } : { action });
   const elapsed = () => (performance.now() - w.t0) / 1000;
 
   function render() {
@@ -93,7 +94,7 @@ export function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
 
   /** Stops the walk's trial if it still records; the stopped trial, or null when it no longer recorded. */
   async function stopOwn(walk) {
-    const t = await api("GET", `/api/trials/${walk.trial.id}`);
+    const t = await api.getTrial(walk.trial.id);
     if (t.status !== "recording") return null;
     try {
       return await recording(walk.sid, "stop");
@@ -107,7 +108,7 @@ export function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
   // Closing or reloading the tab unmounts nothing: one blind stop that outlives the page (`keepalive`).
   function onPageHide() {
     if (w && w.trial && !w.ending) {
-      fetch(`/api/sessions/${w.sid}/recording`, { method: "POST", keepalive: true,
+      fetch(api.recordingUrl(w.sid), { method: "POST", keepalive: true,
         headers: { "Content-Type": "application/json", ...authHeaders("POST") },
         body: JSON.stringify({ action: "stop" }) }).catch(() => {});
     }
@@ -123,7 +124,7 @@ export function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
     startBtn.textContent = "Starting…";
     onBusy(true);
     try {
-      const before = await api("GET", `/api/trials${query({ session_id: walk.sid })}`);
+      const before = await api.listTrials({ session_id: walk.sid });
       if (!alive) return;
       if (before.some((t) => t.status === "recording")) {
         await recording(walk.sid, "stop").catch((err) => {
@@ -165,7 +166,7 @@ export function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
     else if (performance.now() - w.checked > WALK_CHECK_MS) {
       const walk = w;
       walk.checked = performance.now();
-      api("GET", `/api/trials/${walk.trial.id}`).then((tr) => {
+      api.getTrial(walk.trial.id).then((tr) => {
         if (tr.status !== "recording" && w === walk) finish("cut");
       }, () => {}); // unreachable for a moment: the next check, or the stop, tells
     }
@@ -191,7 +192,7 @@ export function calibrationWalk({ errorEl, okEl, onBusy, onRecorded, onCut }) {
       }
       if (!alive) return;
       if (trial === null) { // cut short: say by what, and offer what was recorded
-        const [t, s] = await Promise.all([api("GET", `/api/trials/${walk.trial.id}`), api("GET", `/api/sessions/${walk.sid}`)]);
+        const [t, s] = await Promise.all([api.getTrial(walk.trial.id), api.getSession(walk.sid)]);
         if (!alive) return;
         const why = s.state === "running" ? "its recording was stopped on another screen" : `session ${walk.sid} ${s.state === "failed" ? "failed" : "ended"}`;
         await onCut(t);

@@ -2,7 +2,8 @@
 // duration, strides, speed and incline profile, per-condition stride curves, settings history, data health and
 // events, from `GET /api/sessions/{id}/summary`; and the exports (report_export.js).
 
-import { api, ApiError } from "./api.js";
+import { ApiError } from "./api.js";
+import * as api from "./api_client.js";
 import { EventList } from "./events.js";
 import { fmtDuration, plural, STATE_WORDS } from "./people_format.js";
 import { COLORS, Plot } from "./plots.js";
@@ -140,7 +141,7 @@ export function mountReport(root, sessionId) {
 
   async function load() {
     try {
-      const s = await api("GET", `/api/sessions/${sessionId}/summary`);
+      const s = await api.summary(sessionId);
       if (!st.alive) return;
       st.summary = s;
       title.textContent = `Session ${s.session_id} of ${s.subject_code}: summary`;

@@ -2,7 +2,7 @@
 // server, its progress is polled (`GET /api/exports/{id}`) and shown, and the file is downloaded when it is done.
 // A job that takes more than a second shows a progress bar with what it is doing.
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { fence } from "./auth.js";
 import { errorBox, h, runAction } from "./ui.js";
 
@@ -49,7 +49,7 @@ export function exportCard(sessionId) {
   async function run(kind) {
     done.textContent = "";
     const t0 = performance.now();
-    let job = await api("POST", `/api/sessions/${sessionId}/exports`, { kind });
+    let job = await api.startExport(sessionId, { kind });
     while (job.state === "running") {
       if (!alive) return;
       if (performance.now() - t0 > TIMEOUT_MS) throw new Error("The export took more than 5 minutes: try again, or ask for the server to be checked.");
@@ -58,11 +58,11 @@ export function exportCard(sessionId) {
         show(job);
       }
       await sleep(POLL_MS);
-      job = await api("GET", `/api/exports/${job.id}`);
+      job = await api.getExport(job.id);
     }
     progress.hidden = true;
     if (job.state === "failed") throw new Error(`The ${kind === "pdf" ? "report" : "CSV"} could not be made: ${job.error}`);
-    const href = `/api/exports/${job.id}/file`;
+    const href = api.exportFileUrl(job.id);
     const link = h("a", { href, download: job.filename, "data-testid": `export-link-${kind}`, text: job.filename });
     done.replaceChildren(`Ready: `, link, ` (${((performance.now() - t0) / 1000).toFixed(1)} s).`);
     link.click();

@@ -10,7 +10,8 @@
 // playback and keys (review_playback.js), notes saved with the trial (review_notes.js), A/B comparison of
 // named re-runs (review_ab.js); a trial still recording opens with a link to its live session.
 
-import { api, errorText, query } from "./api.js";
+import { errorText } from "./api.js";
+import * as api from "./api_client.js";
 import { fence, may } from "./auth.js";
 import { EstimatorPicker, estimatorLabel, estimatorOverlay, listText, overlayLegend, rerunEstimators } from "./estimators.js";
 import { EventList } from "./events.js";
@@ -63,7 +64,7 @@ export function mountReview(root, trialId) {
   const error = errorBox("review-error");
   const title = h("h1", { "data-testid": "review-title", text: `Trial ${trialId}` });
   const info = h("p", { class: "hint", "data-testid": "trial-info" });
-  const download = h("a", { class: "button", href: `/api/trials/${trialId}/download`, download: `gaitscope_trial${trialId}.mcap`,
+  const download = h("a", { class: "button", href: api.downloadUrl(trialId), download: `gaitscope_trial${trialId}.mcap`,
     "data-testid": "download-link", text: "Download MCAP (opens in Foxglove)" });
   // events (setting changes in words), review notes, the cursor: labelled markers on every time plot, drawn
   // by the plots' groups (the review's plots share zoom, cursor and hover values; so do the A/B's)
@@ -297,7 +298,7 @@ export function mountReview(root, trialId) {
 
   async function loadIntent(t0, t1) {
     const range = t0 == null ? {} : { t0, t1 };
-    return api("GET", `/api/trials/${trialId}/intent${query({ ...range, max_points: MAX_POINTS })}`);
+    return api.trialIntent(trialId, { ...range, max_points: MAX_POINTS });
   }
 
   /** The markers (events, notes, cursor) drawn again in every time plot. */
@@ -320,7 +321,7 @@ export function mountReview(root, trialId) {
     }
     try {
       const [s, intent] = await Promise.all([
-        api("GET", `/api/trials/${trialId}/series${query({ t0, t1, max_points: MAX_POINTS })}`).then((x) => derive(x, MAX_POINTS)),
+        api.trialSeries(trialId, { t0, t1, max_points: MAX_POINTS }).then((x) => derive(x, MAX_POINTS)),
         st.intent && st.intent.recorded ? loadIntent(t0, t1) : Promise.resolve(st.intent),
       ]);
       if (!st.alive) return;
@@ -372,7 +373,7 @@ export function mountReview(root, trialId) {
     }
     showBusy = true;
     try {
-      await api("POST", "/api/viewer/show", { trial_id: trialId, t });
+      await api.viewerShow({ trial_id: trialId, t });
       showError(viewerError, null);
     } catch (err) {
       showError(viewerError, `The leg view could not follow the cursor: ${errorText(err)}`);
@@ -442,7 +443,7 @@ export function mountReview(root, trialId) {
       rerunOk.textContent = "re-running…";
       // The model and anything the editor does not show come from the recorded settings.
       const body = { ...(asWhatIf ? { settings: { ...st.baseSettings, ...settings } } : {}), ...(estimators ? { estimators } : {}) };
-      const res = await api("POST", `/api/trials/${trialId}/rerun${query({ max_points: RERUN_POINTS })}`, body);
+      const res = await api.rerun(trialId, body, { max_points: RERUN_POINTS });
       if (!st.alive) return;
       const r = derive(res, RERUN_POINTS);
       if (!r.t || !r.t.length) throw new ValidationError("The re-run produced no samples (the trial has no raw sensor frames).");
@@ -507,7 +508,7 @@ export function mountReview(root, trialId) {
     const poll = setInterval(async () => {
       if (!st.alive) return clearInterval(poll);
       try {
-        const now = await api("GET", `/api/trials/${trialId}`);
+        const now = await api.getTrial(trialId);
         if (now.status === "recording") return;
         clearInterval(poll);
         if (!st.alive) return;
@@ -524,7 +525,7 @@ export function mountReview(root, trialId) {
   async function loadAll(trial) {
     showError(error, null);
     page.append(body);
-    api("GET", `/api/trials/${trialId}/estimators`).then((choices) => {
+    api.trialEstimators(trialId).then((choices) => {
       if (st.alive) picker.set(choices);
     }).catch((err) => {
       if (st.alive) picker.failed(`The estimators of this trial could not be listed: ${errorText(err)}.`);
@@ -532,8 +533,8 @@ export function mountReview(root, trialId) {
     notes.load().catch((err) => showError(error, `The notes of this trial could not be loaded: ${errorText(err)}`));
     try {
       const [series, evs, intent] = await Promise.all([
-        api("GET", `/api/trials/${trialId}/series${query({ max_points: MAX_POINTS })}`),
-        api("GET", `/api/trials/${trialId}/events`),
+        api.trialSeries(trialId, { max_points: MAX_POINTS }),
+        api.trialEvents(trialId),
         loadIntent().catch((err) => {
           intentNote.textContent = `The speed-change intent could not be loaded: ${errorText(err)}.`;
           return null;
@@ -558,10 +559,10 @@ export function mountReview(root, trialId) {
       setCursor(T0, true);
       // The what-if starts from the settings the trial began with (not the session's final ones).
       try {
-        st.baseSettings = await api("GET", `/api/trials/${trialId}/settings`);
+        st.baseSettings = await api.trialSettings(trialId);
       } catch (err) {
         // Not recorded (a log from another tool): only a what-if can run, from the session's settings.
-        st.baseSettings = (await api("GET", `/api/sessions/${trial.session_id}`)).settings;
+        st.baseSettings = (await api.getSession(trial.session_id)).settings;
         radio(modeRecorded).disabled = true;
         radio(modeWhatIf).checked = true;
         showMode();
@@ -580,7 +581,7 @@ export function mountReview(root, trialId) {
     }
   }
 
-  api("GET", `/api/trials/${trialId}`).then((trial) => {
+  api.getTrial(trialId).then((trial) => {
     if (!st.alive) return;
     title.textContent = `Trial ${trial.id}${trial.name ? ` · ${trial.name}` : ""}`;
     if (trial.status === "recording") stillRecording(trial);

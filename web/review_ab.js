@@ -3,7 +3,7 @@
 // and phase side by side, each one's difference from the first, their mean strides overlaid, and a table of
 // figures (peak torque, mean phase rate, stride length; errors when the trial's ground truth is known).
 
-import { api, query } from "./api.js";
+import * as api from "./api_client.js";
 import { fence } from "./auth.js";
 import { COLORS, Plot } from "./plots.js";
 import { SettingsEditor } from "./settings.js";
@@ -176,8 +176,8 @@ export function abCard(trialId, hooks) {
     const range = hooks.zoomed() ? hooks.range() : null;
     status.textContent = `Re-running ${body.runs.length} times and comparing…`;
     try {
-      const c = await api("POST", `/api/trials/${trialId}/compare${query({ t0: range && range[0], t1: range && range[1],
-        max_points: 2000 })}`, body);
+      const c = await api.compare(trialId, body, { t0: range && range[0], t1: range && range[1],
+        max_points: 2000 });
       render(c);
       const changed = body.runs.filter((r) => r.settings).map((r) => r.name);
       status.textContent = `Compared ${c.runs.length} re-runs${range ? ` from ${fmt(range[0], 2)} to ${fmt(range[1], 2)} s` : ""}`

@@ -1,8 +1,8 @@
 // Review notes: a note at the cursor's time or over a span of the trial, saved with it
-// (`/api/trials/{id}/annotations`), listed by time, deletable by whoever wrote it, and drawn on the plots
+// (`POST /api/trials/{id}/annotations`), listed by time, deletable by whoever wrote it, and drawn on the plots
 // as labelled markers (review_markers.js).
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { currentUser, fence, may } from "./auth.js";
 import { errorBox, fmt, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
 
@@ -64,7 +64,7 @@ export function notesCard(trialId, hooks) {
         disabled: !mine, title: mine ? "Delete this note" : `Only ${n.actor} may delete it` });
       const delError = errorBox("note-delete-error");
       del.addEventListener("click", () => runAction(del, delError, async () => {
-        await api("DELETE", `/api/trials/${trialId}/annotations/${n.id}`);
+        await api.deleteAnnotation(trialId, n.id);
         st.notes = st.notes.filter((x) => x.id !== n.id);
         changed();
       }));
@@ -94,7 +94,7 @@ export function notesCard(trialId, hooks) {
       if (tEnd <= t) throw new ValidationError("The span must end after it starts.");
       body.t_end = tEnd;
     }
-    const note = await api("POST", `/api/trials/${trialId}/annotations`, body);
+    const note = await api.addAnnotation(trialId, body);
     st.notes = [...st.notes, note].sort((a, b) => a.t - b.t || a.id - b.id);
     if (text.value.trim() === words) text.value = ""; // not what was typed meanwhile
     showError(error, null);
@@ -105,7 +105,7 @@ export function notesCard(trialId, hooks) {
     el,
     /** Loads the trial's notes (`GET .../annotations`). */
     async load() {
-      st.notes = await api("GET", `/api/trials/${trialId}/annotations`);
+      st.notes = await api.listAnnotations(trialId);
       changed();
     },
     notes: () => st.notes,

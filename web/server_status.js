@@ -5,6 +5,8 @@
 // whether it restarted (its `instance` changed) or the network only dropped. Every change is also sent
 // to the page as a `SERVER_EVENT` on `window` (`onServerChange`), so views can reconnect what they hold.
 
+import * as api from "./api_client.js";
+
 export const SERVER_EVENT = "gaitscope:server";
 export const HEALTH_EVERY_MS = 1000;
 export const HEALTH_TIMEOUT_MS = 4000;
@@ -30,7 +32,7 @@ async function checkHealth() {
   try {
     let resp;
     try {
-      resp = await fetch("/api/health", { cache: "no-store", signal: ctrl.signal, headers: { Accept: "application/json" } });
+      resp = await fetch(api.healthUrl(), { cache: "no-store", signal: ctrl.signal, headers: { Accept: "application/json" } });
     } catch {
       throw Object.assign(new Error(ctrl.signal.aborted
         ? `no answer within ${HEALTH_TIMEOUT_MS / 1000} s`

@@ -1,6 +1,6 @@
 // Sessions page (`#/`): sessions and trials, new subject, new session, and the upload form.
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { fence } from "./auth.js";
 import { mountUpload } from "./upload.js";
 import { errorBox, field, fmt, fmtUtc, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
@@ -47,7 +47,7 @@ export function mountSessions(root) {
   async function refresh(selectSubject) {
     try {
       const [subjects, sessions, trials] = await Promise.all([
-        api("GET", "/api/subjects"), api("GET", "/api/sessions"), api("GET", "/api/trials"),
+        api.listSubjects(), api.listSessions(), api.listTrials(),
       ]);
       if (!state.alive) return;
       showError(listError, null);
@@ -124,7 +124,7 @@ export function mountSessions(root) {
         mass_kg: readNumber(mass, { label: "Mass", min: MASS.min, max: MASS.max }),
         side: side.value,
       };
-      const subject = await api("POST", "/api/subjects", body);
+      const subject = await api.createSubject(body);
       subjectOk.textContent = `Subject ${subject.code} created (id ${subject.id}).`;
       code.value = "";
       await refresh(subject.id);
@@ -165,20 +165,19 @@ export function mountSessions(root) {
       const subjectId = Number(sessSubject.value);
       if (!subjectId) throw new ValidationError("Choose a subject (create one first).");
       const kind = sessionForm.querySelector("input[name=source-kind]:checked").value;
-      /** @type {{kind: string, [field: string]: unknown}} */
+      /** @type {import("./wire.js").SessionCreate["source"]} */
       let source;
       if (kind === "simulated") {
-        source = { kind };
         const rate = readNumber(simRate, { label: "Sample rate", min: SIM_RATE.min, max: SIM_RATE.max, optional: true });
-        if (rate !== null) source.rate_hz = rate;
+        source = rate === null ? { kind } : { kind, rate_hz: rate };
       } else if (kind === "replay") {
         const trialId = Number(replayTrial.value);
         if (!trialId) throw new ValidationError("Choose the trial to replay.");
         source = { kind, trial_id: trialId, speed: readNumber(replaySpeed, { label: "Speed", min: REPLAY_SPEED.min, max: REPLAY_SPEED.max }) };
       } else {
-        source = { kind };
+        source = { kind: "device" }; // the third radio
       }
-      const session = await api("POST", "/api/sessions", { subject_id: subjectId, source, start: true });
+      const session = await api.createSession({ subject_id: subjectId, source, start: true });
       location.hash = `#/sessions/${session.id}`;
     });
   });

@@ -5,7 +5,8 @@
 // subjects (fingerprint_plot.js), with the live online fingerprint (`fp_gf`) of a running session of theirs. The
 // "record a calibration walk now" flow is people_calibration_walk.js.
 
-import { api, ApiError, errorText, openSessionStream, query } from "./api.js";
+import { ApiError, errorText, openSessionStream } from "./api.js";
+import * as api from "./api_client.js";
 import { limitsCard } from "./assistance_limits.js";
 import { currentUser, fence, may, refusalReason } from "./auth.js";
 import { fingerprintScatter, gText } from "./fingerprint_plot.js";
@@ -38,7 +39,6 @@ export function mountSubject(root, subjectId) {
   const st = { subject: null, fps: null, fpsSig: null, sessions: [], trialsBySession: new Map(), trials: [], trialsSig: null,
     live: null, stream: null, streamSession: null, pending: null, plots: null, fitting: false, walking: false, comparing: false,
     alive: true };
-  const base = `/api/subjects/${subjectId}/fingerprints`;
   const code = () => (st.subject ? st.subject.code : `subject ${subjectId}`);
 
   // --- header ---------------------------------------------------------------------------------------
@@ -152,7 +152,7 @@ export function mountSubject(root, subjectId) {
       cell(6, {}, h("div", { class: "row-actions" }, compareBtn,
         v.state === "active" ? null : h("button", { type: "button", "data-testid": "promote", text: "Promote…", onclick: () => ask({ kind: "promote", v }),
           disabled: !may("promote"), title: may("promote") ? null : refusalReason("promote") }),
-        h("a", { class: "button", "data-testid": "export", href: `${base}/${v.id}/export`, download: `${code()}-fingerprint-v${v.version}.json`,
+        h("a", { class: "button", "data-testid": "export", href: api.exportFingerprintUrl(subjectId, v.id), download: `${code()}-fingerprint-v${v.version}.json`,
           text: "Export" }))));
   }
 
@@ -216,7 +216,7 @@ export function mountSubject(root, subjectId) {
 
   // --- loading --------------------------------------------------------------------------------------------
   async function loadModels() {
-    const fps = await api("GET", base);
+    const fps = await api.listFingerprints(subjectId);
     if (!st.alive) return;
     const sig = JSON.stringify(fps);
     if (sig === st.fpsSig) return;
@@ -228,10 +228,10 @@ export function mountSubject(root, subjectId) {
 
   // Trials change only while their session runs, or when it stops: only those sessions' are listed again.
   async function loadTrials() {
-    const sessions = await api("GET", `/api/sessions${query({ subject_id: subjectId })}`);
+    const sessions = await api.listSessions({ subject_id: subjectId });
     const before = new Map(st.sessions.map((s) => [s.id, s.state]));
     const stale = sessions.filter((s) => s.state === "running" || before.get(s.id) !== s.state);
-    const lists = await Promise.all(stale.map((s) => api("GET", `/api/trials${query({ session_id: s.id })}`)));
+    const lists = await Promise.all(stale.map((s) => api.listTrials({ session_id: s.id })));
     if (!st.alive) return;
     stale.forEach((s, i) => st.trialsBySession.set(s.id, lists[i]));
     st.sessions = sessions;
@@ -307,7 +307,7 @@ export function mountSubject(root, subjectId) {
     syncCalibrate();
     await runAction(calBtn, calError, async () => {
       if (!trialId) throw new ValidationError("Choose the walk to calibrate from.");
-      const p = await api("POST", base, { trial_id: trialId, model: st.fps ? st.fps.model : "default", note: calNote.value.trim() });
+      const p = await api.calibrateFingerprint(subjectId, { trial_id: trialId, model: st.fps ? st.fps.model : "default", note: calNote.value.trim() });
       if (!st.alive) return;
       calNote.value = "";
       const left = p.strides_excluded ? ` (${excludedText(p)})` : "";
@@ -374,8 +374,8 @@ export function mountSubject(root, subjectId) {
     await runAction(cmpBtn, cmpError, async () => {
       const tid = trialId || v.source_trial_id;
       if (!tid) throw new ValidationError(`v${v.version} was imported: it has no calibration walk here. Choose a walk to re-run.`);
-      const res = await api("POST", `/api/trials/${tid}/rerun${query({ max_points: RERUN_POINTS })}`,
-        { estimators: ["fp_avg", "fp_ls"], personalization_id: v.id });
+      const res = await api.rerun(tid, { estimators: ["fp_avg", "fp_ls"], personalization_id: v.id },
+        { max_points: RERUN_POINTS });
       if (!st.alive) return;
       if (!res.t || !res.t.length) throw new ValidationError(`The re-run of trial ${tid} produced no samples (it holds no sensor frames).`);
       drawCompare(v, res);
@@ -443,12 +443,12 @@ export function mountSubject(root, subjectId) {
     runAction(confirmBtn, changeError, async () => {
       const body = { reason: why };
       if (what.kind === "promote") {
-        const p = await api("POST", `${base}/${what.v.id}/promote`, body);
+        const p = await api.promoteFingerprint(subjectId, what.v.id, body);
         status.textContent = `v${p.version} promoted by ${p.promoted_by}${said}: it is ${code()}'s model now.`;
       } else {
         const old = st.fps.active;
         if (!old) throw new ValidationError("Nothing to roll back: no personalized model is active (changed on another screen?).");
-        const fps = await api("POST", `${base}/rollback${query({ model: st.fps.model })}`, body);
+        const fps = await api.rollbackFingerprint(subjectId, body, { model: st.fps.model });
         status.textContent = `v${old.version} rolled back by ${currentUser().name}${said}: `
           + `${fps.active ? `v${fps.active.version} is in use again` : "the average model is in use again"}.`;
       }
@@ -467,7 +467,7 @@ export function mountSubject(root, subjectId) {
     } catch {
       throw new ValidationError(`${f.name} is not a personalization file (it is not JSON).`);
     }
-    const p = await api("POST", `${base}/import`, data);
+    const p = await api.importFingerprint(subjectId, data);
     importFile.value = "";
     status.textContent = `Imported as candidate v${p.version} (${gText(p.fingerprint)}). Compare it on a walk of ${code()} before promoting it.`;
     await loadModels();
@@ -475,7 +475,7 @@ export function mountSubject(root, subjectId) {
 
   // --- start --------------------------------------------------------------------------------------------------
   renderLive();
-  api("GET", `/api/subjects/${subjectId}`).then((s) => {
+  api.getSubject(subjectId).then((s) => {
     if (!st.alive) return;
     st.subject = s;
     title.textContent = `Subject ${s.code}`;

@@ -2,7 +2,7 @@
 // durations, states) and links to a session's summary, its live view and each trial's review. Trial names are
 // unique within a session (the server refuses a second trial of the same name).
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { fmtDuration, plural, sessionSeconds, SOURCE_WORDS, STATE_WORDS, TRIAL_WORDS } from "./people_format.js";
 import { errorBox, field, fmtUtc, h, showError } from "./ui.js";
 
@@ -99,7 +99,7 @@ export function mountSubjects(root) {
 
   async function refresh() {
     try {
-      const [subjects, sessions, trials] = await Promise.all([api("GET", "/api/subjects"), api("GET", "/api/sessions"), api("GET", "/api/trials")]);
+      const [subjects, sessions, trials] = await Promise.all([api.listSubjects(), api.listSessions(), api.listTrials()]);
       if (!st.alive) return;
       showError(error, null);
       const sig = JSON.stringify([subjects, sessions, trials]);

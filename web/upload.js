@@ -2,7 +2,8 @@
 // A refusal is shown in the user's terms (which file, row and column, what is wrong); a recording that was never
 // finished (cut off by a crash) is refused as recoverable, and a button sends it again to be recovered.
 
-import { api, ApiError, authFetch, describeDetail, putChunk } from "./api.js";
+import { ApiError, authFetch, describeDetail } from "./api.js";
+import * as api from "./api_client.js";
 import { fence } from "./auth.js";
 import { errorBox, field, h, runAction, showError, ValidationError } from "./ui.js";
 
@@ -15,7 +16,7 @@ const _sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 async function _putWithRetry(id, offset, blob) {
   for (let attempt = 1; ; attempt++) {
     try {
-      return await putChunk(id, offset, blob);
+      return await api.uploadChunk(id, blob, { offset });
     } catch (err) {
       const retriable = !(err instanceof ApiError) || err.status >= 500;
       if (!retriable || attempt >= RETRIES) throw err;
@@ -39,7 +40,7 @@ export function refusalText(detail) {
 
 /** `POST /api/uploads/{id}/finish`: the Trial, or an ApiError with `recoverable` set from the server's header. */
 async function _finish(id, recover) {
-  const resp = await authFetch(`/api/uploads/${encodeURIComponent(id)}/finish${recover ? "?recover=true" : ""}`,
+  const resp = await authFetch(api.finishUploadUrl(id, recover ? { recover: true } : {}),
     { method: "POST", headers: { Accept: "application/json" } });
   if (resp.ok) return resp.json();
   let detail = resp.statusText;
@@ -84,7 +85,7 @@ export function mountUpload(subjectSelect) {
   async function send(f, subjectId, recover) {
     progress.value = 0;
     progressText.textContent = recover ? "sending it again to recover it…" : "starting…";
-    const up = await api("POST", "/api/uploads", { filename: f.name, size: f.size, subject_id: subjectId });
+    const up = await api.createUpload({ filename: f.name, size: f.size, subject_id: subjectId });
     activeId = up.id;
     let offset = up.received || 0;
     const chunk = Math.max(1, up.chunk_size);
@@ -104,7 +105,7 @@ export function mountUpload(subjectSelect) {
     } catch (err) {
       progressText.textContent = "not stored";
       // A half-sent upload is deleted so it holds no space on the server.
-      if (activeId) api("DELETE", `/api/uploads/${encodeURIComponent(activeId)}`).catch(() => {});
+      if (activeId) api.cancelUpload(activeId).catch(() => {});
       activeId = null;
       if (err.recoverable && !recover) {
         pending = { file: f, subjectId };

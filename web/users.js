@@ -4,7 +4,7 @@
 // changes, it is disabled or its password reset, refuses to demote or disable the last admin (409), and its
 // refusals are shown next to the row in its own words.
 
-import { api } from "./api.js";
+import * as api from "./api_client.js";
 import { currentUser, fence } from "./auth.js";
 import { errorBox, field, fmtUtc, h, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
@@ -63,7 +63,7 @@ export function mountUsers(root) {
     runAction(add, addError, async () => {
       const n = name.value.trim();
       if (!NAME_RULE.test(n)) throw new ValidationError("The name must be 2 to 32 characters, lower case, starting with a letter (letters, digits, _ . -).");
-      const u = await api("POST", "/api/users", { name: n, role: role.value, password: checkPassword(password.value) });
+      const u = await api.addUser({ name: n, role: role.value, password: checkPassword(password.value) });
       name.value = "";
       password.value = "";
       addOk.textContent = `Added ${u.role} ${u.name}.`;
@@ -78,7 +78,7 @@ export function mountUsers(root) {
     const ok = h("span", { class: "ok", role: "status", "data-testid": "user-row-ok" });
     // the row is drawn anew from the server's answer (load) once the change is made
     const change = (btn, body) => runAction(btn, error, async () => {
-      await api("PATCH", `/api/users/${encodeURIComponent(u.name)}`, body);
+      await api.changeUser(u.name, body);
       await load();
     });
     const roleSel = h("select", { "data-testid": "user-role", "aria-label": `Role of ${u.name}` },
@@ -101,7 +101,7 @@ export function mountUsers(root) {
       maxlength: PASSWORD_MAX, placeholder: "new password", "aria-label": `New password for ${u.name}` });
     const pwBtn = h("button", { type: "button", class: "small", "data-testid": "user-reset-apply", text: "Set password" });
     pwBtn.addEventListener("click", () => runAction(pwBtn, error, async () => {
-      await api("PATCH", `/api/users/${encodeURIComponent(u.name)}`, { password: checkPassword(pw.value), unlock: true });
+      await api.changeUser(u.name, { password: checkPassword(pw.value), unlock: true });
       pw.value = "";
       ok.textContent = `New password set for ${u.name}; their logins ended.`;
     }));
@@ -117,7 +117,7 @@ export function mountUsers(root) {
 
   async function load() {
     try {
-      const users = await api("GET", "/api/users");
+      const users = await api.listUsers();
       rows.replaceChildren(...users.map(row));
       showError(listError, null);
     } catch (err) {

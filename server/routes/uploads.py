@@ -354,7 +354,17 @@ async def create_upload(body: schema.UploadCreate, c: Ctx, who: Uploader) -> sch
     return c.uploads.create(body)
 
 
-@router.put("/uploads/{upload_id}", dependencies=[allow("upload")])
+# The body is the chunk's raw bytes (read from the request stream, so FastAPI cannot see it): stated for the
+# OpenAPI document, and so for the browser's generated client (web/api_client.js).
+_RAW_BODY: Final = {
+    "requestBody": {
+        "required": True,
+        "content": {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}},
+    }
+}
+
+
+@router.put("/uploads/{upload_id}", dependencies=[allow("upload")], openapi_extra=_RAW_BODY)
 async def upload_chunk(
     upload_id: str, request: Request, c: Ctx, offset: Annotated[int, Query(ge=0, le=schema.INT64_MAX)]
 ) -> schema.Upload:

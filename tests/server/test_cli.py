@@ -106,7 +106,7 @@ def test_pipeline_bounds_are_the_dashboards(capsys) -> None:
 
 
 def test_loadbench_and_wire_commands_are_there(capsys) -> None:
-    for command in ("loadbench", "wire"):
+    for command in ("loadbench", "wire", "api-client"):
         with pytest.raises(SystemExit) as done:
             main([command, "--help"])
         assert done.value.code == 0
