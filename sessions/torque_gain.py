@@ -31,7 +31,7 @@ from gaitscope.sessions.schema import SETTING_LIMITS, SessionSettings
 if TYPE_CHECKING:
     from gaitscope.sessions.stack import EstimatorStack
 
-__all__ = ["TorqueGain"]
+__all__ = ["TorqueGain", "safe_torque"]
 
 _GAIN_RATE = SETTING_LIMITS["torque_gain"][2]
 _BOUND_RATE = SETTING_LIMITS["max_torque_Nm"][2]
@@ -59,6 +59,15 @@ class TorqueGain:
         self.ramping = soft_start
         self._t0 = 0.0
         self.boost = IntentBoost(stack.names, stack.outputs)
+
+    def soft_start_text(self) -> str | None:
+        """What the soft start will do, for the session's log (None: no soft start, or nothing to ramp)."""
+        s = self.settings
+        ramp = max(s.torque_gain / _GAIN_RATE, s.max_torque_Nm / _BOUND_RATE)
+        if not (self.soft_start and ramp > 0):
+            return None
+        return (f"soft start: assistance ramps up to gain {s.torque_gain:g} and {s.max_torque_Nm:g} N m "
+                f"over the first {ramp:.1f} s")  # fmt: skip
 
     def set(self, settings: SessionSettings, t: float) -> None:
         """The clinician's settings from session time ``t`` on (a running ramp still caps them)."""
@@ -109,3 +118,11 @@ class TorqueGain:
         self._stack.retune_torque(gain, bound)
         if gain >= s.torque_gain and bound >= s.max_torque_Nm:
             self.ramping = False
+
+
+def safe_torque(value: float, bound: float) -> float:
+    """``value`` clamped to ``[0, bound]``; 0 when it (or the bound) is not a finite number. Never -0.0 (a zero
+    torque times a negative profile, at the soft start's first sample): ``+ 0.0`` makes it +0.0."""
+    if not (math.isfinite(value) and math.isfinite(bound)):
+        return 0.0
+    return min(max(value, 0.0), max(bound, 0.0)) + 0.0

@@ -112,7 +112,7 @@ def _announce(c: Ctx, subject_id: int, text: str, actor: str) -> None:
     """An event in the log of every running session of the subject (a promotion reaches them live)."""
     for runtime in c.manager.running():
         if runtime.session.subject_id == subject_id:
-            runtime.personalization_changed(text, actor)
+            runtime.personalization.changed(text, actor)
 
 
 @router.post("/subjects/{subject_id}/fingerprints/{personalization_id}/promote")

@@ -55,4 +55,5 @@ async def control_gp_learning(
     if failed is not None:
         raise HTTPException(409, f"session {session_id}'s GP-EKF has failed ({failed}); it learns no more")
     await audited(c, who, "gp_learning.control", f"session {session_id}", after=body.model_dump(exclude={"actor"}))
-    return runtime.gp_control(by(body, who))
+    assert runtime.learning is not None  # _running checked
+    return runtime.learning.control(by(body, who))

@@ -23,17 +23,17 @@ async def start_imu_calibration(
     if runtime is None:
         c.store.get_session(session_id)
         raise HTTPException(409, not_running_here(c, session_id, "; IMUs calibrate only while it runs"))
-    if not runtime.imu_segments:
+    if not runtime.imu_calibration.segments:
         raise HTTPException(
             409,
             f"session {session_id} has no IMU to calibrate: its stack runs no IMU front end (imu_foot, imu_shank, "
             "...), as its source sends no raw IMU channels",
         )
-    if runtime.imu_collector is not None:
+    if runtime.imu_calibration.collector is not None:
         raise HTTPException(409, f"session {session_id} is calibrating its IMUs already; wait for it to finish")
     request = by(body or schema.ImuCalibrationRequest(), who)
     await audited(c, who, "imu_calibration.start", f"session {session_id}", after=request.model_dump(exclude={"actor"}))
-    return runtime.calibrate_imus(request)
+    return runtime.imu_calibration.calibrate(request)
 
 
 @router.get("/sessions/{session_id}/imu-calibration", dependencies=[allow("read")])
@@ -42,7 +42,7 @@ def imu_calibration(session_id: Id, c: Ctx) -> schema.ImuCalibrationStatus:
     outcome), and what its front ends run; a session not running: idle, with its latest stored one."""
     runtime = c.manager.get(session_id)
     if runtime is not None:
-        return runtime.imu_status()
+        return runtime.imu_calibration.status()
     stored = c.store.list_imu_calibrations(session_id=session_id)
     last = stored[0] if stored else None
     return schema.ImuCalibrationStatus(

@@ -353,8 +353,8 @@ class _Ingest:
             await self._notice(frame)
             return (POLICY, f"{self.bad} malformed frames in a row") if self.bad >= MAX_BAD_FRAMES else None
         self.bad = 0
-        if runtime.saving_settings:  # its settings change is being stored: it applies first (the others go on)
-            await runtime.settings_applied()
+        if runtime.settings_changes.saving:  # its settings change is being stored: it applies first (the others go on)
+            await runtime.settings_changes.applied()
         try:
             runtime.process(frame, recv)
         except FrameRefused as e:

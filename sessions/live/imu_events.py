@@ -39,8 +39,10 @@ from numpy.typing import NDArray
 
 from gaitscope.estimators.imu_frontend import CODES, ImuFrontEnd
 from gaitscope.estimators.protocol import MAX_GAP_S
+from gaitscope.sessions import schema
+from gaitscope.sessions.live.extensions import Outputs, SessionExtension, SessionHost
 
-__all__ = ["ONSET_S", "PROBLEMS", "SEVERITY", "WINDOW_S", "ImuEvent", "ImuWatch", "Problem"]
+__all__ = ["ONSET_S", "PROBLEMS", "SEVERITY", "WINDOW_S", "ImuEvent", "ImuEvents", "ImuWatch", "Problem"]
 
 #: A problem covering this much of the last ``window_s`` of session time starts an episode (s).
 ONSET_S: Final = 0.3
@@ -242,6 +244,25 @@ class ImuWatch:
         if more:
             note += f" (and {more} more IMU problem{'s' if more > 1 else ''})"
         return "fault", note
+
+class ImuEvents(SessionExtension):
+    """The session extension: the episodes of the stack's front ends as system events (stored without making
+    the sample wait), and data health's IMU line (``imu``, ``imu_note``)."""
+
+    def __init__(self, host: SessionHost):
+        self.host = host
+        stack = host.estimator.stack
+        self.watch = ImuWatch(stack.estimators, stack.outputs, host.subject.side)
+
+    def on_sample(self, state: schema.GaitState, outputs: Outputs) -> None:
+        if self.watch.active:
+            for imu in self.watch.update(state.t, outputs):
+                self.host.event_soon("system", imu.text, field=imu.field, before=imu.before, after=imu.after)
+
+    def health(self) -> dict[str, object]:
+        imu, note = self.watch.health()
+        return {"imu": imu, "imu_note": note}
+
 
 
 def _ended(s: _Sensor, code: int, lasted_s: float) -> str:

@@ -21,7 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["INTENT", "IntentOnset", "IntentOnsets"]
+from gaitscope.sessions import schema
+from gaitscope.sessions.live.extensions import Outputs, SessionExtension, SessionHost
+
+__all__ = ["INTENT", "IntentEvents", "IntentOnset", "IntentOnsets"]
 
 #: The registry name of the speed-change intent estimator.
 INTENT = "intent"
@@ -89,3 +92,23 @@ class IntentOnsets:
         if code not in (1.0, -1.0):
             return None  # back to steady (or not a class): no event
         return IntentOnset(int(code), float(y[d]), float(y[i]), float(y[s]))
+
+
+class IntentEvents(SessionExtension):
+    """The session extension: each onset an ``intent`` event (field ``desired_speed_m_s``), stored without
+    making the sample wait. Only for a stack that runs the intent estimator (:meth:`of`)."""
+
+    def __init__(self, host: SessionHost, onsets: IntentOnsets):
+        self.host = host
+        self.onsets = onsets
+
+    @classmethod
+    def of(cls, host: SessionHost) -> IntentEvents | None:
+        onsets = IntentOnsets(host.estimator.stack.names, host.estimator.stack.outputs)
+        return cls(host, onsets) if onsets.active else None
+
+    def on_sample(self, state: schema.GaitState, outputs: Outputs) -> None:
+        onset = self.onsets.update(outputs)
+        if onset is not None:
+            before, after = round(onset.desired_before_m_s, 3), round(onset.desired_m_s, 3)
+            self.host.event_soon("intent", onset.text, field="desired_speed_m_s", before=before, after=after)

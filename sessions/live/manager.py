@@ -18,9 +18,10 @@ from gaitscope.sessions.errors import DataFormatError, DiskFull, disk_full, is_d
 from gaitscope.sessions.formats.mcap_io import recover
 from gaitscope.sessions.formats.models import default_model_path, load_model
 from gaitscope.sessions.live.gp_learning import GPTrainer
-from gaitscope.sessions.live.runtime import DiskState, SessionRuntime, count_states
+from gaitscope.sessions.live.runtime import DiskState, SessionRuntime
 from gaitscope.sessions.live.sources import FrameSource, LiveDevice, ReplayDevice, SimulatedDevice
 from gaitscope.sessions.live.subscribers import attach_history
+from gaitscope.sessions.live.trials import count_states
 from gaitscope.sessions.store import Store
 from gaitscope.sessions.store_writer import StoreWriter
 

@@ -18,6 +18,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from mcap.reader import make_reader
@@ -569,16 +570,22 @@ def test_a_chunk_reaches_the_os_every_flush_interval_of_session_time(tmp_path: P
         assert rec.saved_t == 1.0
 
 
-def test_a_chunk_reaches_the_os_after_flush_interval_of_wall_time(tmp_path: Path) -> None:
+def test_a_chunk_reaches_the_os_after_flush_interval_of_wall_time(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     # Messages at one session time (events after the source stopped): the wall clock closes the chunk.
+    now = [1000.0]  # the recorder's monotonic clock, moved by the test
+    monkeypatch.setattr(recording, "time", SimpleNamespace(monotonic=lambda: now[0]))
     path = tmp_path / "t.mcap"
     with Recorder(path, START_NS, {}, flush_interval_s=0.2) as rec:
         for i in range(5):
             rec.write("/gait_state", 3.0, state(i))
-        assert "/gait_state" not in on_disk(path, tmp_path)
-        time.sleep(0.25)
+        now[0] += 0.19
         rec.write("/gait_state", 3.0, state(5))
-        assert on_disk(path, tmp_path)["/gait_state"] == [state(i).t for i in range(6)]  # their own t
+        assert "/gait_state" not in on_disk(path, tmp_path)  # open 0.19 s: still in memory
+        now[0] += 0.02
+        rec.write("/gait_state", 3.0, state(6))
+        assert on_disk(path, tmp_path)["/gait_state"] == [state(i).t for i in range(7)]  # their own t
         assert rec.saved_t == 3.0  # the session time they were logged at
 
 

@@ -53,13 +53,12 @@ def test_one_fit_at_a_time_then_a_pause_that_keeps_the_worker_within_its_duty(
         trainer.shutdown()
 
 
-def _wait_done(trainer: gl.GPTrainer, session: object) -> bool:
-    """``may_submit(session)`` once the last fit's done-callback (the pool's thread) has run."""
-    for _ in range(200):
-        if trainer.may_submit(session):
-            return True
-        time.sleep(0.01)
-    return False
+def _finished(fit: Any) -> None:
+    """Wait until ``fit`` is done and the trainer's own done-callback (registered when it was submitted, so run
+    before this one, in the thread that finished it) has counted it: no sleep, no race."""
+    seen = threading.Event()
+    fit.add_done_callback(lambda _: seen.set())
+    assert seen.wait(10), "the fit never finished"
 
 
 def test_the_session_that_asked_first_goes_first_and_one_that_stopped_asking_loses_its_place(
@@ -75,20 +74,19 @@ def test_the_session_that_asked_first_goes_first_and_one_that_stopped_asking_los
         clock[0] += 0.1
         assert not trainer.may_submit(b)
         go.set()
-        fit.result(10)
-        time.sleep(0.05)
+        _finished(fit)
         assert not trainer.may_submit(b)  # c asked before b
-        assert _wait_done(trainer, c)
-        trainer.submit("window c").result(10)  # type: ignore[arg-type]
-        assert _wait_done(trainer, b)  # then b
+        assert trainer.may_submit(c)
+        fit = trainer.submit("window c")  # type: ignore[arg-type]
+        _finished(fit)
+        assert trainer.may_submit(b)  # then b
         go.clear()
         fit = trainer.submit("window b")  # type: ignore[arg-type]
         assert not trainer.may_submit(a)  # a asks during b's fit, then goes quiet (stopped, or frozen)
         clock[0] += 0.5
         assert not trainer.may_submit(c)
         go.set()
-        fit.result(10)
-        time.sleep(0.05)
+        _finished(fit)
         assert not trainer.may_submit(c)  # a asked 0.5 s ago: its turn
         clock[0] += 0.6
         assert trainer.may_submit(c)  # a has not asked for 1.1 s: c's turn

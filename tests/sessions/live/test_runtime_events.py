@@ -8,6 +8,7 @@ import asyncio
 import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 from fastapi.testclient import TestClient
@@ -101,15 +102,22 @@ def test_intent_events_wait_for_no_database_write_and_are_stored_sent_and_record
 
 def test_a_settings_change_is_stored_before_it_is_applied_and_after_the_events_before_it(client: TestClient) -> None:
     writer = StoreWriter()
-    runtime = _runtime(client, writer)
+    now = [0.0]
+    runtime = _runtime(client, writer, clock=lambda: now[0])
     ctx = client.app.state.ctx  # type: ignore[attr-defined]
     sid = runtime.session.id
-    writer.submit(lambda: time.sleep(0.2), "a slow write queued first")
-    session = runtime.change_settings(schema.SettingsChange(torque_gain=0.9, actor="ann"))
+    gate = threading.Event()
+    writer.submit(lambda: gate.wait(20), "a slow write queued first")
+    with ThreadPoolExecutor(1) as route:  # a sync route's thread, waiting for the writer
+        changing = route.submit(runtime.change_settings, schema.SettingsChange(torque_gain=0.9, actor="ann"))
+        assert runtime.settings.torque_gain == 1.0 == ctx.store.get_session(sid).settings.torque_gain
+        gate.set()
+        session = changing.result(20)
     assert session.settings.torque_gain == 0.9 == ctx.store.get_session(sid).settings.torque_gain
     assert runtime.estimator.settings.torque_gain == 0.9
     # a database that refuses the write: nothing applied
     writer.close()
+    now[0] += 0.2  # past the rate limit of a 0.1 step
     try:
         runtime.change_settings(schema.SettingsChange(torque_gain=1.0, actor="ann"))
     except ChangeNotSaved as e:
@@ -121,7 +129,7 @@ def test_a_settings_change_is_stored_before_it_is_applied_and_after_the_events_b
 
 def test_an_awaited_settings_change_holds_its_session_until_applied_and_no_other(client: TestClient) -> None:
     """The settings route awaits the writer: the loop and the other sessions go on; the session changed waits
-    (:meth:`SessionRuntime.settings_applied`), so the change applies at the sample its event names."""
+    (``SettingsChanges.applied``), so the change applies at the sample its event names."""
     writer = StoreWriter()
     gate = threading.Event()
     sensors, _, _ = sensor_trial([(1.0, 0.0, 3)], rate_hz=100.0)
@@ -135,7 +143,7 @@ def test_an_awaited_settings_change_holds_its_session_until_applied_and_no_other
         writer.submit(lambda: gate.wait(20), "a slow database")
         change = asyncio.create_task(changed.change_settings_async(schema.SettingsChange(torque_gain=0.9, actor="a")))
         await asyncio.sleep(0)
-        held = asyncio.create_task(changed.settings_applied())
+        held = asyncio.create_task(changed.settings_changes.applied())
         for frame in frames[:100]:  # the loop is free: another session's samples go on
             other.process(frame, time.time_ns())
             await asyncio.sleep(0)

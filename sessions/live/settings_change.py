@@ -1,0 +1,255 @@
+"""A clinician's settings change in a running session: checked, stored, and only then applied.
+
+A change is checked against the settings in effect (bounds by the schema, rates of change by
+:data:`~gaitscope.sessions.schema.SETTING_LIMITS`, a switch of the primary at most once per
+:data:`~gaitscope.sessions.schema.PRIMARY_SWITCH_INTERVAL_S`), stored with its events in one transaction by the
+database writer, and applied only then (the estimator retuned, the settings and events recorded and sent), so
+that what runs is always what the database and the rate limits say. While it is being stored the session's
+samples wait for it (:meth:`SettingsChanges.applied`), so that it applies at the sample its events name.
+The times of the rate limits are the session's injected clock.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import functools
+import logging
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from gaitscope.sessions import schema
+from gaitscope.sessions.live.extensions import describe
+from gaitscope.sessions.schema import SessionSettings, SettingsChange
+from gaitscope.sessions.store_writer import Write
+
+if TYPE_CHECKING:
+    from gaitscope.sessions.live.runtime import SessionRuntime
+
+__all__ = ["ChangeNotSaved", "SettingRejected", "SettingsChanges"]
+
+log = logging.getLogger("gaitscope")
+
+_Stored = tuple[schema.Session, list[schema.Event]]
+
+
+class SettingRejected(ValueError):
+    """A settings change that breaks a rate-of-change limit; the message says which and why."""
+
+
+class ChangeNotSaved(RuntimeError):
+    """A change that could not be stored, and so was not applied; the message says why."""
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """A checked settings change waiting to be stored: the new settings, the fields that change, their
+    events (``Store.add_event`` arguments), the session time and the clock's time of the change."""
+
+    new: SessionSettings
+    fields: list[str]
+    events: list[dict[str, Any]]
+    t: float
+    now: float
+
+
+class SettingsChanges:
+    """The settings changes of one session (see the module docstring).
+
+    Attributes:
+        saving: a change is being stored: the session's samples wait for it, another change is refused.
+    """
+
+    def __init__(self, runtime: SessionRuntime):
+        self.rt = runtime
+        self.saving = False
+        self._last_change: dict[str, float] = {}
+        self._applied = asyncio.Event()
+
+    def change(self, change: SettingsChange) -> schema.Session:
+        """Check, store (this thread waits for the writer) and apply ``change``.
+
+        Raises:
+            SettingRejected: a rate-of-change limit, or another change still being stored; nothing changed.
+            ChangeNotSaved: the database refused the write; nothing changed.
+        """
+        begun = self._begin(change, notify=False)
+        if begun is None:
+            return self.rt.session
+        plan, write = begun
+        try:
+            stored: _Stored | Exception = write.result()
+        except Exception as e:
+            stored = e
+        return self._finish(plan, stored, notify=False)
+
+    async def change_async(self, change: SettingsChange) -> schema.Session:
+        """:meth:`change` for a coroutine on the session's loop: the samples of the other sessions go on while
+        the writer stores the change. A caller cancelled meanwhile does not undo it: the change, stored, is
+        applied when the write completes.
+
+        Raises: as :meth:`change`.
+        """
+        begun = self._begin(change, notify=True)
+        if begun is None:
+            return self.rt.session
+        plan, write = begun
+        future = write.future
+        assert future is not None  # submitted from this loop
+        try:
+            stored: _Stored | Exception = await asyncio.shield(future)
+        except asyncio.CancelledError:
+            future.add_done_callback(lambda f: self._stored_late(plan, f))
+            raise
+        except Exception as e:
+            stored = e
+        return self._finish(plan, stored, notify=True)
+
+    async def applied(self) -> None:
+        """Wait until the settings change being stored is applied (or refused)."""
+        while self.saving:
+            await self._applied.wait()
+
+    def _begin(self, change: SettingsChange, notify: bool) -> tuple[_Plan, Write[_Stored]] | None:
+        """Check the change and submit its write (None: nothing changes); the session is then saving.
+        ``notify``: the loop's samples wait on :meth:`applied` (a coroutine's change)."""
+        plan = self._plan(change)
+        if plan is None:
+            return None
+        rt = self.rt
+        write = functools.partial(
+            rt.store.change_settings, rt.session.id, plan.new, plan.events, trial_id=rt.trial.id if rt.trial else None
+        )
+        try:
+            submitted = rt.writer.submit(write, f"session {rt.session.id}: settings change")
+        except Exception as e:  # the writer is closed
+            raise self._not_saved(e) from e
+        self.saving = True
+        if notify:
+            self._applied.clear()
+        return plan, submitted
+
+    def _finish(self, plan: _Plan, stored: _Stored | Exception, notify: bool) -> schema.Session:
+        """The write is done: the events stored before it are recorded and sent first, then the change is
+        applied if it was stored; the session's samples go on."""
+        try:
+            self.rt.settle_events()
+            if isinstance(stored, Exception):
+                raise self._not_saved(stored) from stored
+            return self._apply(plan, stored)
+        finally:
+            self._done(notify)
+
+    def _not_saved(self, e: Exception) -> ChangeNotSaved:
+        log.error("session %d: settings change not saved: %s", self.rt.session.id, e)
+        return ChangeNotSaved(f"the change could not be saved ({describe(e)}), so it was not applied")
+
+    def _stored_late(self, plan: _Plan, future: asyncio.Future[Any]) -> None:
+        """A change whose caller was cancelled while it was being stored: applied if it was stored."""
+        try:
+            self.rt.settle_events()
+            if not future.cancelled() and future.exception() is None:
+                self._apply(plan, future.result())
+        finally:
+            self._done(notify=True)
+
+    def _done(self, notify: bool) -> None:
+        self.saving = False
+        if notify:
+            self._applied.set()
+
+    def _apply(self, plan: _Plan, stored: _Stored) -> schema.Session:
+        """Apply a stored change: the estimator retuned, the settings and their events recorded and sent."""
+        rt = self.rt
+        session, events = stored
+        rt.session = session
+        rt.estimator.retune(plan.new)
+        for name in plan.fields:
+            self._last_change[name] = plan.now
+
+        def write(recorder: Any) -> None:
+            recorder.write("/settings", plan.t, plan.new)
+            for event in events:
+                recorder.write_event(event)
+
+        rt.write_recording(write)
+        rt.broadcast(schema.SettingsMessage(session_id=session.id, settings=plan.new))
+        for event in events:
+            rt.broadcast(schema.EventMessage(event=event))
+        return session
+
+    def _plan(self, change: SettingsChange) -> _Plan | None:
+        """The new settings and their events, checked against the limits (None: nothing changes).
+
+        Raises:
+            SettingRejected: why not; nothing changed.
+        """
+        if self.saving:
+            raise SettingRejected("another settings change is being saved; try again in a moment")
+        current = self.rt.session.settings
+        updates = {
+            k: v
+            for k, v in change.model_dump(exclude={"actor", "reason"}).items()
+            if v is not None and v != getattr(current, k)
+        }
+        now = self.rt.clock()
+        for name, value in updates.items():
+            if name == "primary":
+                self._check_primary(value, now)
+                continue
+            _, _, per_second = schema.SETTING_LIMITS[name]
+            step = abs(value - getattr(current, name))
+            if step > per_second + 1e-12:
+                raise SettingRejected(
+                    f"{name} may change by at most {per_second:g} per step and per second; "
+                    f"{getattr(current, name):g} -> {value:g} is a step of {step:g}"
+                )
+            last = self._last_change.get(name)
+            if last is not None and now - last < step / per_second:
+                wait = step / per_second - (now - last)
+                raise SettingRejected(
+                    f"{name} changed {now - last:.2f} s ago; a step of {step:g} needs "
+                    f"{step / per_second:.2f} s between changes (try again in {wait:.2f} s)"
+                )
+        if not updates:
+            return None
+        new = current.model_copy(update=updates)
+        t, reason = self.rt.estimator.last_t, change.reason
+        events = [
+            {
+                "t": t,
+                "kind": "setting",
+                "text": f"{name} {_shown(getattr(current, name))} -> {_shown(value)}"
+                + (f", the torque blends over {self.rt.estimator.stack.blend_s:g} s" if name == "primary" else "")
+                + (f" ({reason})" if reason else ""),
+                "field": name,
+                "before": getattr(current, name),
+                "after": value,
+                "actor": change.actor,
+            }
+            for name, value in updates.items()
+        ]
+        return _Plan(new, list(updates), events, t, now)
+
+    def _check_primary(self, name: str, now: float) -> None:
+        """A switch of the primary: to an estimator of the stack that estimates a phase and has not failed,
+        at most once per ``PRIMARY_SWITCH_INTERVAL_S``.
+
+        Raises:
+            SettingRejected: why not; nothing changed.
+        """
+        try:
+            self.rt.estimator.stack.check_primary(name)
+        except ValueError as e:
+            raise SettingRejected(f"primary {name}: {e}") from e
+        last = self._last_change.get("primary")
+        interval = schema.PRIMARY_SWITCH_INTERVAL_S
+        if last is not None and now - last < interval:
+            raise SettingRejected(
+                f"primary changed {now - last:.2f} s ago; switches are at least {interval:g} s apart "
+                f"(try again in {interval - (now - last):.2f} s)"
+            )
+
+
+def _shown(value: object) -> str:
+    """A setting's value in an event's text: numbers as ``%g``."""
+    return f"{value:g}" if isinstance(value, float) else str(value)
