@@ -61,7 +61,8 @@ def test_the_wheel_holds_gaitscope_alone_with_its_data_and_browser_files(wheel: 
     ):
         assert needed in names, needed
     shipped_data = {Path(n).name for n in names if n.startswith("gaitscope/sessions/data/")}
-    assert shipped_data == {p.name for p in (ROOT / "sessions" / "data").iterdir() if p.suffix in (".csv", ".json", ".npz")}
+    data = ROOT / "sessions" / "data"
+    assert shipped_data == {p.name for p in data.iterdir() if p.suffix in (".csv", ".json", ".npz")}
     entry = zipfile.ZipFile(wheel).read(next(n for n in names if n.endswith("entry_points.txt"))).decode()
     assert "gaitscope = gaitscope.server.cli:main" in entry
 
