@@ -35,11 +35,12 @@ def test_a_recorded_sensor_frame_is_the_frame_at_session_time(fields: dict[str, 
 )
 def test_a_torque_command_is_the_model_as_json(seq: int, t: float, torque: float) -> None:
     text = torque_json(seq, t, torque)
-    model = TorqueCommand(seq=seq, t=t, torque_Nm=torque)
+    model = TorqueCommand(seq=seq, t=t, torque_Nm=torque + 0.0)  # -0.0 is sent as 0.0
     if math.isfinite(t) and math.isfinite(torque):
         assert TorqueCommand.model_validate_json(text) == model
     else:  # never sent (the torque is clamped, session time finite): whatever the model says
         assert text == model.model_dump_json()
+    assert '"torque_Nm":-0.0' not in text
 
 
 def test_a_device_sending_raw_imus_only_gets_the_derived_angles_in_its_gait_state() -> None:
