@@ -499,18 +499,22 @@ def test_recover_after_sigkill_loses_at_most_the_flush_interval(tmp_path: Path) 
     proc = subprocess.Popen(
         [sys.executable, "-c", _CRASHING_RECORDER, str(path)], cwd=repo, stdout=subprocess.PIPE, text=True
     )
+    printed: list[str] = []  # the times of the samples the child wrote, as it says them
     try:
         assert proc.stdout is not None and proc.stdout.readline() == "recording\n"
         started = time.monotonic()
-        # ~1.5 s of recording, and at least one chunk on disk (header and metadata are < 1 kB).
-        while time.monotonic() - started < 1.5 or path.stat().st_size < 4096:
+        # ~1.5 s of recording, and at least one chunk on disk (header and metadata are < 1 kB): read as the
+        # child says each sample is written, no polling
+        for line in proc.stdout:
+            printed.append(line)
+            if float(line) >= 1.5 and path.stat().st_size >= 4096:
+                break
             assert time.monotonic() - started < 10, "no chunk written within 10 s"
-            time.sleep(0.05)
     finally:
         proc.send_signal(signal.SIGKILL)
         proc.wait()
         assert proc.stdout is not None
-        printed = proc.stdout.read().split()  # what the child printed before it died
+        printed += proc.stdout.read().split()  # what the child printed before it died
         proc.stdout.close()
     assert proc.returncode == -signal.SIGKILL
     last_written = float(printed[-1])  # the child may have written one more sample before the kill
@@ -613,9 +617,12 @@ def test_fsync_runs_on_a_worker_thread_and_at_finish(tmp_path: Path, monkeypatch
 def test_an_fsync_error_stops_the_recording(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     real_fsync, calls = os.fsync, []
 
+    failing = threading.Event()
+
     def fsync(fd: int) -> None:  # the header's fsync works, the first chunk's fails
         calls.append(fd)
         if len(calls) > 1:
+            failing.set()
             raise OSError(errno.EIO, "Input/output error")
         real_fsync(fd)
 
@@ -627,8 +634,8 @@ def test_an_fsync_error_stops_the_recording(tmp_path: Path, monkeypatch: pytest.
         for i in itertools.count():  # the worker thread, and a later write says so
             rec.write("/gait_state", i / RATE_HZ, state(i))
             taken += 1
-            if i > 100:
-                time.sleep(0.001)
+            if i > 100:  # the chunk is handed over: wait for its fsync to fail, then write until it is said
+                assert failing.wait(10), "the chunk's fsync never ran"
                 assert time.monotonic() < deadline, "the fsync error was never raised"
     assert failed.value.errno == errno.EIO and taken > 100
     assert str(failed.value) == (
