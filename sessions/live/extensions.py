@@ -13,17 +13,18 @@ the extensions were given (their events are stored in that order):
 - :meth:`SessionExtension.health`: its part of data health;
 - :meth:`SessionExtension.stop`: the session is stopping (never raises).
 
-The extensions of the code base: :class:`~gaitscope.sessions.live.intent_events.IntentEvents`,
+The extensions of the code base, in the runtime's order: :class:`~gaitscope.sessions.live.disk_watch.DiskWatch`,
+:class:`~gaitscope.sessions.live.notes.EstimatorNotes`, :class:`~gaitscope.sessions.live.intent_events.IntentEvents`,
 :class:`~gaitscope.sessions.live.imu_events.ImuEvents`,
 :class:`~gaitscope.sessions.live.calibration.ImuCalibrating`,
 :class:`~gaitscope.sessions.live.learning.GPLearningExtension` and
 :class:`~gaitscope.sessions.live.personalization.Personalization`. An extension reaches the session only
-through :class:`SessionHost`.
+through :class:`SessionHost` (the disk watch, which ends the session, through the runtime itself).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -52,6 +53,8 @@ class SessionHost(Protocol):
     writer: StoreWriter
     estimator: FrameEstimator
     trial: schema.Trial | None
+    #: monotonic seconds (the session's injected clock)
+    clock: Callable[[], float]
 
     def event(self, kind: schema.EventKind, text: str, **fields: object) -> schema.Event | None:
         """Store an event (waiting for the database), then record and broadcast it; None: not stored (logged)."""

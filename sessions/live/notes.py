@@ -10,13 +10,10 @@ without making the sample wait, before the sample's other events.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Final
+from typing import Final
 
 from gaitscope.sessions import schema
-from gaitscope.sessions.live.extensions import Outputs, SessionExtension
-
-if TYPE_CHECKING:
-    from gaitscope.sessions.live.runtime import SessionRuntime
+from gaitscope.sessions.live.extensions import Outputs, SessionExtension, SessionHost
 
 __all__ = ["NOTE_INTERVAL_S", "EstimatorNotes"]
 
@@ -27,7 +24,7 @@ NOTE_INTERVAL_S: Final = 1.0
 class EstimatorNotes(SessionExtension):
     """The estimator's events and notes of one session (see the module docstring)."""
 
-    def __init__(self, runtime: SessionRuntime):
+    def __init__(self, runtime: SessionHost):
         self.rt = runtime
         self._last = -math.inf
         self._suppressed = 0
