@@ -117,3 +117,29 @@ def test_a_replay_runs_the_filter_as_a_live_session_does_unless_as_published(tmp
     assert np.sqrt(np.mean(err**2)) < 0.08 < np.sqrt(np.mean(err_paper**2))
     assert np.isfinite(out["torque_Nm"]).all() and out["torque_Nm"].between(0, config.max_torque).all()
     assert "standing still" in "\n".join(summary.lines())
+
+
+def test_a_replay_is_what_a_live_session_makes_of_the_same_frames(tmp_path: Path) -> None:
+    """One sensor-to-torque path: the golden trial's frames through a live session's frame estimator (its
+    stack of phase_ekf and tbe, without the soft start, which ramps a person's assistance) give the replay's
+    every number, the torque included."""
+    from gaitscope.sessions.estimation import FrameEstimator
+    from gaitscope.sessions.formats.replay_io import read_replay_csv
+
+    model, _ = load_model(default_model_path())
+    data = read_replay_csv(TRIAL)
+    assert data.heel_strike is not None
+    settings = schema.SessionSettings(estimators=["phase_ekf", "tbe"], primary="phase_ekf", max_torque_Nm=40.0)
+    live = FrameEstimator(model, 0.8778, 64.37, settings, 0.01, time_origin=0.0, soft_start=False)
+    states = []
+    for k, t in enumerate(data.time_s.tolist()):
+        values = {name: float(v[k]) for name, v in data.signals.items()}
+        frame = schema.SensorFrame(seq=k, t=t, heel_strike=bool(data.heel_strike[k]), **values)
+        states.append(live.step(frame, 0))
+    out = tmp_path / "replay.csv"
+    replay.replay_file(TRIAL, out, model, PipelineConfig(leg_length=0.8778, body_mass_kg=64.37), supervised=True)
+    got = pd.read_csv(out)
+    for column in schema.REPLAY_OUTPUT[1:]:
+        expected = np.array([float(getattr(s, column)) for s in states])
+        assert np.abs(got[column].to_numpy(float) - expected).max() <= TOL, column
+    assert got["torque_Nm"].max() > 10.0 and got["heel_strike"].sum() == 18
