@@ -33,9 +33,10 @@ from typing import Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gaitscope.estimators.descriptor import Descriptor, out
 from gaitscope.estimators.protocol import check_params
 
-__all__ = ["KinematicCoM", "LegGeometry", "com_from_legs"]
+__all__ = ["DESCRIPTOR", "KinematicCoM", "LegGeometry", "com_from_legs"]
 
 Array = NDArray[np.float64]
 
@@ -176,3 +177,15 @@ class KinematicCoM:
         ):  # NaN and inf fail every comparison
             self._out = [x, up, vx, vz]
         return np.array(self._out)
+
+
+#: The kinematic centre of mass as a session and the views know it (:mod:`gaitscope.estimators.descriptor`):
+#: a front end deriving the centre-of-mass channels a source may not send.
+DESCRIPTOR: Final = Descriptor(
+    name=KinematicCoM.name,
+    label="Centre of mass from leg kinematics (seed 001)",
+    inputs=KinematicCoM.inputs,
+    optional_inputs=KinematicCoM.optional_inputs,
+    outputs=tuple(out(name, unit) for name, unit in KinematicCoM.outputs),
+    derives=True,
+)

@@ -19,9 +19,10 @@ from numpy.typing import NDArray
 
 from gaitscope.estimators.basis import Array
 from gaitscope.estimators.channels import positions, span
+from gaitscope.estimators.descriptor import Descriptor, Tunable, out
 from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Output, check_params, elapsed
 
-__all__ = ["DetectorConfig", "HeelStrikeDetector"]
+__all__ = ["DESCRIPTOR", "DetectorConfig", "HeelStrikeDetector"]
 
 _INPUTS: Final = ("foot_angle_deg", "foot_vel_dps")
 _OPTIONAL: Final = ("heel_forward_m", "heel_up_m")
@@ -132,3 +133,15 @@ class HeelStrikeDetector:
                 return False
         self._last_hs = t
         return True
+
+
+#: The heel-strike detector as a session and the views know it (:mod:`gaitscope.estimators.descriptor`).
+DESCRIPTOR: Final = Descriptor(
+    name=HeelStrikeDetector.name,
+    label="Heel-strike detector",
+    inputs=HeelStrikeDetector.inputs,
+    optional_inputs=HeelStrikeDetector.optional_inputs,
+    outputs=(out(HEEL_STRIKE, "bool"),),
+    quantities={HEEL_STRIKE: "heel_strike"},
+    tunables=(Tunable("max_foot_angle_deg"), Tunable("refractory_s", min=0.0), Tunable("accel_threshold")),
+)

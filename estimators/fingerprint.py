@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 
 from gaitscope.estimators._fp_kernel import fp_step
 from gaitscope.estimators.channels import positions
+from gaitscope.estimators.descriptor import Descriptor, OutputSpec, Tunable, out
 from gaitscope.estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
 
 __all__ = [
@@ -50,6 +51,7 @@ __all__ = [
     "Mode",
     "basis",
     "basis_dp",
+    "descriptor",
     "fit_map",
     "fit_subject",
 ]
@@ -496,3 +498,36 @@ class FingerprintEKF:
         self.x[1] = max(self.x[1], c.pdot_min_gf if gf else c.pdot_min_fixed)
         self.x[2] = min(max(self.x[2], lo), hi)
         self._pred = float(basis(np.array([self.x[0]]), np.array([self.x[2]]), self.fmap.order)[0] @ self._xi())
+
+
+#: The fingerprint filter's variants: its name in a stack, its name on screen and its role.
+_VARIANTS: Final[dict[Mode, tuple[str, str, Literal["average", "personal", "online"]]]] = {
+    "avg": ("fp_avg", "Average thigh model (seed 004)", "average"),
+    "ls": ("fp_ls", "Personalized thigh model (seed 004 LS-GF)", "personal"),
+    "gf": ("fp_gf", "Online fingerprint EKF (seed 004 GF)", "online"),
+}
+
+
+def descriptor(mode: Mode, n_components: int = 3) -> Descriptor:
+    """The fingerprint filter of ``mode`` as a session and the views know it
+    (:mod:`gaitscope.estimators.descriptor`); ``gf`` outputs the ``n_components`` fingerprint components of
+    its map (the default model's map keeps 3; a map with another number declares its own)."""
+    name, label, role = _VARIANTS[mode]
+    outputs: tuple[OutputSpec, ...] = (
+        out("phase", "1", "gait phase, 0 at heel strike, 1 at the next"),
+        out("phase_rate", "1/s", "gait cycles per second"),
+        out("stride_length_m", "m", "stride length"),
+        out("thigh_pred_deg", "deg", "the model's thigh angle at the estimated state"),
+    )
+    if mode == "gf":
+        outputs += tuple(out(f"g{i + 1}", "deg", f"fingerprint component {i + 1}") for i in range(n_components))
+    return Descriptor(
+        name=name,
+        label=label,
+        inputs=FingerprintEKF.inputs,
+        optional_inputs=FingerprintEKF.optional_inputs,
+        outputs=outputs,
+        quantities={"phase": "phase", "phase_rate": "phase_rate", "stride_length_m": "stride_length"},
+        tunables=tuple(Tunable(p) for p in FingerprintEKF.tunables),
+        fingerprint=role,
+    )

@@ -50,6 +50,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from gaitscope.estimators import channels
+from gaitscope.estimators.descriptor import Descriptor, Tunable, out
 from gaitscope.estimators.detector import DetectorConfig, HeelStrikeDetector
 from gaitscope.estimators.gp import FitOptions, SparseGP, fit_sparse_gp, rbf_mean_2d
 from gaitscope.estimators.gp_ekf import DIVERGED, GPEKF, HEEL_STRIKE, TOE_OFF, GPEKFConfig, Installed, Offer
@@ -59,6 +60,7 @@ from gaitscope.estimators.protocol import MAX_GAP_S, Output, check_params, elaps
 
 __all__ = [
     "COHORT_COLUMNS",
+    "DESCRIPTOR",
     "ControlSurface",
     "EstimatorConfig",
     "GPEKFEstimator",
@@ -485,3 +487,30 @@ class GPEKFEstimator:
         out[0], out[1], out[2], out[3], out[4] = phi, rate, f.in_stance, event & HEEL_STRIKE, event & TOE_OFF > 0
         out[5], out[6], out[7], out[8], out[9] = torque, standing, f.models.version, fault, tb
         return out.copy()
+
+
+#: The GP-EKF as a session and the views know it (:mod:`gaitscope.estimators.descriptor`): run only when named;
+#: its phase is the STANCE phase; it learns its observation models online (the "GP-EKF model", whose
+#: versions its events carry).
+DESCRIPTOR: Final = Descriptor(
+    name=GPEKFEstimator.name,
+    label="GP-EKF (seed 003)",
+    inputs=GPEKFEstimator.inputs,
+    optional_inputs=GPEKFEstimator.optional_inputs,
+    outputs=(
+        out("phase", "1", "stance phase, 0 at heel strike, 1 at toe-off"),
+        out("phase_rate", "1/s", "stances per second"),
+        out("in_stance", "bool", "the foot is in stance"),
+        out(HS_CHANNEL, "bool"),
+        out("toe_off", "bool", "a toe-off on this sample"),
+        out("torque_Nm", "N m", "the control surface's torque at the estimated stance phase"),
+        out("standing", "1", "1 while the walker stands still"),
+        out("model_version", "code", "the version of the observation models in use"),
+        out("fault", "code", "a fault code (gaitscope.estimators.protocol.FAULTS)"),
+        out("time_phase", "1", "the stance phase from the stance's elapsed time alone"),
+    ),
+    quantities={"phase": "stance_phase", "phase_rate": "stance_phase_rate", HS_CHANNEL: "heel_strike"},
+    tunables=(Tunable("measurement_noise_scale"), Tunable("torque_scale", 0.0, 1.0)),
+    opt_in=True,
+    learned_model="GP-EKF model",
+)

@@ -28,13 +28,21 @@ from numpy.typing import NDArray
 from gaitscope.estimators import _kernels
 from gaitscope.estimators.basis import Array
 from gaitscope.estimators.channels import positions, span
+from gaitscope.estimators.descriptor import Descriptor, Tunable, out
 from gaitscope.estimators.detector import DetectorConfig, HeelStrikeDetector
 from gaitscope.estimators.gait_model import N_CHANNELS, N_OUTPUTS, NoiseModel
 from gaitscope.estimators.phase_ekf import EKFConfig, PhaseEKF, pseudo_from_stride, stride_from_pseudo
 from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Output, check_params, elapsed
 from gaitscope.estimators.tbe import TimingBasedEstimator
 
-__all__ = ["BackupConfig", "DetectorConfig", "HeelStrikeBackup", "HeelStrikeDetector", "TimingBasedEstimator"]
+__all__ = [
+    "DESCRIPTOR",
+    "BackupConfig",
+    "DetectorConfig",
+    "HeelStrikeBackup",
+    "HeelStrikeDetector",
+    "TimingBasedEstimator",
+]
 
 _INPUTS: Final = (HEEL_STRIKE,)
 _OPTIONAL: Final = ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps")
@@ -237,3 +245,27 @@ class HeelStrikeBackup:
                 reset = True
             self.sse_ekf = self.sse_hp = 0.0
         return reset
+
+
+#: The standalone heel-strike backup as a session and the views know it
+#: (:mod:`gaitscope.estimators.descriptor`): run only when named (it duplicates the one inside ``phase_ekf``).
+DESCRIPTOR: Final = Descriptor(
+    name=HeelStrikeBackup.name,
+    label="Heel-strike backup",
+    inputs=HeelStrikeBackup.inputs,
+    optional_inputs=HeelStrikeBackup.optional_inputs,
+    outputs=(
+        out("phase", "1", "gait phase, 0 at heel strike, 1 at the next"),
+        out("phase_rate", "1/s", "gait cycles per second"),
+        out("stride_length_m", "m", "stride length"),
+        out("incline_deg", "deg", "ground incline, (+) uphill"),
+    ),
+    quantities={
+        "phase": "phase",
+        "phase_rate": "phase_rate",
+        "stride_length_m": "stride_length",
+        "incline_deg": "incline",
+    },
+    tunables=(Tunable("measurement_noise_scale"),),
+    opt_in=True,
+)

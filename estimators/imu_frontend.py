@@ -41,9 +41,19 @@ from typing import Final, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from gaitscope.estimators.descriptor import Descriptor, Tunable, out
 from gaitscope.estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
 
-__all__ = ["CODES", "G0", "SEGMENTS", "FrontEndConfig", "ImuFrontEnd", "imu_inputs", "inclination_deg"]
+__all__ = [
+    "CODES",
+    "G0",
+    "SEGMENTS",
+    "FrontEndConfig",
+    "ImuFrontEnd",
+    "descriptor",
+    "imu_inputs",
+    "inclination_deg",
+]
 
 Array = NDArray[np.float64]
 #: Standard gravity (m/s^2).
@@ -323,3 +333,23 @@ class ImuFrontEnd:
 def _wrap(deg: float) -> float:
     """An angle difference within [-180, 180)."""
     return (deg + 180.0) % 360.0 - 180.0
+
+
+def descriptor(segment: str) -> Descriptor:
+    """The front end of ``segment``'s IMU as a session and the views know it
+    (:mod:`gaitscope.estimators.descriptor`): it derives the segment's angle channels a source may not send."""
+    est = ImuFrontEnd(segment)
+    meanings = {
+        "imu_code": "what the front end did with this sample (gaitscope.estimators.imu_frontend.CODES)",
+        "foot_flat": "the foot is flat on the ground (zero-velocity update)",
+        "toe_off": "a toe-off on this sample",
+    }
+    return Descriptor(
+        name=est.name,
+        label=f"IMU front end ({segment.replace('_', ' ')})",
+        inputs=est.inputs,
+        optional_inputs=est.optional_inputs,
+        outputs=tuple(out(name, unit, meanings.get(name)) for name, unit in est.outputs),
+        tunables=tuple(Tunable(name) for name in est.tunables),
+        derives=True,
+    )

@@ -14,10 +14,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gaitscope.estimators.channels import positions
+from gaitscope.estimators.descriptor import Descriptor, PlotHint, Tunable, out
 from gaitscope.estimators.intent import _VX, COHORT, BKFConfig, ButtressedKF
 from gaitscope.estimators.protocol import MAX_GAP_S, check_params
 
-__all__ = ["COM_CHANNELS", "COM_LATERAL", "IntentEstimator"]
+__all__ = [
+    "COM_CHANNELS",
+    "COM_LATERAL",
+    "DESCRIPTOR",
+    "IntentEstimator",
+]
 
 Array = NDArray[np.float64]
 
@@ -253,3 +259,25 @@ class IntentEstimator:
         if abs(f.intent) >= self.deadband_m_s and f.confidence >= self.min_confidence:
             code = 1.0 if f.intent > 0 else -1.0
         self._out[:] = (f.desired_speed, f.intent, code, f.confidence, float(f.z[_VX]))
+
+
+#: The speed-change intent estimator as a session and the views know it
+#: (:mod:`gaitscope.estimators.descriptor`); both plotted outputs hold between mid-stances.
+DESCRIPTOR: Final = Descriptor(
+    name=IntentEstimator.name,
+    label="Speed-change intent (seed 001)",
+    inputs=IntentEstimator.inputs,
+    optional_inputs=IntentEstimator.optional_inputs,
+    outputs=(
+        out("desired_speed_m_s", "m/s", "the walker's desired speed, updated at every mid-stance"),
+        out("intent_m_s", "m/s", "the last mid-stance's change of desired speed (0: not sure)"),
+        out("intent_code", "code", "1 speeding up, -1 slowing down, 0 steady or not sure"),
+        out("intent_confidence", "1", "the change in standard deviations (0: held and flagged)"),
+        out("speed_m_s", "m/s", "the centre of mass's forward speed at the last mid-stance"),
+    ),
+    quantities={"desired_speed_m_s": "desired_speed", "speed_m_s": "speed"},
+    tunables=(Tunable("deadband_m_s", min=0.0), Tunable("min_confidence", min=0.0)),
+    plots=(
+        PlotHint("intent", "Speed-change intent: desired vs actual speed", "m/s", ("desired_speed_m_s", "speed_m_s")),
+    ),
+)

@@ -21,11 +21,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gaitscope.estimators.channels import positions, span
+from gaitscope.estimators.descriptor import Descriptor, Tunable, out
 from gaitscope.estimators.lock import LockConfig, LockSupervisor
 from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
 from gaitscope.estimators.protocol import HEEL_STRIKE, SENSOR_CHANNELS, Output, check_params
 
-__all__ = ["PhaseEKFEstimator"]
+__all__ = ["DESCRIPTOR", "PhaseEKFEstimator"]
 
 #: The pipeline's faults as :data:`~gaitscope.estimators.protocol.FAULTS` codes; its own torque is not an output.
 _FAULT_CODE = {"": 0.0, "gap": 1.0, "diverged": 2.0, "torque": 0.0}
@@ -163,3 +164,33 @@ class PhaseEKFEstimator:
 def _finite(v: float) -> float:
     v = float(v)
     return v if math.isfinite(v) else 0.0
+
+
+#: The phase EKF as a session and the views know it (:mod:`gaitscope.estimators.descriptor`); the noise
+#: scales are the session's settings (``SessionSettings``), within their bounds there.
+DESCRIPTOR: Final = Descriptor(
+    name=PhaseEKFEstimator.name,
+    label="Phase EKF (seed 000)",
+    inputs=PhaseEKFEstimator.inputs,
+    optional_inputs=PhaseEKFEstimator.optional_inputs,
+    outputs=(
+        out("phase", "1", "gait phase, 0 at heel strike, 1 at the next"),
+        out("phase_rate", "1/s", "gait cycles per second"),
+        out("stride_length_m", "m", "stride length"),
+        out("incline_deg", "deg", "ground incline, (+) uphill"),
+        out(HEEL_STRIKE, "bool"),
+        out("backup_reset", "bool", "the heel-strike backup reset the filter on this sample"),
+        out("fault", "code", "a fault code (gaitscope.estimators.protocol.FAULTS)"),
+        out("foot_pred_deg", "deg", "the model's foot angle at the estimated state"),
+        out("shank_pred_deg", "deg", "the model's shank angle at the estimated state"),
+        out("standing", "1", "1 while the walker stands still (the phase is held)"),
+    ),
+    quantities={
+        "phase": "phase",
+        "phase_rate": "phase_rate",
+        "stride_length_m": "stride_length",
+        "incline_deg": "incline",
+        HEEL_STRIKE: "heel_strike",
+    },
+    tunables=(Tunable("measurement_noise_scale", 0.1, 10.0), Tunable("process_noise_scale", 0.1, 10.0)),
+)

@@ -29,14 +29,16 @@ is missing or not finite, and after the state diverges (the filter restarts on t
 from __future__ import annotations
 
 import math
+from typing import Final
 
 import numpy as np
 from numpy.typing import NDArray
 
+from gaitscope.estimators.descriptor import Descriptor, Tunable, out
 from gaitscope.estimators.protocol import check_params, elapsed
 from gaitscope.estimators.sdre import ContinuousFilter, G, TwoLinkParams
 
-__all__ = ["SDREKnee"]
+__all__ = ["DESCRIPTOR", "SDREKnee"]
 
 Array = NDArray[np.float64]
 
@@ -121,3 +123,19 @@ class SDREKnee:
 def _tilt(accel_x: float) -> float:
     """A segment's angle (rad) from a resting accelerometer's x (``g sin(angle)``)."""
     return math.asin(max(-1.0, min(1.0, accel_x / G)))
+
+
+#: The SDRE knee as a session and the views know it (:mod:`gaitscope.estimators.descriptor`): run only when named.
+DESCRIPTOR: Final = Descriptor(
+    name=SDREKnee.name,
+    label="SDRE knee angle from IMUs (seed 002)",
+    inputs=SDREKnee.inputs,
+    optional_inputs=SDREKnee.optional_inputs,
+    outputs=(
+        out("knee_sdre_deg", "deg", "knee flexion from the thigh and shank IMUs, (+) flexion"),
+        out("thigh_sdre_deg", "deg", "thigh angle from vertical from the IMUs"),
+    ),
+    quantities={"knee_sdre_deg": "knee_angle"},
+    tunables=tuple(Tunable(name) for name in SDREKnee.tunables),
+    opt_in=True,
+)

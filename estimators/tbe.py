@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from typing import Final
+
 import numpy as np
 from numpy.typing import NDArray
 
 from gaitscope.estimators.basis import Array
+from gaitscope.estimators.descriptor import Descriptor, Tunable, out
 from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Output, check_params, elapsed
 
-__all__ = ["TimingBasedEstimator"]
+__all__ = ["DESCRIPTOR", "TimingBasedEstimator"]
 
 _HS = np.ones(1)
 
@@ -108,3 +111,18 @@ class TimingBasedEstimator:
     @property
     def phase(self) -> float:
         return float(self.x[0])
+
+
+#: The timing-based estimate as a session and the views know it (:mod:`gaitscope.estimators.descriptor`).
+DESCRIPTOR: Final = Descriptor(
+    name=TimingBasedEstimator.name,
+    label="Timing-based estimate",
+    inputs=TimingBasedEstimator.inputs,
+    optional_inputs=TimingBasedEstimator.optional_inputs,
+    outputs=(
+        out("phase", "1", "gait phase, 0 at heel strike, 1 at the next"),
+        out("phase_rate", "1/s", "gait cycles per second"),
+    ),
+    quantities={"phase": "phase", "phase_rate": "phase_rate"},
+    tunables=(Tunable("initial_period"), Tunable("min_period"), Tunable("max_period")),
+)

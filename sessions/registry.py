@@ -15,15 +15,29 @@ can feed (:func:`feeds`): a review offers those to re-run.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Iterable, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
 from functools import cache, partial
 from importlib import resources
-from typing import Any, Final
+from typing import Any, Final, TypeVar
 
 import numpy as np
 
+from gaitscope.estimators import (
+    com_kinematics,
+    detector,
+    fingerprint,
+    gp_ekf_estimator,
+    heel_strike,
+    imu_frontend,
+    intent_estimator,
+    phase_ekf_estimator,
+    sdre_estimator,
+    tbe,
+)
 from gaitscope.estimators.com_kinematics import KinematicCoM
+from gaitscope.estimators.descriptor import Descriptor
 from gaitscope.estimators.detector import HeelStrikeDetector
 from gaitscope.estimators.fingerprint import FingerprintEKF, Mode
 from gaitscope.estimators.gp_ekf_estimator import (
@@ -50,6 +64,7 @@ from gaitscope.sessions.synth.cohort import CohortSpec, generate_cohort
 __all__ = [
     "DECLARED",
     "DERIVERS",
+    "DESCRIPTORS",
     "ESTIMATORS",
     "GP_EKF_COHORT",
     "GP_EKF_MODEL_NAME",
@@ -62,6 +77,7 @@ __all__ = [
     "build_stack",
     "channels_of",
     "choose_primary",
+    "descriptors",
     "feeds",
     "gp_ekf_default",
     "redundant",
@@ -69,6 +85,7 @@ __all__ = [
 ]
 
 _CHANNELS: Final = frozenset(CHANNELS)
+_V = TypeVar("_V")
 
 
 @dataclass(frozen=True)
@@ -133,45 +150,52 @@ def _imu_front_end(segment: str, c: StackContext) -> ImuFrontEnd:
     return ImuFrontEnd(segment, FrontEndConfig.for_segment(segment, sample_period=c.sample_period))
 
 
-#: Every estimator a session can stack, by name, in the order a stack runs them (a channel an
-#: estimator derives reaches only those after it).
-ESTIMATORS: Final[dict[str, Callable[[StackContext], Estimator]]] = {
+def _phase_ekf(c: StackContext) -> PhaseEKFEstimator:
+    return PhaseEKFEstimator(c.model, PipelineConfig(leg_length=c.leg_length, body_mass_kg=c.mass_kg), c.sample_period)
+
+
+def _hs_backup(c: StackContext) -> HeelStrikeBackup:
+    return HeelStrikeBackup.standalone(c.model.coef, c.model.noise, c.leg_length, channel_mask=c.model.channel_mask)
+
+
+#: Every estimator a session can stack, one line each, in the order a stack runs them (a channel an
+#: estimator derives reaches only those after it): its descriptor (beside its class: what it is, reads,
+#: outputs, tunes, plots and is for) and how a session builds it. Everything else here and in the browser's
+#: ``wire.js`` is derived from this list (:data:`ESTIMATORS`, :data:`DECLARED`, :data:`OPT_IN`, :data:`DERIVERS`).
+#: The standalone heel-strike backup is opt-in as it duplicates the one inside ``phase_ekf`` (which uses it to
+#: reset the filter) at about half of the stack's time per sample; the GP-EKF (seed 003) as it estimates the
+#: stance phase, not the gait phase the torque profile follows, and retrains online.
+DESCRIPTORS: list[Descriptor] = [
     # the IMU front ends first: the angle channels they derive feed every estimator after them
-    **{f"imu_{seg}": partial(_imu_front_end, seg) for seg in IMU_SEGMENTS},
-    "hs_detector": lambda c: HeelStrikeDetector(),
-    "phase_ekf": lambda c: PhaseEKFEstimator(
-        c.model, PipelineConfig(leg_length=c.leg_length, body_mass_kg=c.mass_kg), c.sample_period
-    ),
-    "tbe": lambda c: TimingBasedEstimator(),
-    "hs_backup": lambda c: HeelStrikeBackup.standalone(
-        c.model.coef, c.model.noise, c.leg_length, channel_mask=c.model.channel_mask
-    ),
-    "fp_avg": lambda c: _fingerprint_ekf(c, "avg"),
-    "fp_ls": lambda c: _fingerprint_ekf(c, "ls"),
-    "fp_gf": lambda c: _fingerprint_ekf(c, "gf"),
-    "com_kin": lambda c: KinematicCoM(c.leg_length),
-    "intent": lambda c: IntentEstimator(c.leg_length),
-    "sdre_knee": lambda c: SDREKnee(c.leg_length, c.mass_kg),
-    "gp_ekf": lambda c: GPEKFEstimator(*gp_ekf_default(), mass_kg=c.mass_kg),
-}
+    *(imu_frontend.descriptor(seg).built_by(partial(_imu_front_end, seg)) for seg in IMU_SEGMENTS),
+    detector.DESCRIPTOR.built_by(lambda c: HeelStrikeDetector()),
+    phase_ekf_estimator.DESCRIPTOR.built_by(_phase_ekf),
+    tbe.DESCRIPTOR.built_by(lambda c: TimingBasedEstimator()),
+    heel_strike.DESCRIPTOR.built_by(_hs_backup),
+    fingerprint.descriptor("avg").built_by(lambda c: _fingerprint_ekf(c, "avg")),
+    fingerprint.descriptor("ls").built_by(lambda c: _fingerprint_ekf(c, "ls")),
+    fingerprint.descriptor("gf").built_by(lambda c: _fingerprint_ekf(c, "gf")),
+    com_kinematics.DESCRIPTOR.built_by(lambda c: KinematicCoM(c.leg_length)),
+    intent_estimator.DESCRIPTOR.built_by(lambda c: IntentEstimator(c.leg_length)),
+    sdre_estimator.DESCRIPTOR.built_by(lambda c: SDREKnee(c.leg_length, c.mass_kg)),
+    gp_ekf_estimator.DESCRIPTOR.built_by(lambda c: GPEKFEstimator(*gp_ekf_default(), mass_kg=c.mass_kg)),
+]
 
 
-#: Registered but run only when a session names them: the standalone heel-strike backup duplicates the
-#: one inside ``phase_ekf`` (which uses it to reset the filter) and costs about half of the stack's
-#: time per sample; it is there to be inspected and compared, in review or by choice. The GP-EKF (seed
-#: 003) estimates the stance phase, not the gait phase the torque profile follows, and retrains online.
-OPT_IN: Final = frozenset({"hs_backup", "sdre_knee", "gp_ekf"})
-#: Registered to derive channels a source may not send (sensor front ends): a default stack leaves one
-#: out when the source already sends (or an earlier estimator derives) every channel it would derive,
-#: since a sent channel wins over a derived one and its work would be thrown away.
-DERIVERS: Final = frozenset({*(f"imu_{seg}" for seg in IMU_SEGMENTS), "com_kin"})
+def descriptors() -> dict[str, Descriptor]:
+    """:data:`DESCRIPTORS` by name, as the list is now (a test may add to it for a while).
 
-
-def redundant(name: str, available: Collection[str]) -> bool:
-    """A front end (:data:`DERIVERS`) every channel of which ``available`` already has: a default stack
-    leaves it out."""
-    derives = [o for o, _ in DECLARED[name].outputs if o in _CHANNELS] if name in DERIVERS else []
-    return bool(derives) and all(o in available for o in derives)
+    Raises:
+        ValueError: two descriptors of one name, or one without a factory.
+    """
+    out: dict[str, Descriptor] = {}
+    for d in DESCRIPTORS:
+        if d.name in out:
+            raise ValueError(f"two registered estimators are named {d.name}")
+        if d.factory is None:
+            raise ValueError(f"{d.name} is registered without a factory (Descriptor.built_by)")
+        out[d.name] = d
+    return out
 
 
 @dataclass(frozen=True)
@@ -183,41 +207,64 @@ class Declared:
     outputs: tuple[Output, ...]  #: ``(name, unit)`` in the order it returns them (``Estimator.outputs``)
 
 
-def _declared(label: str, cls: Any) -> Declared:
-    return Declared(label, tuple(cls.inputs), tuple(cls.outputs))
+class _ByName(Mapping[str, _V]):
+    """A read-only view by name of :data:`DESCRIPTORS` as it is when read (so that a descriptor a test
+    adds for a while shows everywhere at once)."""
+
+    def __init__(self, value: Callable[[Descriptor], _V]):
+        self._value = value
+
+    def __getitem__(self, name: str) -> _V:
+        return self._value(descriptors()[name])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(descriptors())
+
+    def __len__(self) -> int:
+        return len(DESCRIPTORS)
 
 
-_FP_INPUTS: Final = FingerprintEKF.inputs
-_FP_OUTPUTS: Final[tuple[Output, ...]] = (
-    ("phase", "1"),
-    ("phase_rate", "1/s"),
-    ("stride_length_m", "m"),
-    ("thigh_pred_deg", "deg"),
-)
+class _Names(AbstractSet[str]):
+    """A read-only set view of the names of :data:`DESCRIPTORS` that have a property, as it is when read."""
+
+    def __init__(self, has: Callable[[Descriptor], bool]):
+        self._has = has
+
+    def _names(self) -> frozenset[str]:
+        return frozenset(d.name for d in DESCRIPTORS if self._has(d))
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._names()
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names())
+
+    def __len__(self) -> int:
+        return len(self._names())
+
+    @classmethod
+    def _from_iterable(cls, it: Iterable[Any]) -> frozenset[Any]:
+        return frozenset(it)
 
 
-#: Every estimator of :data:`ESTIMATORS` (same order) as its class declares it, with its name on screen.
+#: Every estimator a session can stack, by name, in the order a stack runs them: how a session builds it.
+ESTIMATORS: Final[Mapping[str, Callable[[StackContext], Estimator]]] = _ByName(lambda d: d.build)
+#: Every registered estimator (same order) as its class declares it, with its name on screen.
 #: ``tests/sessions/test_registry.py`` checks that each built estimator declares the same.
-DECLARED: Final[dict[str, Declared]] = {
-    **{
-        f"imu_{seg}": Declared(f"IMU front end ({seg.replace('_', ' ')})", e.inputs, e.outputs)
-        for seg, e in ((seg, ImuFrontEnd(seg)) for seg in IMU_SEGMENTS)
-    },
-    "hs_detector": _declared("Heel-strike detector", HeelStrikeDetector),
-    "phase_ekf": _declared("Phase EKF (seed 000)", PhaseEKFEstimator),
-    "tbe": _declared("Timing-based estimate", TimingBasedEstimator),
-    "hs_backup": _declared("Heel-strike backup", HeelStrikeBackup),
-    "fp_avg": Declared("Average thigh model (seed 004)", _FP_INPUTS, _FP_OUTPUTS),
-    "fp_ls": Declared("Personalized thigh model (seed 004 LS-GF)", _FP_INPUTS, _FP_OUTPUTS),
-    # g1..g3: the default model's map keeps 3 components (a map with another number declares its own)
-    "fp_gf": Declared(
-        "Online fingerprint EKF (seed 004 GF)", _FP_INPUTS, (*_FP_OUTPUTS, ("g1", "deg"), ("g2", "deg"), ("g3", "deg"))
-    ),
-    "com_kin": _declared("Centre of mass from leg kinematics (seed 001)", KinematicCoM),
-    "intent": _declared("Speed-change intent (seed 001)", IntentEstimator),
-    "sdre_knee": _declared("SDRE knee angle from IMUs (seed 002)", SDREKnee),
-    "gp_ekf": _declared("GP-EKF (seed 003)", GPEKFEstimator),
-}
+DECLARED: Final[Mapping[str, Declared]] = _ByName(lambda d: Declared(d.label, d.inputs, d.declared_outputs))
+#: Registered but run only when a session names them (:attr:`Descriptor.opt_in`).
+OPT_IN: Final[AbstractSet[str]] = _Names(lambda d: d.opt_in)
+#: Registered to derive channels a source may not send (sensor front ends, :attr:`Descriptor.derives`): a
+#: default stack leaves one out when the source already sends (or an earlier estimator derives) every channel
+#: it would derive, since a sent channel wins over a derived one and its work would be thrown away.
+DERIVERS: Final[AbstractSet[str]] = _Names(lambda d: d.derives)
+
+
+def redundant(name: str, available: Collection[str]) -> bool:
+    """A front end (:data:`DERIVERS`) every channel of which ``available`` already has: a default stack
+    leaves it out."""
+    derives = [o for o, _ in DECLARED[name].outputs if o in _CHANNELS] if name in DERIVERS else []
+    return bool(derives) and all(o in available for o in derives)
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,18 @@ import pytest
 
 from gaitscope.estimators.pipeline import TrainedModel
 from gaitscope.sessions.formats.models import default_model_path, load_model
-from gaitscope.sessions.registry import DECLARED, ESTIMATORS, Feed, MissingChannels, StackContext, feeds, resolve
+from gaitscope.sessions.registry import (
+    DECLARED,
+    DERIVERS,
+    ESTIMATORS,
+    OPT_IN,
+    Feed,
+    MissingChannels,
+    StackContext,
+    descriptors,
+    feeds,
+    resolve,
+)
 
 HS = "heel_strike"
 
@@ -22,6 +33,8 @@ def test_each_registered_estimator_declares_what_it_is_built_as() -> None:
     for name, make in ESTIMATORS.items():
         est = make(ctx)
         assert (est.name, est.inputs, est.outputs) == (name, DECLARED[name].inputs, DECLARED[name].outputs)
+        d = descriptors()[name]
+        assert (est.optional_inputs, est.tunables) == (d.optional_inputs, d.tunable_names)
     assert {n: d.label for n, d in DECLARED.items()} == {
         "imu_foot": "IMU front end (foot)",
         "imu_shank": "IMU front end (shank)",
@@ -99,3 +112,21 @@ def test_feeds_agrees_with_what_resolve_builds(small_model: TrainedModel, channe
     ctx = StackContext(small_model, 0.9, 70.0, 0.01)
     runnable = [n for n, f in feeds(channels).items() if not f.missing]
     assert [e.name for e in resolve(runnable, channels, ctx)] == runnable
+
+
+def test_the_registry_s_roles_come_from_the_descriptors() -> None:
+    assert set(OPT_IN) == {"hs_backup", "sdre_knee", "gp_ekf"}
+    assert set(DERIVERS) == {"imu_foot", "imu_shank", "imu_thigh", "imu_foot_contra", "imu_shank_contra",
+                             "imu_thigh_contra", "com_kin"}  # fmt: skip
+    assert OPT_IN | {"x"} == {"hs_backup", "sdre_knee", "gp_ekf", "x"}  # a set like the frozenset it was
+    d = descriptors()
+    assert [n for n, x in d.items() if x.quantities.get("phase") == "stance_phase"] == ["gp_ekf"]
+    assert [n for n, x in d.items() if x.learned_model] == ["gp_ekf"]
+    assert {n: x.fingerprint for n, x in d.items() if x.fingerprint} == {
+        "fp_avg": "average",
+        "fp_ls": "personal",
+        "fp_gf": "online",
+    }
+    assert [(n, p.key, p.outputs) for n, x in d.items() for p in x.plots] == [
+        ("intent", "intent", ("desired_speed_m_s", "speed_m_s"))
+    ]

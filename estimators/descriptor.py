@@ -1,0 +1,155 @@
+"""What an estimator is, stated once beside it: its :class:`Descriptor`.
+
+Each estimator module states its descriptor next to its class (a ``DESCRIPTOR`` constant, or a function of
+what varies, e.g. an IMU front end's segment): its machine name and its name on screen, the channels it
+reads, its outputs with their units and meanings, which outputs are gait-state quantities (:data:`QUANTITIES`),
+what it lets a session tune and within which bounds, which outputs a view plots, and the roles a session or a
+view gives it (run only when named, a front end that derives channels, a model it learns online, a gait
+fingerprint's variant). The session level (``gaitscope.sessions.registry``) attaches how a session builds it
+(:meth:`Descriptor.built_by`: a callable of the session's context) and derives everything else from the list
+of descriptors: the registry's tables, the browser's ``wire.js``, the views. Pure data: no I/O.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any, Final, Literal
+
+from gaitscope.estimators.channels import CHANNELS
+from gaitscope.estimators.protocol import Estimator, Output
+
+__all__ = ["FINGERPRINT_ROLES", "QUANTITIES", "Descriptor", "OutputSpec", "PlotHint", "Tunable", "out"]
+
+#: The gait-state quantities an output may estimate (:attr:`Descriptor.quantities`). ``phase`` is the gait
+#: cycle's (0 at heel strike, 1 at the next), ``stance_phase`` the stance's (0 at heel strike, 1 at toe-off):
+#: a view keeps a stance phase off a gait-phase plot. Rates in cycles (or stances) per second, stride length
+#: in m, incline in deg, speeds in m/s.
+QUANTITIES: Final = (
+    "phase",
+    "phase_rate",
+    "stance_phase",
+    "stance_phase_rate",
+    "stride_length",
+    "incline",
+    "speed",
+    "desired_speed",
+    "heel_strike",
+    "knee_angle",
+)
+#: The variants of a gait-fingerprint filter (seed 004, :attr:`Descriptor.fingerprint`): the population's
+#: average fingerprint, the subject's personalized one, one estimated online.
+FINGERPRINT_ROLES: Final = ("average", "personal", "online")
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """One output: its name, unit (see :data:`~gaitscope.estimators.protocol.Output`) and what it means."""
+
+    name: str
+    unit: str
+    meaning: str
+
+
+def out(name: str, unit: str, meaning: str | None = None) -> OutputSpec:
+    """An :class:`OutputSpec`; the meaning defaults to the channel table's for an output that is a channel.
+
+    Raises:
+        ValueError: no meaning given for an output that is not a channel.
+    """
+    if meaning is None:
+        if name not in CHANNELS:
+            raise ValueError(f"output {name} is not a channel: say what it means")
+        meaning = CHANNELS[name].description
+    return OutputSpec(name, unit, meaning)
+
+
+@dataclass(frozen=True)
+class Tunable:
+    """A parameter ``retune`` accepts, with the bounds a session keeps it within (None: none stated)."""
+
+    name: str
+    min: float | None = None
+    max: float | None = None
+
+
+@dataclass(frozen=True)
+class PlotHint:
+    """A plot a view draws of some of the estimator's outputs, one line each."""
+
+    key: str  #: the plot's key in a view (stable: pages and tests find the plot by it)
+    title: str
+    y_label: str
+    outputs: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Descriptor:
+    """An estimator as a session and a view know it, without building it (no model needed).
+
+    ``inputs``, ``optional_inputs`` and the outputs' ``(name, unit)`` are what the built estimator declares
+    (``tests/sessions/test_registry.py`` checks it); the rest is said here only.
+    """
+
+    name: str  #: its machine name in a stack (``Estimator.name``)
+    label: str  #: its name on screen
+    inputs: tuple[str, ...]  #: channels it requires (``Estimator.inputs``)
+    outputs: tuple[OutputSpec, ...]  #: in the order ``step`` returns them
+    optional_inputs: tuple[str, ...] = ()  #: channels it uses when present
+    #: output name -> the gait-state quantity it estimates (one of :data:`QUANTITIES`)
+    quantities: Mapping[str, str] = field(default_factory=dict, hash=False)
+    tunables: tuple[Tunable, ...] = ()
+    plots: tuple[PlotHint, ...] = ()
+    #: run only when a session names it (by default a session runs every estimator its source can feed)
+    opt_in: bool = False
+    #: a front end deriving channels a source may not send: a default stack leaves it out when the source
+    #: sends every channel it derives
+    derives: bool = False
+    #: the name on screen of a model it learns online, when it learns one: setting events whose field is
+    #: the estimator's name carry that model's versions, and the live view shows its learning card
+    learned_model: str | None = None
+    #: which variant of the gait-fingerprint filter it is (one of :data:`FINGERPRINT_ROLES`), if one
+    fingerprint: Literal["average", "personal", "online"] | None = None
+    #: how a session builds it from the session's context (attached by the registry: :meth:`built_by`)
+    factory: Callable[[Any], Estimator] | None = field(default=None, compare=False, hash=False)
+
+    def __post_init__(self) -> None:
+        names = [o.name for o in self.outputs]
+        if len(set(names)) != len(names):
+            raise ValueError(f"{self.name}: an output is named twice in {names}")
+        for o, q in self.quantities.items():
+            if o not in names:
+                raise ValueError(f"{self.name}: quantity of {o}, which is not an output")
+            if q not in QUANTITIES:
+                raise ValueError(f"{self.name}: unknown quantity {q!r}; quantities are {', '.join(QUANTITIES)}")
+        for p in self.plots:
+            unknown = [o for o in p.outputs if o not in names]
+            if unknown or not p.outputs:
+                raise ValueError(f"{self.name}: plot {p.key} draws {list(p.outputs)}, outputs are {names}")
+        for t in self.tunables:
+            if t.min is not None and t.max is not None and not t.min <= t.max:
+                raise ValueError(f"{self.name}: tunable {t.name} has min {t.min} > max {t.max}")
+
+    @property
+    def declared_outputs(self) -> tuple[Output, ...]:
+        """``(name, unit)`` of every output, as ``Estimator.outputs`` declares them."""
+        return tuple((o.name, o.unit) for o in self.outputs)
+
+    @property
+    def tunable_names(self) -> tuple[str, ...]:
+        """The names ``retune`` accepts, as ``Estimator.tunables`` declares them."""
+        return tuple(t.name for t in self.tunables)
+
+    def built_by(self, factory: Callable[[Any], Estimator]) -> Descriptor:
+        """This descriptor with the session's way of building it."""
+        return replace(self, factory=factory)
+
+    def build(self, context: Any) -> Estimator:
+        """The estimator, built from a session's context.
+
+        Raises:
+            TypeError: no factory is attached (:meth:`built_by`).
+        """
+        if self.factory is None:
+            raise TypeError(f"{self.name} has no factory: the registry attaches one (Descriptor.built_by)")
+        return self.factory(context)
