@@ -13,15 +13,19 @@ page by typing instead.
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
+import time
 import urllib.error
 import urllib.request
 from dataclasses import dataclass, field
 from http.cookies import SimpleCookie
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
+
+from websockets.sync.client import connect
 
 if TYPE_CHECKING:
     from playwright.sync_api import BrowserContext
@@ -139,3 +143,40 @@ def log_in(context: BrowserContext, base: str, name: str = "clinician") -> dict[
     assert resp.ok, f"login of {name} refused: {resp.status} {resp.text()}"
     me: dict[str, Any] = resp.json()
     return me
+
+
+def call(base: str, method: str, path: str, body: dict[str, Any] | None = None, user: str = "clinician") -> Any:
+    """A REST call from outside the browser (another screen, logged in as ``user``); the JSON answer."""
+    return client(base, user).call(method, path, body)
+
+
+def session_time(base: str, session_id: int, at_least: float = -math.inf, timeout: float = 60.0) -> float:
+    """The running session's time (s, of its last state), read from its browser stream as the clinician;
+    with ``at_least``, once it has reached that (the stream's states come as the session makes them).
+
+    Raises:
+        AssertionError: not reached in ``timeout`` seconds."""
+    c = client(base)
+    if not c.cookie:
+        c.log_in()
+    url = base.replace("http://", "ws://") + f"/ws/sessions/{session_id}?max_rate_hz=20"
+    deadline = time.monotonic() + timeout
+    with connect(url, additional_headers={"Cookie": f"{COOKIE}={c.cookie}"}) as ws:
+        while True:
+            left = deadline - time.monotonic()
+            assert left > 0, f"session {session_id} did not reach t = {at_least:g} s in {timeout:g} s"
+            message = json.loads(ws.recv(timeout=left))
+            if message.get("type") == "states" and message["states"]:
+                t = float(message["states"][-1]["t"])
+                if t >= at_least:
+                    return t
+
+
+def record(base: str, session_id: int, seconds: float, name: str) -> dict[str, Any]:
+    """A recording named ``name`` of the running session's next ``seconds`` of session time; the finished
+    trial."""
+    call(base, "POST", f"/api/sessions/{session_id}/recording", {"action": "start", "name": name})
+    session_time(base, session_id, session_time(base, session_id) + seconds)
+    trial: dict[str, Any] = call(base, "POST", f"/api/sessions/{session_id}/recording", {"action": "stop"})
+    assert trial["status"] == "finished", trial
+    return trial

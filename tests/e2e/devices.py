@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import time
 from collections.abc import Iterator
 from typing import Any, TypeVar
 
 from websockets.sync.client import connect
 from websockets.sync.connection import Connection
 
-from tests.e2e.test_fingerprints import _call
+from tests.e2e.accounts import call
 
 
 class StreamingDevice(threading.Thread):
@@ -31,6 +32,12 @@ class StreamingDevice(threading.Thread):
 
     def stream(self, ws: Connection) -> None:
         raise NotImplementedError
+
+    def pace(self, start: float, sent: int, rate_hz: float) -> None:
+        """Wait until the next frame is due (``start + sent / rate_hz`` on ``time.monotonic()``): paced by the
+        clock, not by a pause after each answer, the declared rate is kept whatever the round trip takes (a
+        rate short by 10 % turns the health box amber). Returns at once when the device is stopped."""
+        self.stop.wait(max(0.0, start + sent / rate_hz - time.monotonic()))
 
     def run(self) -> None:
         try:
@@ -48,15 +55,15 @@ def device_session(
     server: str, code: str, rate_hz: float, channels: list[str], device: type[D], estimators: list[str] | None = None
 ) -> Iterator[tuple[int, D]]:
     """A subject ``code``'s device session streamed by a started ``device``; stopped (if still running) after."""
-    subject = _call(server, "POST", "/api/subjects", {"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
+    subject = call(server, "POST", "/api/subjects", {"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
     body: dict[str, Any] = {
         "subject_id": subject["id"],
         "source": {"kind": "device", "rate_hz": rate_hz, "channels": channels},
     }
     if estimators is not None:
         body["settings"] = {"estimators": estimators}
-    session = _call(server, "POST", "/api/sessions", body)
-    token = _call(server, "POST", f"/api/sessions/{session['id']}/device-tokens")["token"]
+    session = call(server, "POST", "/api/sessions", body)
+    token = call(server, "POST", f"/api/sessions/{session['id']}/device-tokens")["token"]
     streaming = device(server, session["id"], token)
     streaming.start()
     try:
@@ -64,5 +71,5 @@ def device_session(
     finally:
         streaming.stop.set()
         streaming.join(timeout=10)
-        if _call(server, "GET", f"/api/sessions/{session['id']}")["state"] == "running":
-            _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+        if call(server, "GET", f"/api/sessions/{session['id']}")["state"] == "running":
+            call(server, "POST", f"/api/sessions/{session['id']}/stop")

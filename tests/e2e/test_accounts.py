@@ -20,23 +20,20 @@ import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from gaitscope.server.bench.launch import free_port, start_server
-from tests.e2e import test_browser as tb
 from tests.e2e.accounts import PASSWORDS, Refused, client
+from tests.e2e.pages import ARTIFACTS, Watched, watch
+from tests.e2e.servers import start
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
 
-pytestmark = tb.pytestmark
-server = tb.server
-browser = tb.browser
 
 SIZES = ((1440, 900), (1024, 768), (390, 844))
 SIM = {"kind": "simulated", "rate_hz": 100.0, "protocol": [{"speed_m_s": 1.0, "incline_deg": 0.0, "strides": 400}]}
 
 
-def _page(browser: Any, server: str, user: str | None, size: tuple[int, int] = (1024, 768)) -> Iterator[tb.Watched]:
-    context, w = tb.watch(browser, server, user, size)
+def _page(browser: Any, server: str, user: str | None, size: tuple[int, int] = (1024, 768)) -> Iterator[Watched]:
+    context, w = watch(browser, server, user, size)
     try:
         yield w
     finally:
@@ -44,7 +41,7 @@ def _page(browser: Any, server: str, user: str | None, size: tuple[int, int] = (
 
 
 @pytest.fixture
-def anonymous(browser: Any, server: str) -> Iterator[tb.Watched]:
+def anonymous(browser: Any, server: str) -> Iterator[Watched]:
     """A 1024x768 page that is not logged in; the first ``me`` answers 401, on purpose."""
     for w in _page(browser, server, None):
         w.allow_refusal(401, r"/api/auth/me$")
@@ -70,7 +67,7 @@ def _add_user(server: str, name: str, role: str, password: str) -> None:
 
 # --- the login page ----------------------------------------------------------------------------------------
 def test_login_page_refuses_a_wrong_password_then_comes_back_where_the_user_was(
-    server: str, anonymous: tb.Watched
+    server: str, anonymous: Watched
 ) -> None:
     page = anonymous.page
     anonymous.allow_refusal(401, r"/api/auth/login$")
@@ -113,7 +110,7 @@ def test_login_page_refuses_a_wrong_password_then_comes_back_where_the_user_was(
 
 
 def test_login_page_at_three_sizes(server: str, browser: Any) -> None:
-    tb.ARTIFACTS.mkdir(exist_ok=True)
+    ARTIFACTS.mkdir(exist_ok=True)
     for width, height in SIZES:
         for w in _page(browser, server, None, (width, height)):
             w.allow_refusal(401, r"/api/auth/me$")
@@ -125,11 +122,11 @@ def test_login_page_at_three_sizes(server: str, browser: Any) -> None:
             assert (
                 box is not None and box["y"] + box["height"] <= height and box["height"] >= 44
             )  # in view, a big target
-            page.screenshot(path=str(tb.ARTIFACTS / f"login-{width}x{height}.png"), full_page=True)
+            page.screenshot(path=str(ARTIFACTS / f"login-{width}x{height}.png"), full_page=True)
             w.check_clean()
 
 
-def test_failed_logins_slow_the_guesser_but_do_not_lock_the_account(server: str, anonymous: tb.Watched) -> None:
+def test_failed_logins_slow_the_guesser_but_do_not_lock_the_account(server: str, anonymous: Watched) -> None:
     _add_user(server, "locked.e2e", "viewer", "locked-e2e-password")
     for _ in range(5):  # the old lockout locked an account for 15 minutes after 5 failed logins in a row
         with pytest.raises(Refused) as refused:
@@ -147,7 +144,7 @@ def test_failed_logins_slow_the_guesser_but_do_not_lock_the_account(server: str,
     anonymous.check_clean()
 
 
-def test_change_password(server: str, anonymous: tb.Watched) -> None:
+def test_change_password(server: str, anonymous: Watched) -> None:
     _add_user(server, "pw.e2e", "viewer", "first-e2e-password")
     page = anonymous.page
     page.goto(f"{server}/#/login")
@@ -270,7 +267,11 @@ def test_an_experimenter_is_held_to_the_subjects_limits(server: str, browser: An
                 f"/api/subjects/{subject_id}/assistance-limits",
                 {"torque_gain": 1.0, "max_torque_Nm": 30.0, "intent_gain_boost": 0.0},
             )
-            time.sleep(1.1)  # past the per-field rate limit
+            # past the per-field rate limit: the slider reaches 1.15 (the page counts from when it saw 1.1
+            # applied, after the server did)
+            page.wait_for_function(
+                "() => Number(document.querySelector('[data-testid=setting-torque_gain-slider]').max) >= 1.15"
+            )
             gain.fill("1.15")
             page.get_by_test_id("settings-apply").click()
             expect(page.get_by_test_id("settings-error")).to_have_text(
@@ -416,11 +417,7 @@ def local_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """``gaitscope serve`` as the README starts it: loopback, accounts off."""
     data = tmp_path_factory.mktemp("gaitscope-local")
     env = {k: v for k, v in os.environ.items() if k != "GAITSCOPE_AUTH"}
-    with (data / "server.log").open("wb") as log:
-        try:
-            running = start_server(data, "--viser-port", str(free_port()), env=env, output=log)
-        except RuntimeError as e:
-            pytest.fail(f"{e}:\n{(data / 'server.log').read_text()[-3000:]}")
+    running = start(data, env)
     try:
         yield running.base
     finally:

@@ -14,161 +14,17 @@ The server runs with accounts on (issue #13), with one user per role (``tests/e2
 from __future__ import annotations
 
 import re
-import time
-from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
-from urllib.parse import urlsplit
 
-import pytest
+from playwright import sync_api as playwright_api
 
-from gaitscope.server.bench.launch import LOOPBACK, free_port, start_server
-from tests.e2e.accounts import AUTH_ENV, add_users, client, log_in
-
-playwright_api = pytest.importorskip("playwright.sync_api")
-
-CHROMIUM = Path("/usr/bin/chromium")
-ARTIFACTS = Path(__file__).resolve().parent / "artifacts"
-LAUNCH_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-dev-shm-usage",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
-
-pytestmark = [
-    pytest.mark.e2e,
-    pytest.mark.skipif(not CHROMIUM.exists(), reason=f"Chromium not found at {CHROMIUM} (apt-get install chromium)"),
-]
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """``gaitscope serve`` on free ports with a fresh data folder, accounts on and one user per role; yields
-    its base URL."""
-    data = tmp_path_factory.mktemp("gaitscope-data")
-    add_users(data)
-    log_path = data / "server.log"
-    with log_path.open("wb") as log:
-        try:
-            server = start_server(data, "--viser-port", str(free_port()), env=AUTH_ENV, output=log)
-        except RuntimeError as e:
-            pytest.fail(f"{e}:\n{log_path.read_text()[-3000:]}")
-    try:
-        yield server.base
-    finally:
-        server.stop()
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[playwright_api.Browser]:
-    with playwright_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=str(CHROMIUM), args=LAUNCH_ARGS)
-        yield b
-        b.close()
-
-
-def _leaves_loopback(url: str) -> bool:
-    """True if a request to ``url`` would go to a host other than 127.0.0.1 (blob:/data: stay local)."""
-    if url.startswith("data:"):
-        return False
-    if url.startswith("blob:"):
-        url = url[len("blob:") :]
-    parts = urlsplit(url)
-    return parts.scheme in {"http", "https", "ws", "wss"} and parts.hostname != LOOPBACK
-
-
-_FAILED_LOAD = re.compile(r"Failed to load resource: the server responded with a status of (\d{3})")
-
-
-@dataclass
-class Watched:
-    """A page plus what it logged. Chromium logs every 4xx response as a console error; the refusals a
-    test provokes on purpose are declared with :meth:`allow_refusal`, and only those are let through."""
-
-    page: playwright_api.Page
-    console_errors: list[str] = field(default_factory=list)
-    external: list[str] = field(default_factory=list)
-    requests: int = 0
-    allowed: list[tuple[int, re.Pattern[str]]] = field(default_factory=list)
-
-    def allow_refusal(self, status: int, url_pattern: str) -> None:
-        self.allowed.append((status, re.compile(url_pattern)))
-
-    def on_console(self, msg: playwright_api.ConsoleMessage) -> None:
-        if msg.type != "error":
-            return
-        m = _FAILED_LOAD.search(msg.text)
-        url = str(msg.location.get("url", ""))
-        if m and any(int(m[1]) == st and pat.search(url) for st, pat in self.allowed):
-            return
-        self.console_errors.append(f"{msg.text} ({url})")
-
-    def check_clean(self) -> None:
-        assert self.console_errors == [], "console errors:\n" + "\n".join(self.console_errors)
-        assert self.external == [], f"requests left {LOOPBACK}: {self.external}"
-
-
-def base_of(server: object) -> str:
-    """A module's ``server`` fixture's base URL (a string, or an object with ``base``)."""
-    return server if isinstance(server, str) else str(server.base)
-
-
-def watch(
-    browser: playwright_api.Browser,
-    base: str | None,
-    user: str | None = "clinician",
-    viewport: tuple[int, int] = (1024, 768),
-) -> tuple[playwright_api.BrowserContext, Watched]:
-    """A new context and page recording console errors and foreign requests, logged in as ``user`` (through
-    the API, before any page loads; None: not logged in)."""
-    context = browser.new_context(viewport={"width": viewport[0], "height": viewport[1]})
-    if user is not None and base is not None:
-        log_in(context, base, user)
-    page = context.new_page()
-    page.set_default_timeout(15_000)
-    w = Watched(page)
-
-    def on_request(req: playwright_api.Request) -> None:
-        w.requests += 1
-        if _leaves_loopback(req.url):
-            w.external.append(req.url)
-
-    page.on("console", w.on_console)
-    page.on("pageerror", lambda e: w.console_errors.append(f"uncaught: {e}"))
-    page.on("request", on_request)
-    page.on("websocket", lambda ws: w.external.append(ws.url) if _leaves_loopback(ws.url) else None)
-    return context, w
-
-
-@pytest.fixture
-def watched(browser: playwright_api.Browser, server: object) -> Iterator[Watched]:
-    """A 1024x768 page (the smallest tablet we support), logged in as the clinician, recording console errors
-    and foreign requests."""
-    context, w = watch(browser, base_of(server))
-    yield w
-    context.close()
+from tests.e2e.accounts import client
+from tests.e2e.pages import ARTIFACTS, Watched, wait_responsive
 
 
 def _patch(base: str, path: str, body: dict[str, object], user: str = "experimenter") -> object:
     """A PATCH from outside the browser: another user's screen."""
     return client(base, user).call("PATCH", path, body)
-
-
-def _wait_responsive(page: playwright_api.Page, timeout_s: float = 30.0) -> None:
-    """Wait until the renderer draws frames promptly again (three two-frame round trips under 100 ms)."""
-    deadline = time.monotonic() + timeout_s
-    fast = 0
-    while fast < 3:
-        ms = page.evaluate(
-            "() => new Promise((r) => { const t0 = performance.now();"
-            " requestAnimationFrame(() => requestAnimationFrame(() => r(performance.now() - t0))); })"
-        )
-        fast = fast + 1 if ms < 100 else 0
-        assert time.monotonic() < deadline, f"the page stayed busy for {timeout_s} s (last frame pair {ms:.0f} ms)"
 
 
 def _number(text: str | None) -> float:
@@ -265,7 +121,7 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     # first so that the timing of the next steps is the UI's own.
     page.get_by_title("3D leg view").scroll_into_view_if_needed()
     page.frame_locator("iframe[title='3D leg view']").locator("canvas").first.wait_for(state="attached", timeout=30_000)
-    _wait_responsive(page)
+    wait_responsive(page)
 
     # --- torque gain 1.0 -> 1.3; a change again too soon (server 409) and too large a step (client) ----
     gain = page.get_by_test_id("setting-torque_gain")

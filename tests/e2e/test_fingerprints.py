@@ -9,7 +9,7 @@ fits a candidate, which is compared with the average model (both re-run and over
 to the average model; an export is imported (and a tampered one refused). Then a calibration walk is recorded
 from the page itself ("record a calibration walk now"): cancelled, abandoned by leaving the page, walked to the
 end and fitted, and cut short by the session ending (the module's last step). The fixtures are
-``test_browser.py``'s (the same server, browser and console watch); screenshots go to
+``conftest.py``'s (the same server, browser and console watch); screenshots go to
 ``tests/e2e/artifacts/subject.png`` and ``subject-walk.png`` (the Calibrate card mid-walk).
 """
 
@@ -17,66 +17,46 @@ from __future__ import annotations
 
 import json
 import re
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from tests.e2e import test_browser as tb
-from tests.e2e.accounts import client, log_in
+from tests.e2e.accounts import call, log_in, record
+from tests.e2e.pages import ARTIFACTS, Watched
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
-
-pytestmark = tb.pytestmark
-# test_browser.py's fixtures, found here by name (module-scoped: this module gets its own server).
-server = tb.server
-browser = tb.browser
-watched = tb.watched
 
 SHORT_S = 3.0  # about 2 strides: fewer than the 8 a calibration needs
 WALK_S = 16.0  # about 14 strides at 1.0 m/s
 
 
-def _call(base: str, method: str, path: str, body: dict[str, Any] | None = None, user: str = "clinician") -> Any:
-    """A REST call from outside the browser (another screen, logged in as ``user``); the JSON answer."""
-    return client(base, user).call(method, path, body)
-
-
-def _record(base: str, session_id: int, seconds: float, name: str) -> dict[str, Any]:
-    _call(base, "POST", f"/api/sessions/{session_id}/recording", {"action": "start", "name": name})
-    time.sleep(seconds)
-    trial: dict[str, Any] = _call(base, "POST", f"/api/sessions/{session_id}/recording", {"action": "stop"})
-    assert trial["status"] == "finished", trial
-    return trial
-
-
 @pytest.fixture(scope="module")
 def walks(server: str) -> Iterator[dict[str, Any]]:
     """A subject with a running simulated session of theirs, which recorded a short and a calibration walk."""
-    subject = _call(server, "POST", "/api/subjects", {"code": "FP01", "leg_length_m": 0.9, "mass_kg": 70.0})
+    subject = call(server, "POST", "/api/subjects", {"code": "FP01", "leg_length_m": 0.9, "mass_kg": 70.0})
     source = {
         "kind": "simulated",
         "rate_hz": 100.0,  # half the default: a lighter re-run, strides as good
         "protocol": [{"speed_m_s": 1.0, "incline_deg": 0.0, "strides": 300}],
     }
-    session = _call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
+    session = call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
     assert session["state"] == "running"
     try:
-        short = _record(server, session["id"], SHORT_S, "standing start")
-        walk = _record(server, session["id"], WALK_S, "calibration walk")
+        short = record(server, session["id"], SHORT_S, "standing start")
+        walk = record(server, session["id"], WALK_S, "calibration walk")
         assert walk["duration_s"] > WALK_S - 2, walk
         yield {"subject": subject, "session": session, "short": short, "walk": walk}
     finally:
-        if _call(server, "GET", f"/api/sessions/{session['id']}")["state"] == "running":  # the last test stops it
-            _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+        if call(server, "GET", f"/api/sessions/{session['id']}")["state"] == "running":  # the last test stops it
+            call(server, "POST", f"/api/sessions/{session['id']}/stop")
 
 
 def _recording(base: str, session_id: int) -> list[dict[str, Any]]:
     """The session's trials still recording."""
-    trials: list[dict[str, Any]] = _call(base, "GET", f"/api/trials?session_id={session_id}")
+    trials: list[dict[str, Any]] = call(base, "GET", f"/api/trials?session_id={session_id}")
     return [t for t in trials if t["status"] == "recording"]
 
 
@@ -87,7 +67,7 @@ def _rmse(text: str | None) -> tuple[float, float]:
 
 
 def test_calibrate_compare_promote_and_roll_back(
-    server: str, walks: dict[str, Any], watched: tb.Watched, tmp_path: Path
+    server: str, walks: dict[str, Any], watched: Watched, tmp_path: Path
 ) -> None:
     page = watched.page
     sid, session_id = walks["subject"]["id"], walks["session"]["id"]
@@ -158,7 +138,7 @@ def test_calibrate_compare_promote_and_roll_back(
     g = r"-?\d+\.\d\d"
     expect(row.get_by_test_id("version-fingerprint")).to_have_text(re.compile(rf"^g1 {g} · g2 {g} · g3 {g}$"))
     expect(page.get_by_test_id("fp-point-version")).to_have_attribute("data-state", "candidate")
-    listing = _call(server, "GET", f"/api/subjects/{sid}/fingerprints")
+    listing = call(server, "GET", f"/api/subjects/{sid}/fingerprints")
     pid = listing["versions"][0]["id"]
 
     # --- compare: the walk re-run with the average and the candidate's model, overlaid ---------------------
@@ -176,8 +156,8 @@ def test_calibrate_compare_promote_and_roll_back(
     expect(page.get_by_test_id("figure-rmse-avg")).to_have_text(f"{avg:.2f} deg")
     expect(page.get_by_test_id("figure-rmse-personal")).to_contain_text(f"{personal:.2f} deg (")
     expect(page.get_by_test_id("compare-error")).to_be_hidden()
-    tb.ARTIFACTS.mkdir(exist_ok=True)
-    page.screenshot(path=str(tb.ARTIFACTS / "subject.png"), full_page=True)
+    ARTIFACTS.mkdir(exist_ok=True)
+    page.screenshot(path=str(ARTIFACTS / "subject.png"), full_page=True)
 
     # --- promote, with the confirm step and a reason -----------------------------------------------------------
     row.get_by_test_id("promote").click()
@@ -193,7 +173,7 @@ def test_calibrate_compare_promote_and_roll_back(
     expect(row.get_by_test_id("promote")).to_have_count(0)
     expect(page.get_by_test_id("active-model")).to_contain_text("v1 is in use, promoted by clinician")
     expect(page.get_by_test_id("fp-point-version")).to_have_attribute("data-state", "active")
-    events = [e["text"] for e in _call(server, "GET", f"/api/sessions/{session_id}/events")]
+    events = [e["text"] for e in call(server, "GET", f"/api/sessions/{session_id}/events")]
     assert any("v1 promoted by clinician (tracks her thigh better)" in t for t in events), events
 
     # --- an experimenter may not roll back (the button says why); the admin does: the average model again -------
@@ -215,12 +195,12 @@ def test_calibrate_compare_promote_and_roll_back(
     expect(page.get_by_test_id("active-model")).to_contain_text("the average model is in use")
     expect(row).to_have_attribute("data-state", "retired")
     expect(page.get_by_test_id("rollback")).to_be_disabled()
-    assert _call(server, "GET", f"/api/subjects/{sid}/fingerprints")["active"] is None
+    assert call(server, "GET", f"/api/subjects/{sid}/fingerprints")["active"] is None
 
     # --- export, import: a tampered file refused with the server's reason, the export taken as v2 -------------
     export = row.get_by_test_id("export")
     expect(export).to_have_attribute("href", f"/api/subjects/{sid}/fingerprints/{pid}/export")
-    exported = _call(server, "GET", f"/api/subjects/{sid}/fingerprints/{pid}/export")
+    exported = call(server, "GET", f"/api/subjects/{sid}/fingerprints/{pid}/export")
     tampered = tmp_path / "tampered.json"
     tampered.write_text(json.dumps({**exported, "model_sha256": "0" * 64}))
     good = tmp_path / "FP01-fingerprint-v1.json"
@@ -239,14 +219,14 @@ def test_calibrate_compare_promote_and_roll_back(
     watched.check_clean()
 
 
-def test_record_a_calibration_walk_now(server: str, walks: dict[str, Any], watched: tb.Watched) -> None:
+def test_record_a_calibration_walk_now(server: str, walks: dict[str, Any], watched: Watched) -> None:
     """The Calibrate card's walk on the running session: it finishes a recording under way (another screen's),
     shows its progress, stops on Cancel and when the page goes, fits a candidate at its end, and says so when
     the session ends during a walk. Runs after the test above (v1 retired, v2 imported): this walk is v3."""
     page = watched.page
     sid, session_id = walks["subject"]["id"], walks["session"]["id"]
     recording = f"/api/sessions/{session_id}/recording"
-    other = _call(server, "POST", recording, {"action": "start", "name": "other screen"})
+    other = call(server, "POST", recording, {"action": "start", "name": "other screen"})
     page.goto(f"{server}/#/subjects/{sid}")
     note = page.get_by_test_id("walk-note")
     expect(note).to_contain_text(f"Session {session_id} is running")
@@ -272,7 +252,7 @@ def test_record_a_calibration_walk_now(server: str, walks: dict[str, Any], watch
 
     # --- Cancel: the other screen's recording was finished (and kept), this one stopped, nothing fitted ---------
     cancelled = walk_started()
-    assert _call(server, "GET", f"/api/trials/{other['id']}")["status"] == "finished"
+    assert call(server, "GET", f"/api/trials/{other['id']}")["status"] == "finished"
     expect(note).to_contain_text(f"Recording trial {cancelled['id']} (“{cancelled['name']}”) on session {session_id}")
     expect(page.get_by_test_id("calibrate-submit")).to_be_disabled()  # one calibration at a time
     page.get_by_test_id("walk-cancel").click()
@@ -282,8 +262,8 @@ def test_record_a_calibration_walk_now(server: str, walks: dict[str, Any], watch
     expect(bar).to_be_hidden()
     expect(start).to_be_enabled()
     assert _recording(server, session_id) == []
-    assert _call(server, "GET", f"/api/trials/{cancelled['id']}")["status"] == "finished"
-    assert len(_call(server, "GET", f"/api/subjects/{sid}/fingerprints")["versions"]) == 2
+    assert call(server, "GET", f"/api/trials/{cancelled['id']}")["status"] == "finished"
+    assert len(call(server, "GET", f"/api/subjects/{sid}/fingerprints")["versions"]) == 2
 
     # --- leaving the page mid-walk stops the recording -------------------------------------------------------
     walk_started()
@@ -302,8 +282,8 @@ def test_record_a_calibration_walk_now(server: str, walks: dict[str, Any], watch
     duration.select_option("20")
     walked = walk_started()
     expect(bar).to_have_attribute("aria-valuenow", re.compile(r"^1\d$"), timeout=15_000)  # ten seconds or more
-    tb.ARTIFACTS.mkdir(exist_ok=True)
-    page.get_by_test_id("calibrate-card").screenshot(path=str(tb.ARTIFACTS / "subject-walk.png"))
+    ARTIFACTS.mkdir(exist_ok=True)
+    page.get_by_test_id("calibrate-card").screenshot(path=str(ARTIFACTS / "subject-walk.png"))
     ok = page.get_by_test_id("calibrate-ok")
     expect(ok).to_contain_text(f"Candidate v3 fitted from trial {walked['id']}", timeout=20_000)
     expect(page.get_by_test_id("calibrate-error")).to_be_hidden()
@@ -313,18 +293,18 @@ def test_record_a_calibration_walk_now(server: str, walks: dict[str, Any], watch
     expect(row).to_have_attribute("data-state", "candidate")
     expect(row).to_contain_text(f"Trial {walked['id']}")
     expect(row).to_contain_text("walked now")
-    trial = _call(server, "GET", f"/api/trials/{walked['id']}")
+    trial = call(server, "GET", f"/api/trials/{walked['id']}")
     assert trial["status"] == "finished" and 19.0 < trial["duration_s"] < 23.0, trial
     assert _recording(server, session_id) == []
 
     # --- the session ends during a walk: said, what was recorded offered, nothing fitted (the module's end) ----
     cut = walk_started()
-    _call(server, "POST", f"/api/sessions/{session_id}/stop")
+    call(server, "POST", f"/api/sessions/{session_id}/stop")
     error = page.get_by_test_id("calibrate-error")
     expect(error).to_have_text(re.compile(r"^The calibration walk was cut short \(\d+\.\d s of 20 s recorded\): "))
     expect(error).to_contain_text(f"session {session_id} ended. Nothing was fitted")
     expect(error).to_contain_text(f"kept as trial {cut['id']}")
     expect(page.get_by_test_id("calibrate-trial")).to_have_value(str(cut["id"]))
     expect(bar).to_be_hidden()
-    assert len(_call(server, "GET", f"/api/subjects/{sid}/fingerprints")["versions"]) == 3
+    assert len(call(server, "GET", f"/api/subjects/{sid}/fingerprints")["versions"]) == 3
     watched.check_clean()

@@ -8,7 +8,7 @@ version faintly) and redrawn as retraining installs new versions; each retrainin
 training window and held-out RMSE, readable in the event list; Freeze is logged with the acting user and
 shown, a rollback to the population model waits for the next heel strike and is then installed; a refused
 rollback (422) and the session's stop (409) are shown in plain words. Values are read from the plots'
-legends under the mouse, as a clinician reads them. The fixtures are ``test_browser.py``'s (this module gets
+legends under the mouse, as a clinician reads them. The fixtures are ``conftest.py``'s (this module gets
 its own server); screenshots of the card and the live view go to ``tests/e2e/artifacts/`` (``gp-*.png``).
 """
 
@@ -25,11 +25,9 @@ import numpy as np
 import pytest
 from websockets.sync.connection import Connection
 
-from tests.e2e import test_browser as tb
-from tests.e2e.accounts import log_in
+from tests.e2e.accounts import call, log_in
 from tests.e2e.devices import StreamingDevice, device_session
-from tests.e2e.test_fingerprints import _call
-from tests.e2e.test_joint_angles import _sweep
+from tests.e2e.pages import ARTIFACTS, Watched, sweep
 
 if TYPE_CHECKING:
     from playwright.sync_api import Page
@@ -37,10 +35,6 @@ if TYPE_CHECKING:
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
 
-pytestmark = tb.pytestmark
-server = tb.server
-browser = tb.browser
-watched = tb.watched
 
 RATE = 200.0  # Hz, declared and in the frames' times
 SEND_HZ = 240.0  # frames per second sent: under the 1.25 x RATE the server admits (LiveDevice's headroom)
@@ -74,8 +68,7 @@ class Device(StreamingDevice):
                 break
             ws.send(json.dumps({**frame, "seq": k}))
             ws.recv(timeout=5)
-            if (wait := start + (k + 1) / SEND_HZ - time.monotonic()) > 0:
-                time.sleep(wait)
+            self.pace(start, k + 1, SEND_HZ)
 
     @staticmethod
     def stance(t: float) -> float:
@@ -96,7 +89,7 @@ def _version(page: Page) -> int:
 
 
 def test_learning_card_bands_versions_freeze_and_rollback(
-    server: str, watched: tb.Watched, gp_session: tuple[int, Device]
+    server: str, watched: Watched, gp_session: tuple[int, Device]
 ) -> None:
     sid, device = gp_session
     page = watched.page
@@ -118,7 +111,7 @@ def test_learning_card_bands_versions_freeze_and_rollback(
     in_stance: list[tuple[float, float]] = []
     for _ in range(6):  # a few stances in the 10 s window (the device streams slower on a loaded machine)
         page.wait_for_timeout(3000)
-        readings = _sweep(page, page.get_by_test_id("gp-stance-plot"), np.linspace(0.3, 0.98, 60))
+        readings = sweep(page, page.get_by_test_id("gp-stance-plot"), np.linspace(0.3, 0.98, 60))
         pairs = [(r["t (s)"], r["stance phase"]) for r in readings]
         assert all(t is not None and v is not None and 0.0 <= v <= 100.0 for t, v in pairs), pairs
         stance = [(v, 100 * Device.stance(t)) for t, v in pairs if t is not None and v is not None]
@@ -136,7 +129,7 @@ def test_learning_card_bands_versions_freeze_and_rollback(
     try:
         expect(version).to_have_text(re.compile(r"^v[1-9]\d*$"), timeout=70_000)
     except AssertionError:
-        learning = _call(server, "GET", f"/api/sessions/{sid}/gp-learning")
+        learning = call(server, "GET", f"/api/sessions/{sid}/gp-learning")
         raise AssertionError(f"no model installed; the learning says: {learning['last']!r}") from None
     first = _version(page)
     for joint in ("hip", "knee", "ankle"):
@@ -149,7 +142,7 @@ def test_learning_card_bands_versions_freeze_and_rollback(
                 legend = plot.locator(".u-legend")
                 expect(legend).to_contain_text(f"v{now} mean", timeout=5000)
                 expect(legend).to_contain_text("(previous)", timeout=5000)  # the version before it, faintly
-                for r in _sweep(page, plot, np.linspace(0.1, 0.9, 5)):
+                for r in sweep(page, plot, np.linspace(0.1, 0.9, 5)):
                     prev = r[next(k for k in r if "previous" in k)]
                     mean, lo, hi = r[f"v{now} mean"], r["−2 SD"], r["+2 SD"]
                     assert mean is not None and lo is not None and hi is not None and prev is not None, r
@@ -199,9 +192,9 @@ def test_learning_card_bands_versions_freeze_and_rollback(
     expect(page.get_by_test_id("event-row").filter(has_text="GP model v0 reinstalled")).to_have_count(1)
     expect(page.get_by_test_id("gp-band-ankle")).to_have_attribute("data-version", "0")
     assert device.error is None, device.error
-    tb.ARTIFACTS.mkdir(exist_ok=True)
-    card.screenshot(path=str(tb.ARTIFACTS / "gp-learning.png"))
-    page.screenshot(path=str(tb.ARTIFACTS / "gp-live.png"), full_page=True)
+    ARTIFACTS.mkdir(exist_ok=True)
+    card.screenshot(path=str(ARTIFACTS / "gp-learning.png"))
+    page.screenshot(path=str(ARTIFACTS / "gp-live.png"), full_page=True)
 
     # --- refusals in plain words: a version no longer kept (a list drawn before it went), the session stopped
     page.evaluate(
@@ -218,7 +211,7 @@ def test_learning_card_bands_versions_freeze_and_rollback(
     assert _version(page) == 0
     device.stop.set()
     device.join(timeout=10)
-    _call(server, "POST", f"/api/sessions/{sid}/stop")
+    call(server, "POST", f"/api/sessions/{sid}/stop")
     expect(page.get_by_test_id("gp-note")).to_contain_text("not running")
     expect(page.get_by_test_id("gp-freeze")).to_be_disabled()
     expect(page.get_by_test_id("gp-rollback")).to_be_disabled()

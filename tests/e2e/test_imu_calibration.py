@@ -2,7 +2,7 @@
 only (foot and shank) streams over the real websocket while the clinician asks for a standing calibration
 from the live view. Standing still: the progress bar runs and each sensor's offset is shown as applied;
 then the device walks and a second calibration is refused with each sensor's reason. The fixtures are
-``test_browser.py``'s (this module gets its own server)."""
+``conftest.py``'s (this module gets its own server)."""
 
 from __future__ import annotations
 
@@ -15,17 +15,13 @@ from typing import Any
 import pytest
 from websockets.sync.connection import Connection
 
-from tests.e2e import test_browser as tb
 from tests.e2e.devices import StreamingDevice, device_session
-from tests.server.test_imu_calibration import IMU_CHANNELS, RATE, _standing, _walking
+from tests.e2e.pages import Watched
+from tests.waiting import wait_until
+from tests.walks import IMU_CHANNELS, IMU_RATE, imu_standing, imu_walking
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
-
-pytestmark = tb.pytestmark
-server = tb.server
-browser = tb.browser
-watched = tb.watched
 
 
 class Device(StreamingDevice):
@@ -34,29 +30,33 @@ class Device(StreamingDevice):
     def __init__(self, base: str, session_id: int, token: str):
         super().__init__(base, session_id, token)
         self.walking = threading.Event()
+        self.walked = 0  # walking frames sent
 
     def stream(self, ws: Connection) -> None:
         t, seq = 0.0, 0
+        start = time.monotonic()
         while not self.stop.is_set():
-            frames: list[dict[str, Any]] = _walking(t) if self.walking.is_set() else _standing(t, 1.0, seq)
+            walking = self.walking.is_set()
+            frames: list[dict[str, Any]] = imu_walking(t) if walking else imu_standing(t, 1.0, seq)
             for frame in frames:
                 if self.stop.is_set():
                     break
                 ws.send(json.dumps({**frame, "seq": seq}))
                 ws.recv(timeout=5)
                 seq += 1
-                t = frame["t"] + 1.0 / RATE
-                time.sleep(1.0 / RATE)
+                self.walked += walking
+                t = frame["t"] + 1.0 / IMU_RATE
+                self.pace(start, seq, IMU_RATE)
 
 
 @pytest.fixture
 def imu_device(server: str) -> Iterator[tuple[int, Device]]:
-    with device_session(server, "IMU1", RATE, IMU_CHANNELS, Device) as opened:
+    with device_session(server, "IMU1", IMU_RATE, IMU_CHANNELS, Device) as opened:
         yield opened
 
 
 def test_calibrate_from_the_live_view_then_refused_while_walking(
-    server: str, watched: tb.Watched, imu_device: tuple[int, Device]
+    server: str, watched: Watched, imu_device: tuple[int, Device]
 ) -> None:
     sid, device = imu_device
     page = watched.page
@@ -70,7 +70,8 @@ def test_calibrate_from_the_live_view_then_refused_while_walking(
     for seg in ("foot", "shank"):
         expect(page.get_by_test_id(f"imu-sensor-{seg}")).to_contain_text("pitch offset")
     device.walking.set()
-    time.sleep(1.0)
+    wait_until(lambda: device.walked >= IMU_RATE or not device.is_alive(), 30.0, "a second of walking")
+    assert device.error is None, device.error
     page.get_by_test_id("imu-calibrate").click()
     expect(page.get_by_test_id("imu-refused")).to_be_visible(timeout=20_000)
     expect(page.get_by_test_id("imu-sensor-shank")).to_contain_text("stand still")

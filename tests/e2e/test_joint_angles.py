@@ -5,13 +5,12 @@ plot draws finite angles that follow the walk (each correlated with the simulate
 a missing, empty, swapped or sign-flipped series fails), the SDRE's knee dashed beside them; a recording of the
 walk reviewed shows them too, and a re-run of its stack overlays the SDRE knee. The front ends' accuracy is
 ``tests/estimators``' to check, not this test's. Values are read from the plots' legends under the mouse, as a
-clinician reads them. The fixtures are ``test_browser.py``'s (this module gets its own server)."""
+clinician reads them. The fixtures are ``conftest.py``'s (this module gets its own server)."""
 
 from __future__ import annotations
 
 import functools
 import json
-import math
 import re
 import time
 from collections.abc import Iterator
@@ -22,20 +21,16 @@ import pytest
 from websockets.sync.connection import Connection
 
 from gaitscope.estimators.imu_frontend import imu_inputs
-from tests.e2e import test_browser as tb
+from tests.e2e.accounts import call, record
 from tests.e2e.devices import StreamingDevice, device_session
-from tests.e2e.test_fingerprints import _call, _record
+from tests.e2e.pages import Watched, sweep
 
 if TYPE_CHECKING:
-    from playwright.sync_api import Locator, Page
+    pass
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
 
-pytestmark = tb.pytestmark
-server = tb.server
-browser = tb.browser
-watched = tb.watched
 
 RATE = 100.0
 CHANNELS = [c for seg in ("foot", "shank", "thigh") for c in imu_inputs(seg)]
@@ -77,10 +72,7 @@ class Device(StreamingDevice):
                 ws.send(json.dumps({**frame, "t": lap * self.period + k / RATE, "seq": seq}))
                 ws.recv(timeout=5)
                 seq += 1
-                # paced by the clock, not by a sleep after each answer: the declared rate is kept whatever the
-                # round trip takes (a rate short by 10 % turns the health box amber)
-                if (wait := start + seq / RATE - time.monotonic()) > 0:
-                    time.sleep(wait)
+                self.pace(start, seq, RATE)
 
     def truth(self, angle: str, t: float) -> float:
         """The simulated ``thigh`` or ``knee`` angle (deg) at session time ``t``."""
@@ -94,32 +86,6 @@ def imu_session(server: str) -> Iterator[tuple[int, Device]]:
         yield opened
 
 
-def _number(text: str) -> float | None:
-    """A legend value as a float; None for uPlot's missing value (and anything that is not a number)."""
-    try:
-        v = float(text)
-    except ValueError:
-        return None
-    return v if math.isfinite(v) else None
-
-
-def _sweep(page: Page, plot: Locator, xs: np.ndarray) -> list[dict[str, float | None]]:
-    """The plot's legend (label -> value, the x axis first) with the mouse at each fraction ``xs`` of its width."""
-    plot.scroll_into_view_if_needed()
-    out = []
-    for x in xs:
-        box = plot.locator(".u-over").bounding_box()
-        assert box is not None, "the plot has no drawing area"
-        page.mouse.move(box["x"] + x * box["width"], box["y"] + box["height"] / 2)
-        page.wait_for_timeout(30)
-        rows = plot.evaluate(
-            "el => [...el.querySelectorAll('.u-legend .u-series')]"
-            ".map((r) => [r.querySelector('.u-label').textContent, r.querySelector('.u-value').textContent])"
-        )
-        out.append({label: _number(value) for label, value in rows})
-    return out
-
-
 def _follows(device: Device, readings: list[dict[str, float | None]], label: str, angle: str, min_r: float) -> None:
     """Every reading of the series ``label`` is a number, correlated with the simulated ``angle`` by more
     than ``min_r``."""
@@ -131,7 +97,7 @@ def _follows(device: Device, readings: list[dict[str, float | None]], label: str
 
 
 def test_hip_and_knee_from_raw_imus_live_and_in_review(
-    server: str, watched: tb.Watched, imu_session: tuple[int, Device]
+    server: str, watched: Watched, imu_session: tuple[int, Device]
 ) -> None:
     sid, device = imu_session
     page = watched.page
@@ -145,20 +111,20 @@ def test_hip_and_knee_from_raw_imus_live_and_in_review(
     page.wait_for_timeout(6000)  # a few strides in the 10 s window
 
     # --- live: under the mouse, across the newest half of the window, each series follows the walk ---------
-    readings = _sweep(page, plot, np.linspace(0.5, 0.98, SAMPLES))
+    readings = sweep(page, plot, np.linspace(0.5, 0.98, SAMPLES))
     _follows(device, readings, HIP, "thigh", 0.8)
     _follows(device, readings, KNEE, "knee", 0.8)
     _follows(device, readings, SDRE, "knee", 0.6)
 
     # --- review: a recording of the walk; a re-run of its stack overlays the SDRE knee ---------------------
-    _call(server, "POST", f"/api/sessions/{sid}/recording", {"action": "stop"})  # the session's own "trial 1"
-    trial = _record(server, sid, 5.0, "walk from IMUs")
+    call(server, "POST", f"/api/sessions/{sid}/recording", {"action": "stop"})  # the session's own "trial 1"
+    trial = record(server, sid, 5.0, "walk from IMUs")
     page.goto(f"{server}/#/trials/{trial['id']}")
     review_plot = page.get_by_test_id("review-plot-joints")
     expect(review_plot.locator(".u-title")).to_contain_text("Hip and knee flexion")
     expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
     expect(page.get_by_test_id("review-knee-note")).to_be_hidden()  # 500 samples: every one is shown
-    readings = _sweep(page, review_plot, np.linspace(0.02, 0.98, SAMPLES))
+    readings = sweep(page, review_plot, np.linspace(0.02, 0.98, SAMPLES))
     _follows(device, readings, HIP, "thigh", 0.8)
     _follows(device, readings, KNEE, "knee", 0.8)
     page.get_by_test_id("rerun-submit").click()
@@ -167,6 +133,6 @@ def test_hip_and_knee_from_raw_imus_live_and_in_review(
     expect(review_plot.locator(".u-legend")).to_contain_text(rerun)
     # the re-run's SDRE starts cold mid-walk (its state at the trial's start is not recorded): past its first
     # 2 s of settling it follows the knee
-    _follows(device, _sweep(page, review_plot, np.linspace(0.4, 0.98, SAMPLES)), rerun, "knee", 0.6)
+    _follows(device, sweep(page, review_plot, np.linspace(0.4, 0.98, SAMPLES)), rerun, "knee", 0.6)
     assert device.error is None, device.error
     watched.check_clean()

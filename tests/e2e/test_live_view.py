@@ -14,28 +14,24 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
-import sys
 import time
-import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
 import pytest
+from playwright import sync_api as playwright_api
 from websockets.sync.connection import Connection
 
 from gaitscope.server.bench.launch import RunningServer, free_port, start_server
-from tests.e2e import test_browser as tb
-from tests.e2e.accounts import AUTH_ENV, add_users, log_in
+from tests.e2e.accounts import AUTH_ENV, add_users, call, log_in
 from tests.e2e.devices import StreamingDevice, device_session
-from tests.e2e.test_browser import Watched, playwright_api
-from tests.e2e.test_fingerprints import _call
+from tests.e2e.pages import ARTIFACTS, Watched, watch
+from tests.e2e.servers import serve
+from tests.waiting import wait_until
 
 expect = playwright_api.expect
-pytestmark = tb.pytestmark
-browser = tb.browser  # test_browser.py's fixture, found here by name
 
 KEY_PLOTS = ("plot-phase", "plot-torque", "plot-phase_rate", "plot-incline")
 SIM = {"kind": "simulated", "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 400}], "rate_hz": 200}
@@ -75,34 +71,9 @@ def server(live_server: LiveServer) -> str:
     return live_server.base
 
 
-def _restart(data: Path, port: int, log: IO[bytes]) -> RunningServer:
-    """``gaitscope serve`` again on the same data and port (``start_server`` picks a new port), once it answers."""
-    exe = str(Path(sys.executable).with_name("gaitscope"))
-    cmd = [exe, "serve", "--port", str(port), "--data-dir", str(data), "--viser-port", str(free_port())]
-    server = RunningServer(subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=AUTH_ENV), port)
-    deadline = time.monotonic() + 90
-    while True:
-        assert server.proc.poll() is None, f"gaitscope serve exited with {server.proc.returncode}"
-        try:
-            urllib.request.urlopen(f"{server.base}/api/health", timeout=1).close()
-            return server
-        except OSError:
-            if time.monotonic() > deadline:
-                server.stop()
-                pytest.fail("the restarted server did not answer in 90 s")
-            time.sleep(0.2)
-
-
 def _page(browser: playwright_api.Browser, width: int, height: int, base: str) -> Iterator[Watched]:
     """A page of this size, logged in as the clinician."""
-    context = browser.new_context(viewport={"width": width, "height": height})
-    log_in(context, base)
-    page = context.new_page()
-    page.set_default_timeout(20_000)
-    w = Watched(page)
-    page.on("console", w.on_console)
-    page.on("pageerror", lambda e: w.console_errors.append(f"uncaught: {e}"))
-    page.on("request", lambda req: w.external.append(req.url) if tb._leaves_loopback(req.url) else None)
+    context, w = watch(browser, base, viewport=(width, height), timeout_ms=20_000)
     try:
         yield w
     finally:
@@ -123,15 +94,15 @@ def _stop_sessions() -> Iterator[None]:
     while _STARTED:
         base, sid = _STARTED.pop()
         try:
-            if _call(base, "GET", f"/api/sessions/{sid}")["state"] == "running":
-                _call(base, "POST", f"/api/sessions/{sid}/stop")
+            if call(base, "GET", f"/api/sessions/{sid}")["state"] == "running":
+                call(base, "POST", f"/api/sessions/{sid}/stop")
         except (AssertionError, OSError):
             pass  # the server is gone (the restart test) or the session ended meanwhile
 
 
 def _sim_session(server: str, code: str) -> int:
-    subject = _call(server, "POST", "/api/subjects", {"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
-    session = _call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": SIM})
+    subject = call(server, "POST", "/api/subjects", {"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
+    session = call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": SIM})
     _STARTED.append((server, int(session["id"])))
     return int(session["id"])
 
@@ -169,7 +140,7 @@ def test_key_plots_in_view_and_the_layout_is_each_users(server: str, wide: Watch
         box = page.get_by_test_id(testid).bounding_box()
         assert _inside(box, 1440, 900), (testid, box)
     assert page.evaluate("() => window.scrollY") == 0
-    page.screenshot(path=str(tb.ARTIFACTS / "live-1440.png"))
+    page.screenshot(path=str(ARTIFACTS / "live-1440.png"))
 
     # the clinician moves the events up front and hides the leg view: kept for the clinician, not for others
     panels = page.get_by_test_id("live-panels")
@@ -230,7 +201,7 @@ def test_tablet_and_phone_put_what_matters_first(server: str, browser: playwrigh
                 "() => { const s = document.querySelector('[data-testid=events-card] .events-scroll');"
                 " return s.scrollWidth <= s.clientWidth + 1; }"
             )
-            page.screenshot(path=str(tb.ARTIFACTS / f"live-{width}.png"), full_page=width == 390)
+            page.screenshot(path=str(ARTIFACTS / f"live-{width}.png"), full_page=width == 390)
             w.check_clean()
 
 
@@ -238,7 +209,10 @@ def test_tablet_and_phone_put_what_matters_first(server: str, browser: playwrigh
 def test_history_on_opening_pause_zoom_and_linked_hover(server: str, wide: Watched) -> None:
     sid = _sim_session(server, "HIS1")
     page = _open(wide, server, sid)
-    time.sleep(7)  # the session runs on while this page watches
+    # the session runs on while this page watches: 7 s of it (200 Hz)
+    page.wait_for_function(
+        "() => Number(document.querySelector('[data-testid=health-samples]')?.textContent) >= 1400", timeout=30_000
+    )
     page.reload(wait_until="domcontentloaded")  # a newly connected browser: the last seconds come first
     t0 = time.monotonic()
     keys = page.locator(".key-plots")
@@ -254,11 +228,9 @@ def test_history_on_opening_pause_zoom_and_linked_hover(server: str, wide: Watch
     frozen = _canvas(page, "plot-torque")
     expect(page.get_by_test_id("health-samples")).to_have_text(re.compile(r"^\d+$"))  # a health message came
     samples = int(page.get_by_test_id("health-samples").inner_text())
-    time.sleep(1.5)
-    assert _canvas(page, "plot-torque") == frozen
-    page.wait_for_function(  # the data keeps arriving
-        f"() => Number(document.querySelector('[data-testid=health-samples]').textContent) > {samples + 100}",
-        timeout=6_000,
+    page.wait_for_function(  # the data keeps arriving: 1.5 s more of it (200 Hz)
+        f"() => Number(document.querySelector('[data-testid=health-samples]').textContent) > {samples + 300}",
+        timeout=10_000,
     )
     assert _canvas(page, "plot-torque") == frozen
     page.get_by_test_id("plot-torque").get_by_test_id("plot-zoom-in").click()
@@ -276,13 +248,12 @@ def test_history_on_opening_pause_zoom_and_linked_hover(server: str, wide: Watch
     assert torque_value.get_attribute("data-unit") == "N·m"
     incline_value = page.get_by_test_id("plot-incline").locator(".u-legend .u-series").nth(1).locator(".u-value")
     expect(incline_value).to_have_text(re.compile(r"^-?\d+\.\d+$"))
-    page.screenshot(path=str(tb.ARTIFACTS / "live-paused-zoomed.png"))
+    page.screenshot(path=str(ARTIFACTS / "live-paused-zoomed.png"))
 
     page.get_by_test_id("live-pause").click()
     expect(page.get_by_test_id("live-pause")).to_have_text("Pause")
     expect(page.get_by_test_id("plot-torque").get_by_test_id("plot-state")).to_have_text("")
-    time.sleep(0.5)
-    assert _canvas(page, "plot-torque") != frozen
+    wait_until(lambda: _canvas(page, "plot-torque") != frozen, 5.0, "the resumed plot to move")
     wide.check_clean()
 
 
@@ -342,7 +313,7 @@ def test_changes_as_markers_undo_and_safe_controls(server: str, wide: Watched) -
     label, x, _ = next(m for m in marks if m[0].startswith("Torque gain"))
     page.mouse.move(over["x"] + x, over["y"] + over["height"] / 2, steps=3)
     expect(page.get_by_test_id("plot-torque").get_by_test_id("plot-marker-tip")).to_contain_text(label)
-    page.screenshot(path=str(tb.ARTIFACTS / "live-markers.png"))
+    page.screenshot(path=str(ARTIFACTS / "live-markers.png"))
     page.get_by_test_id("live-pause").click()
 
     # undo, in one action, itself logged
@@ -353,7 +324,7 @@ def test_changes_as_markers_undo_and_safe_controls(server: str, wide: Watched) -
     expect(row.first.get_by_test_id("event-text")).to_have_text(
         "Torque gain 1.30 → 1.00 (undo of the previous change), by clinician"
     )
-    assert _call(server, "GET", f"/api/sessions/{sid}")["settings"]["torque_gain"] == 1.0
+    assert call(server, "GET", f"/api/sessions/{sid}")["settings"]["torque_gain"] == 1.0
 
     # raising the maximum torque asks first; cancelling leaves it; lowering does not ask
     page.get_by_test_id("setting-max_torque_Nm").fill("35")
@@ -363,11 +334,15 @@ def test_changes_as_markers_undo_and_safe_controls(server: str, wide: Watched) -
     )
     page.get_by_test_id("confirm-cancel").click()
     expect(page.get_by_test_id("confirm-raise-box")).to_be_hidden()
-    assert _call(server, "GET", f"/api/sessions/{sid}")["settings"]["max_torque_Nm"] == 30.0
+    assert call(server, "GET", f"/api/sessions/{sid}")["settings"]["max_torque_Nm"] == 30.0
     page.get_by_test_id("settings-apply").click()
     page.get_by_test_id("confirm-raise").click()
     expect(page.get_by_test_id("setting-max_torque_Nm-applied")).to_have_text("applied now: 35.0")
-    time.sleep(0.6)
+    # the slider reaches 32 once the rate limit allows the step (the page counts from when it saw the change
+    # applied, after the server did: the server allows it by then)
+    page.wait_for_function(
+        "() => Number(document.querySelector('[data-testid=setting-max_torque_Nm-slider]').min) <= 32"
+    )
     page.get_by_test_id("setting-max_torque_Nm").fill("32")
     page.get_by_test_id("settings-apply").click()
     expect(page.get_by_test_id("setting-max_torque_Nm-applied")).to_have_text("applied now: 32.0")
@@ -390,7 +365,7 @@ class LateDevice(StreamingDevice):
             ws.send(json.dumps(frame))
             ws.recv(timeout=5)
             seq += 1
-            time.sleep(max(0.0, start + seq / 100 - time.monotonic()))  # 100 Hz, as declared
+            self.pace(start, seq, 100.0)  # 100 Hz, as declared
 
 
 class AmberDevice(LateDevice):
@@ -418,7 +393,7 @@ def test_health_box_turns_amber_and_red_past_its_limits(server: str, wide: Watch
             expect(page.get_by_test_id("health-help")).to_contain_text(
                 "Device → screen delay (95th percentile): amber from 200 ms, red from 1000 ms."
             )
-            page.screenshot(path=str(tb.ARTIFACTS / f"live-health-{level}.png"))
+            page.screenshot(path=str(ARTIFACTS / f"live-health-{level}.png"))
     wide.check_clean()
 
 
@@ -428,14 +403,14 @@ def test_after_a_restart_the_page_says_what_happened_and_starts_a_new_session(
 ) -> None:
     base = live_server.base
     sid = _sim_session(base, "RST1")
-    _call(base, "PATCH", f"/api/sessions/{sid}/settings", {"torque_gain": 1.2})
+    call(base, "PATCH", f"/api/sessions/{sid}/settings", {"torque_gain": 1.2})
     page = _open(wide, base, sid)
     expect(page.get_by_test_id("live-indicator")).to_have_text("LIVE", timeout=20_000)
     old = live_server.server
     old.stop()
     expect(page.get_by_test_id("live-indicator")).to_have_text("NOT LIVE", timeout=5_000)
     expect(page.get_by_test_id("health-reasons")).to_contain_text("No connection to the server.")
-    live_server.server = _restart(live_server.data, old.port, live_server.log)
+    live_server.server = serve(live_server.data, old.port, live_server.log, "--viser-port", str(free_port()))
     ended = page.get_by_test_id("session-ended")
     expect(ended).to_be_visible(timeout=30_000)  # reconnected by itself (no reload), and found the session stopped
     expect(page.get_by_test_id("session-ended-text")).to_have_text(
@@ -443,14 +418,14 @@ def test_after_a_restart_the_page_says_what_happened_and_starts_a_new_session(
             r"^This session was stopped (by a server restart|when the server restarted) at \d\d:\d\d:\d\d( [AP]M)?\.$"
         )
     )
-    page.screenshot(path=str(tb.ARTIFACTS / "live-after-restart.png"))
+    page.screenshot(path=str(ARTIFACTS / "live-after-restart.png"))
     expect(page.get_by_test_id("session-summary-link")).to_have_attribute("href", f"#/sessions/{sid}/summary")
     page.get_by_test_id("session-restart").click()
     expect(page).not_to_have_url(re.compile(rf"#/sessions/{sid}$"))  # the new session's page
     new_id = int(re.search(r"#/sessions/(\d+)$", page.url)[1])  # type: ignore[index]
     assert new_id != sid
     expect(page.get_by_test_id("live-indicator")).to_have_text("LIVE", timeout=30_000)
-    before, after = _call(base, "GET", f"/api/sessions/{sid}"), _call(base, "GET", f"/api/sessions/{new_id}")
+    before, after = call(base, "GET", f"/api/sessions/{sid}"), call(base, "GET", f"/api/sessions/{new_id}")
     assert after["subject_id"] == before["subject_id"] and after["source"] == before["source"]
     assert after["settings"] == before["settings"] and after["settings"]["torque_gain"] == 1.2
     assert after["state"] == "running"

@@ -6,7 +6,7 @@ sessions and trials with dates and durations); the stopped session's summary (du
 history, stride curves per condition, data health, events) and both exports, downloaded and read back (the PDF
 with pypdf, the CSV parsed); a bad CSV upload refused naming its row and column; a recording cut off before it
 was finished refused as recoverable, and recovered by the button. Screenshots ``people-*.png`` at 1440x900,
-1024x768 and 390x844 go to ``tests/e2e/artifacts/``. The fixtures are ``test_browser.py``'s (this module gets
+1024x768 and 390x844 go to ``tests/e2e/artifacts/``. The fixtures are ``conftest.py``'s (this module gets
 its own server).
 """
 
@@ -16,22 +16,17 @@ import csv
 import io
 import json
 import re
-import time
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from tests.e2e import test_browser as tb
-from tests.e2e.accounts import client
+from tests.e2e.accounts import client, session_time
+from tests.e2e.pages import ARTIFACTS, Watched
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
 
-pytestmark = tb.pytestmark
-server = tb.server
-browser = tb.browser
-watched = tb.watched
 
 VIEWPORTS = {"1440x900": (1440, 900), "1024x768": (1024, 768), "390x844": (390, 844)}
 WALK = {
@@ -61,9 +56,9 @@ def people(server: str) -> dict[str, Any]:
     for code in ("PPL-B", "PPL-A", "PPL-C"):
         ids[code] = _call(server, "POST", "/api/subjects", {"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})["id"]
     s = _call(server, "POST", "/api/sessions", {"subject_id": ids["PPL-A"], "source": WALK})
-    time.sleep(4.0)
+    session_time(server, s["id"], 4.0)
     _call(server, "PATCH", f"/api/sessions/{s['id']}/settings", {"torque_gain": 1.3})
-    time.sleep(5.0)
+    session_time(server, s["id"], 9.0)
     _call(server, "POST", f"/api/sessions/{s['id']}/stop")
     trials = _call(server, "GET", f"/api/trials?session_id={s['id']}")
     return {"subjects": ids, "session": s["id"], "trials": trials}
@@ -74,9 +69,9 @@ def _codes(page: Any) -> list[str]:
             if c.startswith("PPL-")]  # fmt: skip
 
 
-def test_subjects_page_search_and_sort(server: str, watched: tb.Watched, people: dict[str, Any]) -> None:
+def test_subjects_page_search_and_sort(server: str, watched: Watched, people: dict[str, Any]) -> None:
     page = watched.page
-    tb.ARTIFACTS.mkdir(exist_ok=True)
+    ARTIFACTS.mkdir(exist_ok=True)
     page.goto(f"{server}/#/")
     page.get_by_test_id("nav-subjects").click()
     page.wait_for_url(re.compile(r"#/subjects$"))
@@ -106,11 +101,11 @@ def test_subjects_page_search_and_sort(server: str, watched: tb.Watched, people:
     for name, (w, h) in VIEWPORTS.items():
         page.set_viewport_size({"width": w, "height": h})
         page.wait_for_timeout(200)
-        page.screenshot(path=str(tb.ARTIFACTS / f"people-subjects-{name}.png"), full_page=True)
+        page.screenshot(path=str(ARTIFACTS / f"people-subjects-{name}.png"), full_page=True)
     watched.check_clean()
 
 
-def test_summary_and_exports(server: str, watched: tb.Watched, people: dict[str, Any], tmp_path: Path) -> None:
+def test_summary_and_exports(server: str, watched: Watched, people: dict[str, Any], tmp_path: Path) -> None:
     from pypdf import PdfReader
 
     page = watched.page
@@ -169,11 +164,11 @@ def test_summary_and_exports(server: str, watched: tb.Watched, people: dict[str,
     for name, (w, h) in VIEWPORTS.items():
         page.set_viewport_size({"width": w, "height": h})
         page.wait_for_timeout(300)
-        page.screenshot(path=str(tb.ARTIFACTS / f"people-summary-{name}.png"), full_page=True)
+        page.screenshot(path=str(ARTIFACTS / f"people-summary-{name}.png"), full_page=True)
     watched.check_clean()
 
 
-def test_upload_errors_and_recovery(server: str, watched: tb.Watched, people: dict[str, Any], tmp_path: Path) -> None:
+def test_upload_errors_and_recovery(server: str, watched: Watched, people: dict[str, Any], tmp_path: Path) -> None:
     page = watched.page
     watched.allow_refusal(422, r"/api/uploads/\w+/finish$")
     page.goto(f"{server}/#/")
@@ -205,7 +200,7 @@ def test_upload_errors_and_recovery(server: str, watched: tb.Watched, people: di
     for name, (w, h) in VIEWPORTS.items():
         page.set_viewport_size({"width": w, "height": h})
         page.wait_for_timeout(200)
-        page.get_by_test_id("upload-form").screenshot(path=str(tb.ARTIFACTS / f"people-upload-{name}.png"))
+        page.get_by_test_id("upload-form").screenshot(path=str(ARTIFACTS / f"people-upload-{name}.png"))
     page.get_by_test_id("upload-recover").click()
     page.wait_for_url(re.compile(r"#/trials/\d+$"), timeout=60_000)
     new_id = int(page.url.rsplit("/", 1)[1])

@@ -10,7 +10,7 @@ coming and resume catches up. Second, the live view and review as they are today
 at 200 Hz: hover values with units, a zoom, and the browser-side frame rate of the live page with all its
 panels (written to ``tests/e2e/artifacts/plots-fps.json``; ``docs/dashboard.md`` quotes it).
 Screenshots: ``tests/e2e/artifacts/plots-*.png`` at 1440x900, 1024x768 and 390x844.
-The fixtures are ``test_browser.py``'s (this module gets its own server).
+The fixtures are ``conftest.py``'s (this module gets its own server).
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ from typing import TYPE_CHECKING, Any
 import pytest
 from websockets.sync.connection import Connection
 
-from tests.e2e import test_browser as tb
+from tests.e2e.accounts import record
 from tests.e2e.devices import StreamingDevice, device_session
-from tests.e2e.test_fingerprints import _record
+from tests.e2e.pages import ARTIFACTS, Watched, wait_responsive
 
 if TYPE_CHECKING:
     from playwright.sync_api import FloatRect, Locator, Page
@@ -34,10 +34,6 @@ if TYPE_CHECKING:
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
 
-pytestmark = tb.pytestmark
-server = tb.server
-browser = tb.browser
-watched = tb.watched
 
 VIEWPORTS = [(1440, 900), (1024, 768), (390, 844)]
 RATE = 200.0  # Hz: the device's and the harness's sample rate
@@ -168,7 +164,7 @@ def _hover_rows(
         nudge = 0.01 if nudge == 0 else 0.0  # a move to the same point is no move: alternate
 
 
-def test_zoom_pan_reset_linked(server: str, watched: tb.Watched) -> None:
+def test_zoom_pan_reset_linked(server: str, watched: Watched) -> None:
     page = watched.page
     page.set_viewport_size({"width": 1440, "height": 900})
     _harness(page, server)
@@ -184,7 +180,7 @@ def test_zoom_pan_reset_linked(server: str, watched: tb.Watched) -> None:
     expect(page.get_by_test_id("h-torque").get_by_test_id("plot-state")).to_have_text("paused, zoomed")
     page.wait_for_timeout(400)
     assert _linked(_xs(page)) == pytest.approx(zoomed, abs=1e-9)  # data flowing, the paused view still
-    page.screenshot(path=str(tb.ARTIFACTS / "plots-zoomed-1440.png"))
+    page.screenshot(path=str(ARTIFACTS / "plots-zoomed-1440.png"))
 
     # --- the wheel over the torque plot zooms about the cursor: the time under it stays put ----------------
     box = _over(page, "torque")
@@ -244,7 +240,7 @@ def test_zoom_pan_reset_linked(server: str, watched: tb.Watched) -> None:
     watched.check_clean()
 
 
-def test_hover_values_with_units_in_every_plot(server: str, watched: tb.Watched) -> None:
+def test_hover_values_with_units_in_every_plot(server: str, watched: Watched) -> None:
     page = watched.page
     for width, height in VIEWPORTS:
         page.set_viewport_size({"width": width, "height": height})
@@ -268,11 +264,11 @@ def test_hover_values_with_units_in_every_plot(server: str, watched: tb.Watched)
             t = times["phase"]
             d = abs(float(legends["phase"][1][1]) - ((t % 1.1) / 1.1) * 100)
             assert min(d, 100 - d) < 2.0, (t, legends["phase"])  # (modulo the wrap from 100 to 0 %)
-        page.screenshot(path=str(tb.ARTIFACTS / f"plots-hover-{width}.png"))
+        page.screenshot(path=str(ARTIFACTS / f"plots-hover-{width}.png"))
     watched.check_clean()
 
 
-def test_labelled_markers(server: str, watched: tb.Watched) -> None:
+def test_labelled_markers(server: str, watched: Watched) -> None:
     page = watched.page
     page.set_viewport_size({"width": 1024, "height": 768})
     _harness(page, server)
@@ -307,7 +303,7 @@ def test_labelled_markers(server: str, watched: tb.Watched) -> None:
     page.mouse.move(box["x"] + box["width"] * 0.55, box["y"] + box["height"] * 0.7)
     expect(tip).to_be_hidden()
     page.get_by_test_id("h-phase").scroll_into_view_if_needed()
-    page.screenshot(path=str(tb.ARTIFACTS / "plots-markers-1024.png"))
+    page.screenshot(path=str(ARTIFACTS / "plots-markers-1024.png"))
     # a marker without a time is refused, saying which
     err = page.evaluate(
         "() => { try { __h.group.setMarkers([{ t: 1, label: 'a' }, { label: 'b' }]); }"
@@ -317,7 +313,7 @@ def test_labelled_markers(server: str, watched: tb.Watched) -> None:
     watched.check_clean()
 
 
-def test_y_ranges_fixed_adjustable_remembered(server: str, watched: tb.Watched) -> None:
+def test_y_ranges_fixed_adjustable_remembered(server: str, watched: Watched) -> None:
     page = watched.page
     page.set_viewport_size({"width": 1024, "height": 768})
     _harness(page, server)
@@ -347,7 +343,7 @@ def test_y_ranges_fixed_adjustable_remembered(server: str, watched: tb.Watched) 
     expect(form).to_be_hidden()
     assert _ys(page)[2] == [-0.5, 0.5]
     expect(incline.get_by_test_id("plot-y-range")).to_have_text("Y -0.5 to 0.5")
-    page.screenshot(path=str(tb.ARTIFACTS / "plots-yrange-1024.png"))
+    page.screenshot(path=str(ARTIFACTS / "plots-yrange-1024.png"))
 
     # remembered: a new page's incline plot starts with it
     _harness(page, server)
@@ -360,7 +356,7 @@ def test_y_ranges_fixed_adjustable_remembered(server: str, watched: tb.Watched) 
     watched.check_clean()
 
 
-def test_pause_freezes_then_resume_catches_up(server: str, watched: tb.Watched) -> None:
+def test_pause_freezes_then_resume_catches_up(server: str, watched: Watched) -> None:
     page = watched.page
     page.set_viewport_size({"width": 1024, "height": 768})
     _harness(page, server)
@@ -381,7 +377,7 @@ def test_pause_freezes_then_resume_catches_up(server: str, watched: tb.Watched) 
     page.evaluate(f"() => __h.group.setX({frozen[0] + 2}, {frozen[0] + 4})")
     assert _linked(_xs(page)) == pytest.approx([frozen[0] + 2, frozen[0] + 4])
     expect(page.get_by_test_id("h-phase").get_by_test_id("plot-state")).to_have_text("paused, zoomed")
-    page.screenshot(path=str(tb.ARTIFACTS / "plots-paused-1024.png"))
+    page.screenshot(path=str(ARTIFACTS / "plots-paused-1024.png"))
     # resume: the newest data, following it, zoom gone
     page.evaluate("() => __h.group.resume()")
     page.wait_for_timeout(200)
@@ -421,8 +417,7 @@ class Device(StreamingDevice):
             ws.recv(timeout=5)
             seq += 1
             self.sent = seq
-            if (wait := start + seq / RATE - time.monotonic()) > 0:
-                time.sleep(wait)
+            self.pace(start, seq, RATE)
 
 
 @pytest.fixture
@@ -431,7 +426,7 @@ def streaming(server: str) -> Iterator[tuple[int, Device]]:
         yield opened
 
 
-def test_live_and_review_plots_at_200_hz(server: str, watched: tb.Watched, streaming: tuple[int, Device]) -> None:
+def test_live_and_review_plots_at_200_hz(server: str, watched: Watched, streaming: tuple[int, Device]) -> None:
     sid, device = streaming
     page = watched.page
     page.set_viewport_size({"width": 1440, "height": 900})
@@ -442,7 +437,7 @@ def test_live_and_review_plots_at_200_hz(server: str, watched: tb.Watched, strea
     # --- the browser's frame rate with every panel of the live page open, at 1440x900 -----------------------
     # every panel open (a fresh browser has the standard layout: none hidden)
     assert page.locator("[data-testid=live-panels] .panel-hidden").count() == 0
-    tb._wait_responsive(page)
+    wait_responsive(page)
     sent0, t0 = device.sent, time.monotonic()
     stats = page.evaluate("async () => (await import('/plots.js')).measureFrames(8)")
     rate = (device.sent - sent0) / (time.monotonic() - t0)
@@ -451,8 +446,8 @@ def test_live_and_review_plots_at_200_hz(server: str, watched: tb.Watched, strea
     stats["device_rate_hz"] = rate
     stats["health_rate_text"] = page.get_by_test_id("health-rate").inner_text()
     stats["plots_on_page"] = page.locator(".gs-plot").count()
-    tb.ARTIFACTS.mkdir(exist_ok=True)
-    (tb.ARTIFACTS / "plots-fps.json").write_text(json.dumps(stats, indent=2) + "\n")
+    ARTIFACTS.mkdir(exist_ok=True)
+    (ARTIFACTS / "plots-fps.json").write_text(json.dumps(stats, indent=2) + "\n")
     print(f"live page, 200 Hz, 1440x900: {stats}")
     assert stats["frames"] > 0 and stats["fps"] > 20, stats  # a floor for a loaded CI machine; 60 is the aim
 
@@ -474,15 +469,15 @@ def test_live_and_review_plots_at_200_hz(server: str, watched: tb.Watched, strea
         page.set_viewport_size({"width": width, "height": height})
         page.wait_for_timeout(500)
         page.get_by_test_id("plot-phase").scroll_into_view_if_needed()
-        page.screenshot(path=str(tb.ARTIFACTS / f"plots-live-{width}.png"))
+        page.screenshot(path=str(ARTIFACTS / f"plots-live-{width}.png"))
 
     # --- review of a recording: units, zoom, reset --------------------------------------------------------
-    trial = _record(server, sid, 3.0, "plots check")
+    trial = record(server, sid, 3.0, "plots check")
     page.set_viewport_size({"width": 1440, "height": 900})
     page.goto(f"{server}/#/trials/{trial['id']}")
     plot = page.get_by_test_id("review-plot-torque")
     expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
-    tb._wait_responsive(page)  # the review page's first drawing done
+    wait_responsive(page)  # the review page's first drawing done
     plot.scroll_into_view_if_needed()
     box = plot.locator(".u-over").bounding_box()
     assert box is not None
@@ -495,7 +490,7 @@ def test_live_and_review_plots_at_200_hz(server: str, watched: tb.Watched, strea
         page.set_viewport_size({"width": width, "height": height})
         page.wait_for_timeout(400)
         plot.scroll_into_view_if_needed()
-        page.screenshot(path=str(tb.ARTIFACTS / f"plots-review-{width}.png"))
+        page.screenshot(path=str(ARTIFACTS / f"plots-review-{width}.png"))
     plot.get_by_test_id("plot-reset").click()
     expect(plot.get_by_test_id("plot-state")).not_to_contain_text("zoomed")
     assert device.error is None, device.error

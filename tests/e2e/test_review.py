@@ -8,7 +8,7 @@ labelled marker; playback (play, pause, speeds) moves the cursor, and the keys (
 except while typing in a field; notes at a time and over a span are added, drawn, listed, kept on reload and
 deleted by their author only; and an A/B comparison of three named re-runs shows their plots and figures,
 errors against the simulated walk's ground truth included. Screenshots at 1440x900, 1024x768 and 390x844:
-``tests/e2e/artifacts/review-*.png``. The fixtures are ``test_browser.py``'s (this module gets its own server).
+``tests/e2e/artifacts/review-*.png``. The fixtures are ``conftest.py``'s (this module gets its own server).
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from tests.e2e import test_browser as tb
-from tests.e2e.test_fingerprints import _call
+from tests.e2e.accounts import call, session_time
+from tests.e2e.pages import ARTIFACTS, Watched, wait_responsive
 
 if TYPE_CHECKING:
     from playwright.sync_api import Page
@@ -30,10 +30,6 @@ if TYPE_CHECKING:
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
 
-pytestmark = tb.pytestmark
-server = tb.server
-browser = tb.browser
-watched = tb.watched
 
 VIEWPORTS = ((1440, 900), (1024, 768), (390, 844))
 
@@ -41,20 +37,20 @@ VIEWPORTS = ((1440, 900), (1024, 768), (390, 844))
 @pytest.fixture(scope="module")
 def recording(server: str) -> Iterator[dict[str, Any]]:
     """A running simulated session (100 Hz) whose first trial is recording."""
-    subject = _call(server, "POST", "/api/subjects", {"code": "RV01", "leg_length_m": 0.9, "mass_kg": 70.0})
+    subject = call(server, "POST", "/api/subjects", {"code": "RV01", "leg_length_m": 0.9, "mass_kg": 70.0})
     source = {
         "kind": "simulated",
         "rate_hz": 100.0,
         "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 300}],
     }
-    session = _call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
-    trial = _call(server, "GET", f"/api/trials?session_id={session['id']}")[0]
+    session = call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
+    trial = call(server, "GET", f"/api/trials?session_id={session['id']}")[0]
     assert trial["status"] == "recording"
     try:
         yield {"session": session, "trial": trial}
     finally:
-        if _call(server, "GET", f"/api/sessions/{session['id']}")["state"] == "running":
-            _call(server, "POST", f"/api/sessions/{session['id']}/stop")
+        if call(server, "GET", f"/api/sessions/{session['id']}")["state"] == "running":
+            call(server, "POST", f"/api/sessions/{session['id']}/stop")
 
 
 def _expect_labels(page: Page, testid: str, *labels: str) -> None:
@@ -69,7 +65,7 @@ def _leg_view_started(page: Page) -> None:
     """Let the leg view start: headless chromium draws its 3D in software, which holds the page for many
     seconds the first time the view comes in sight (not the review's doing; timing the playback needs it done)."""
     page.get_by_test_id("leg-card").scroll_into_view_if_needed()
-    tb._wait_responsive(page, 60.0)
+    wait_responsive(page, 60.0)
     page.get_by_test_id("review-title").scroll_into_view_if_needed()
 
 
@@ -77,7 +73,7 @@ def _cursor(page: Page) -> float:
     return float(page.get_by_test_id("cursor-time").inner_text())
 
 
-def test_review(server: str, watched: tb.Watched, recording: dict[str, Any]) -> None:
+def test_review(server: str, watched: Watched, recording: dict[str, Any]) -> None:
     page = watched.page
     session, trial = recording["session"], recording["trial"]
     tid = trial["id"]
@@ -88,12 +84,13 @@ def test_review(server: str, watched: tb.Watched, recording: dict[str, Any]) -> 
     expect(page.get_by_test_id("review-open-live")).to_have_attribute("href", f"#/sessions/{session['id']}")
     expect(page.get_by_test_id("review-error")).to_be_hidden()
     expect(page.get_by_test_id("timeline")).to_be_hidden()
-    page.screenshot(path=str(tb.ARTIFACTS / "review-recording.png"))
+    page.screenshot(path=str(ARTIFACTS / "review-recording.png"))
     # another clinician raises the gain during the trial; then the recording stops
-    time.sleep(2.5)
-    _call(server, "PATCH", f"/api/sessions/{session['id']}/settings", {"torque_gain": 1.3}, user="admin")
-    time.sleep(4.0)
-    stopped = _call(server, "POST", f"/api/sessions/{session['id']}/recording", {"action": "stop"})
+    t0 = session_time(server, session["id"])
+    session_time(server, session["id"], t0 + 2.5)
+    call(server, "PATCH", f"/api/sessions/{session['id']}/settings", {"torque_gain": 1.3}, user="admin")
+    session_time(server, session["id"], t0 + 6.5)
+    stopped = call(server, "POST", f"/api/sessions/{session['id']}/recording", {"action": "stop"})
     assert stopped["status"] == "finished" and stopped["id"] == tid
     # the page opens the review by itself
     expect(page.get_by_test_id("review-recording")).to_be_hidden(timeout=10_000)
@@ -189,7 +186,7 @@ def test_review(server: str, watched: tb.Watched, recording: dict[str, Any]) -> 
     assert times == sorted(times)  # listed by time
     _expect_labels(page, "timeline", "Note: turns to talk", "Note: left foot scuffs")
     # someone else's note: listed, not deletable here
-    _call(server, "POST", f"/api/trials/{tid}/annotations", {"t": 3.0, "text": "check the strap"}, user="admin")
+    call(server, "POST", f"/api/trials/{tid}/annotations", {"t": 3.0, "text": "check the strap"}, user="admin")
     page.reload()
     expect(rows).to_have_count(3, timeout=20_000)
     _leg_view_started(page)
@@ -198,7 +195,7 @@ def test_review(server: str, watched: tb.Watched, recording: dict[str, Any]) -> 
     expect(theirs.get_by_test_id("note-delete")).to_have_attribute("title", "Only admin may delete it")
     rows.filter(has_text="turns to talk").get_by_test_id("note-delete").click()
     expect(rows).to_have_count(2)
-    saved = _call(server, "GET", f"/api/trials/{tid}/annotations")
+    saved = call(server, "GET", f"/api/trials/{tid}/annotations")
     assert sorted(n["text"] for n in saved) == ["check the strap", "left foot scuffs"]
     rows.filter(has_text="check the strap").get_by_test_id("note-go").click()
     expect(page.get_by_test_id("cursor-time")).to_have_text("3.00")
@@ -240,6 +237,6 @@ def test_review(server: str, watched: tb.Watched, recording: dict[str, Any]) -> 
         page.wait_for_timeout(400)
         overflow = page.evaluate("() => document.documentElement.scrollWidth - window.innerWidth")
         assert overflow <= 1, f"the review is {overflow} px wider than a {w} px screen"
-        page.screenshot(path=str(tb.ARTIFACTS / f"review-{w}x{hgt}.png"), full_page=True)
-        page.get_by_test_id("ab-card").screenshot(path=str(tb.ARTIFACTS / f"review-ab-{w}x{hgt}.png"))
+        page.screenshot(path=str(ARTIFACTS / f"review-{w}x{hgt}.png"), full_page=True)
+        page.get_by_test_id("ab-card").screenshot(path=str(ARTIFACTS / f"review-ab-{w}x{hgt}.png"))
     watched.check_clean()

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import io
 import re
-import subprocess
-import sys
 import time
 import urllib.request
 from collections.abc import Iterator
@@ -26,8 +24,9 @@ import numpy as np
 import pytest
 
 from gaitscope.server.bench.launch import LOOPBACK, RunningServer, free_port
-from tests.e2e import test_browser as tb
-from tests.e2e.accounts import AUTH_ENV, add_users, client
+from tests.e2e.accounts import add_users, client
+from tests.e2e.pages import ARTIFACTS, Watched
+from tests.e2e.servers import serve
 
 if TYPE_CHECKING:
     from playwright.sync_api import Page
@@ -35,9 +34,6 @@ if TYPE_CHECKING:
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
 
-pytestmark = tb.pytestmark
-browser = tb.browser
-watched = tb.watched
 
 #: Playwright's wait for each step: the machine running the suite may be busy (software WebGL, other tests).
 STEP_TIMEOUT_MS = 45_000
@@ -66,32 +62,9 @@ class Restartable:
         return f"http://{LOOPBACK}:{self.port}"
 
     def start(self, timeout: float = 90.0) -> None:
-        exe = str(Path(sys.executable).with_name("gaitscope"))
-        cmd = [
-            exe,
-            "serve",
-            "--port",
-            str(self.port),
-            "--viser-port",
-            str(self.viser_port),
-            "--data-dir",
-            str(self.data),
-        ]
         with self.log.open("ab") as out:
-            proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=AUTH_ENV)
-        self.running = RunningServer(proc, self.port)
-        deadline = time.monotonic() + timeout
-        while True:
-            if proc.poll() is not None:
-                pytest.fail(f"gaitscope serve exited with {proc.returncode}:\n{self.log.read_text()[-3000:]}")
-            try:
-                urllib.request.urlopen(f"{self.base}/api/health", timeout=1).close()
-                return
-            except OSError:
-                if time.monotonic() > deadline:
-                    self.stop()
-                    pytest.fail(f"gaitscope serve did not answer in {timeout:g} s:\n{self.log.read_text()[-3000:]}")
-                time.sleep(0.2)
+            flags = ("--viser-port", str(self.viser_port))
+            self.running = serve(self.data, self.port, out, *flags, timeout=timeout)
 
     def stop(self) -> None:
         if self.running is not None:
@@ -182,7 +155,7 @@ def _assert_panel_minimized(page: Page) -> None:
     expect(frame.get_by_text("Leg: measured (blue)")).to_be_hidden()
 
 
-def _forgive_outage(w: tb.Watched) -> list[str]:
+def _forgive_outage(w: Watched) -> list[str]:
     """Drop the connection errors logged while the server was down; return them."""
     forgiven = [e for e in w.console_errors if OUTAGE_ERRORS.search(e)]
     w.console_errors[:] = [e for e in w.console_errors if not OUTAGE_ERRORS.search(e)]
@@ -207,11 +180,11 @@ def test_health_names_the_server_process(server: Restartable) -> None:
         assert resp.headers["Cache-Control"] == "no-store"
 
 
-def test_badge_and_leg_view_come_back_after_a_restart(server: Restartable, watched: tb.Watched) -> None:
+def test_badge_and_leg_view_come_back_after_a_restart(server: Restartable, watched: Watched) -> None:
     page = watched.page
     page.set_default_timeout(STEP_TIMEOUT_MS)
     page.set_viewport_size({"width": 1440, "height": 900})
-    tb.ARTIFACTS.mkdir(exist_ok=True)
+    ARTIFACTS.mkdir(exist_ok=True)
     badge = page.get_by_test_id("server-status")
     sid = next(s["id"] for s in server.call("GET", "/api/sessions") if s["state"] == "running")
     page.goto(f"{server.base}/#/sessions/{sid}")
@@ -223,7 +196,7 @@ def test_badge_and_leg_view_come_back_after_a_restart(server: Restartable, watch
     _assert_panel_minimized(page)
     instance = server.call("GET", "/api/health")["instance"]
     page.get_by_test_id("leg-card").scroll_into_view_if_needed()
-    page.screenshot(path=str(tb.ARTIFACTS / "status-live-1440.png"))
+    page.screenshot(path=str(ARTIFACTS / "status-live-1440.png"))
     watched.check_clean()
 
     # --- the server stops: the badge says so within seconds, the leg view says it waits ---
@@ -236,9 +209,9 @@ def test_badge_and_leg_view_come_back_after_a_restart(server: Restartable, watch
     )
     page.wait_for_timeout(2500)  # several failed checks: it stays lost, and keeps trying
     expect(badge).to_have_attribute("data-state", "lost")
-    _shot(page, "leg-card", tb.ARTIFACTS / "status-leg-lost-1440.png")
+    _shot(page, "leg-card", ARTIFACTS / "status-leg-lost-1440.png")
     page.evaluate("window.scrollTo(0, 0)")
-    page.screenshot(path=str(tb.ARTIFACTS / "status-lost-1440.png"))
+    page.screenshot(path=str(ARTIFACTS / "status-lost-1440.png"))
 
     # --- the same server comes back on the same ports: the page reconnects on its own ---
     server.start()
@@ -265,9 +238,9 @@ def test_badge_and_leg_view_come_back_after_a_restart(server: Restartable, watch
     server.call("POST", "/api/viewer/focus", {"session_id": new_sid})
     _assert_moving(page, _wait_for_leg(page))
     _assert_panel_minimized(page)
-    _shot(page, "leg-card", tb.ARTIFACTS / "status-leg-back-1440.png")
+    _shot(page, "leg-card", ARTIFACTS / "status-leg-back-1440.png")
     page.evaluate("window.scrollTo(0, 0)")
-    page.screenshot(path=str(tb.ARTIFACTS / "status-back-1440.png"))
+    page.screenshot(path=str(ARTIFACTS / "status-back-1440.png"))
     forgiven = _forgive_outage(watched)
     assert forgiven, "the outage logged no failed connection: was the server really down?"
     watched.check_clean()
@@ -275,12 +248,12 @@ def test_badge_and_leg_view_come_back_after_a_restart(server: Restartable, watch
 
 @pytest.mark.parametrize(("width", "height"), [(390, 844), (1024, 768)])
 def test_leg_view_fills_its_card_live_and_in_review(
-    server: Restartable, watched: tb.Watched, width: int, height: int
+    server: Restartable, watched: Watched, width: int, height: int
 ) -> None:
     page = watched.page
     page.set_default_timeout(STEP_TIMEOUT_MS)
     page.set_viewport_size({"width": width, "height": height})
-    tb.ARTIFACTS.mkdir(exist_ok=True)
+    ARTIFACTS.mkdir(exist_ok=True)
     sid = _running_session(server)
     page.goto(f"{server.base}/#/sessions/{sid}")
     expect(page.get_by_test_id("server-status")).to_have_attribute("data-state", "ok")
@@ -290,7 +263,7 @@ def test_leg_view_fills_its_card_live_and_in_review(
     assert box is not None and box["height"] >= 290 and box["width"] >= min(300, width - 60), box
     _assert_moving(page, _wait_for_leg(page))
     _assert_panel_minimized(page)
-    _shot(page, "leg-card", tb.ARTIFACTS / f"status-leg-live-{width}.png")
+    _shot(page, "leg-card", ARTIFACTS / f"status-leg-live-{width}.png")
 
     # The network drops (the server still runs): lost at once, back on its own, "reconnected" (not
     # restarted), and the leg view keeps its iframe, whose socket to the same viser never dropped.
@@ -300,13 +273,13 @@ def test_leg_view_fills_its_card_live_and_in_review(
     expect(badge).to_have_attribute("data-state", "lost", timeout=int(LOST_WITHIN_S * 1000))
     expect(page.get_by_test_id("leg-view-overlay")).to_be_visible()
     page.evaluate("window.scrollTo(0, 0)")
-    page.screenshot(path=str(tb.ARTIFACTS / f"status-lost-{width}.png"))
+    page.screenshot(path=str(ARTIFACTS / f"status-lost-{width}.png"))
     page.unroute("**/api/health")
     expect(badge).to_have_attribute("data-state", "back", timeout=int(BACK_WITHIN_S * 1000))
     expect(badge).to_contain_text(re.compile(r"^Server ok again: reconnected at \d\d:\d\d:\d\d"))
     expect(page.get_by_test_id("leg-view-overlay")).to_be_hidden()
     assert iframe is not None and iframe.evaluate("el => el.isConnected")
-    page.screenshot(path=str(tb.ARTIFACTS / f"status-back-{width}.png"))
+    page.screenshot(path=str(ARTIFACTS / f"status-back-{width}.png"))
     # One failed check is "slow", not "lost"; a second in a row is an error; an answer ends it.
     watched.allow_refusal(500, r"/api/health$")
     page.route("**/api/health", lambda route: route.fulfill(status=500, body="{}"))
@@ -327,6 +300,6 @@ def test_leg_view_fills_its_card_live_and_in_review(
     assert box is not None and box["height"] >= 290, box
     _wait_for_leg(page)
     _assert_panel_minimized(page)
-    _shot(page, "leg-card", tb.ARTIFACTS / f"status-leg-review-{width}.png")
-    page.screenshot(path=str(tb.ARTIFACTS / f"status-review-{width}.png"))
+    _shot(page, "leg-card", ARTIFACTS / f"status-leg-review-{width}.png")
+    page.screenshot(path=str(ARTIFACTS / f"status-review-{width}.png"))
     watched.check_clean()

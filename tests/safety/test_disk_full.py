@@ -19,7 +19,6 @@ import os
 import re
 import sqlite3
 import subprocess
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, Any
@@ -35,6 +34,7 @@ from gaitscope.sessions.formats.mcap_io import read_messages, recover, recover_i
 from gaitscope.sessions.formats.recording import Recorder
 from gaitscope.sessions.live.manager import SessionManager
 from tests.device_tokens import device_path
+from tests.waiting import wait_until
 
 #: Session time (s) streamed before the disk fills: several chunks on file.
 BEFORE_S = 2.0
@@ -256,9 +256,9 @@ def test_a_running_session_stopped_while_the_database_is_full_is_stopped_with_50
         assert again.status_code == 507 and f"session {sid} is already stopped" in again.json()["detail"]
         annotate = client.post(f"/api/sessions/{sid}/annotations", json={"text": "x"})
         assert annotate.status_code == 507 and "disk is full" in annotate.json()["detail"]
-    deadline = time.monotonic() + 10  # stored by the manager's retries (every RETRY_S), no call needed
-    while client.app.state.ctx.manager.unsaved and time.monotonic() < deadline:  # type: ignore[attr-defined]
-        time.sleep(0.1)
+    manager = client.app.state.ctx.manager  # type: ignore[attr-defined]
+    # stored by the manager's retries (every RETRY_S), no call needed
+    wait_until(lambda: not manager.unsaved, 10.0, "the manager's unsaved writes stored")
     assert store.get_session(sid).state == "stopped" and store.get_trial(trial["id"]).status == "finished"
     assert client.post(f"/api/sessions/{sid}/stop").status_code == 409
 

@@ -9,37 +9,27 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import json
-import math
 import threading
 import time
 import urllib.request
 from pathlib import Path
 
 import pytest
-import websockets
 from websockets.sync.client import connect
 
 from gaitscope.server.bench.launch import start_server
 from tests.device_tokens import issue_token
+from tests.load import Steady, p95, post, steady, walk_frame
+from tests.waiting import wait_until
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
 pytestmark = pytest.mark.slow
 
 SECONDS = 4.0
-
-
-def _post(url: str, body: dict) -> dict:
-    req = urllib.request.Request(url, json.dumps(body).encode(), {"Content-Type": "application/json"}, method="POST")
-    with urllib.request.urlopen(req, timeout=10) as r:
-        return json.loads(r.read())
-
-
-def _frame(k: int, t: float) -> str:
-    w = 2 * math.pi * t
-    return json.dumps(
-        {"type": "frame", "seq": k, "t": t, "foot_angle_deg": 25 * math.sin(w), "shank_angle_deg": 20 * math.sin(w)}
-    )
+#: The two channels the steady device sends (its session declares none: version 1's, of which these).
+CHANNELS = ("foot_angle_deg", "shank_angle_deg")
 
 
 def _flood(port: int, sid: int, stop: threading.Event, counts: dict[str, int]) -> None:
@@ -61,7 +51,7 @@ def _flood(port: int, sid: int, stop: threading.Event, counts: dict[str, int]) -
         reader.start()
         k = 0
         while not stop.is_set():
-            ws.send(_frame(k, k * 5e-5))  # 20 kHz of device time
+            ws.send(walk_frame(k, k * 5e-5, CHANNELS))  # 20 kHz of device time
             k += 1
             counts["sent"] = k
         time.sleep(0.5)
@@ -70,39 +60,16 @@ def _flood(port: int, sid: int, stop: threading.Event, counts: dict[str, int]) -
     counts["seconds"] = time.monotonic() - start
 
 
-async def _steady(port: int, sid: int) -> tuple[int, int, list[float]]:
-    """200 Hz, one frame at a time, timing each round trip."""
-    rtts: list[float] = []
-    sent = replies = 0
-    token = await asyncio.to_thread(issue_token, f"http://127.0.0.1:{port}", sid)
-    async with websockets.connect(f"ws://127.0.0.1:{port}/ws/devices/{sid}?token={token}") as ws:
-        start = time.monotonic()
-        k = 0
-        while time.monotonic() - start < SECONDS:
-            due = start + k * 0.005
-            await asyncio.sleep(max(0.0, due - time.monotonic()))
-            t_send = time.monotonic()
-            await ws.send(_frame(k, k * 0.005))
-            sent += 1
-            try:
-                reply = json.loads(await asyncio.wait_for(ws.recv(), timeout=2.0))
-            except TimeoutError:
-                break
-            if reply["type"] == "torque":
-                replies += 1
-                rtts.append(time.monotonic() - t_send)
-            k += 1
-    return sent, replies, rtts
-
-
-def _run(port: int, flooder: int, steady: int) -> tuple[dict[str, int], tuple[int, int, list[float]]]:
+def _run(port: int, flooder: int, steady_sid: int) -> tuple[dict[str, int], Steady]:
     stop = threading.Event()
     counts = {"sent": 0, "torque": 0, "rate": 0}
     flood = threading.Thread(target=_flood, args=(port, flooder, stop, counts), daemon=True)
     flood.start()
-    time.sleep(0.5)
+    wait_until(lambda: counts["torque"] > 0, 30.0, "the flooder connected and answered")
     try:
-        result = asyncio.run(_steady(port, steady))
+        token = issue_token(f"http://127.0.0.1:{port}", steady_sid)
+        frame = functools.partial(walk_frame, channels=CHANNELS)
+        result = asyncio.run(steady(port, steady_sid, token, SECONDS, 200.0, frame, reply_timeout=2.0))
     finally:
         stop.set()
         flood.join(timeout=10)
@@ -113,18 +80,17 @@ def test_a_flooding_device_does_not_starve_a_steady_one(tmp_path: Path) -> None:
     server = start_server(tmp_path, "--no-leg-view", "--no-demo")
     try:
         base = f"http://127.0.0.1:{server.port}/api"
-        subject = _post(f"{base}/subjects", {"code": "F1", "leg_length_m": 0.9, "mass_kg": 70})["id"]
+        subject = post(f"{base}/subjects", {"code": "F1", "leg_length_m": 0.9, "mass_kg": 70})["id"]
         device = {"kind": "device", "rate_hz": 200}
-        flooder = _post(f"{base}/sessions", {"subject_id": subject, "source": device})["id"]
-        steady = _post(f"{base}/sessions", {"subject_id": subject, "source": device})["id"]
-        flood, (sent, replies, rtts) = _run(server.port, flooder, steady)
+        flooder = post(f"{base}/sessions", {"subject_id": subject, "source": device})["id"]
+        steady_sid = post(f"{base}/sessions", {"subject_id": subject, "source": device})["id"]
+        flood, run = _run(server.port, flooder, steady_sid)
         health = json.loads(urllib.request.urlopen(f"{base}/sessions/{flooder}", timeout=10).read())
     finally:
         server.stop()
     assert health["state"] == "running"
-    assert sent >= 0.5 * SECONDS * 200 and replies == sent  # every steady frame answered
-    rtts.sort()
-    assert rtts[int(0.95 * len(rtts))] < 0.25  # p95 round trip (was 7.8 s); generous for a busy machine
+    assert run.sent >= 0.5 * SECONDS * 200 and run.replies == run.sent  # every steady frame answered
+    assert p95(run.rtts) < 0.25  # p95 round trip (was 7.8 s); generous for a busy machine
     # the flooder got about its declared rate of torque and was told about the rest
     assert flood["sent"] > 5 * flood["torque"] and flood["rate"] >= 1
     assert flood["torque"] <= 1.25 * 200 * flood["seconds"] + 1.25 * 200 * 2.0  # rate x time + the 2 s burst

@@ -24,6 +24,7 @@ from starlette.websockets import WebSocketDisconnect
 from gaitscope.sessions.schema import SENSOR_LIMITS
 from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 from tests.device_tokens import device_path
+from tests.waiting import wait_until
 
 MAX_TORQUE = 20.0
 
@@ -188,9 +189,7 @@ def test_a_source_that_fails_ends_the_session_as_failed(client: TestClient, tmp_
     r = client.post("/api/sessions", json={"subject_id": 1, "source": {"kind": "replay", "trial_id": trial["id"]}})
     assert r.status_code == 201
     replay = r.json()["id"]
-    deadline = time.monotonic() + 10
-    while _state(client, replay) == "running" and time.monotonic() < deadline:
-        time.sleep(0.05)
+    wait_until(lambda: _state(client, replay) != "running", 10.0, "the replay of a broken MCAP to end")
     assert _state(client, replay) == "failed"
     texts = [e["text"] for e in client.get(f"/api/sessions/{replay}/events").json()]
     assert any(t.startswith("session failed") for t in texts)
@@ -270,16 +269,12 @@ def test_a_disk_running_out_warns_then_stops_cleanly(client: TestClient) -> None
     runtime.disk_room = lambda: 100 * 2**20  # 100 MiB until the stop
     with _device(client, sid) as ws:
         _walk_torques(ws, 0.0, 100)
-        deadline = time.monotonic() + 5
-        while runtime.disk != "low" and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_until(lambda: runtime.disk == "low", 5.0, "the disk seen low")
         assert runtime.health().disk == "low"
         left = 100 * 2**20 / runtime.disk_rate.bytes_per_s / 60  # the session's rate: its stack and 200 Hz
         assert runtime.health().disk_minutes == pytest.approx(left, abs=0.1) and 5 < left < 30
         level["now"] = "critical"
-        deadline = time.monotonic() + 5
-        while _state(client, sid) == "running" and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_until(lambda: _state(client, sid) != "running", 5.0, "the session stopped by a critical disk")
         ws.send_text(json.dumps(_walk(100, 0.5)))
         with pytest.raises(WebSocketDisconnect):  # the device is told the session ended
             while True:

@@ -24,6 +24,7 @@ from gaitscope.sessions.live.runtime import SessionRuntime
 from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
 from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
 from tests.uploads import upload
+from tests.waiting import wait_until
 
 RATE_HZ = 100.0  # the device's rate; the live estimator, not told it, runs with DEFAULT_PERIOD
 ALL = 20000  # max_points above every trial's length: no decimation
@@ -161,10 +162,7 @@ def test_live_session_rerun_reproduces_a_change_made_over_the_api(client: TestCl
     runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
 
     def wait_samples(n: int) -> None:
-        deadline = time.monotonic() + 15
-        while runtime.samples < n and time.monotonic() < deadline:
-            time.sleep(0.02)
-        assert runtime.samples >= n
+        wait_until(lambda: runtime.samples >= n, 15.0, f"{n} samples")
 
     wait_samples(250)
     # The filter's tuning acts at once (a gain change would hide under the soft start's ramp).

@@ -18,7 +18,6 @@ import io
 import json
 import math
 import shutil
-import time
 import tracemalloc
 from collections.abc import AsyncIterator, Callable, Iterator
 from pathlib import Path
@@ -40,6 +39,8 @@ from gaitscope.sessions.formats.models import default_model_path, load_model
 from gaitscope.sessions.live.sources import frames_from_table
 from gaitscope.sessions.synth.cohort import CohortSpec, generate_cohort
 from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
+from tests.waiting import wait_until
+from tests.walks import replay_csv
 
 SUBJECT: dict[str, Any] = {"code": "P01", "leg_length_m": 0.9, "mass_kg": 70.0}
 
@@ -100,12 +101,6 @@ def _frames() -> list[dict[str, Any]]:
     return [f.model_dump(exclude_none=True) for f in frames_from_table(replay_columns(sensors))]
 
 
-@functools.cache
-def _replay_csv() -> bytes:
-    sensors, _, _ = sensor_trial([(1.0, 0.0, 8)])
-    return replay_columns(sensors).to_csv(index=False, float_format="%.5f").encode()
-
-
 def _mcap(frames: list[dict[str, Any]], topic: str = "/sensor", states: list[dict[str, Any]] | None = None) -> bytes:
     """A finished MCAP with ``frames`` as JSON on ``topic`` (written with ``json.dumps``, so a float NaN
     becomes the token ``NaN``), 5 ms apart, and ``states`` on ``/gait_state``."""
@@ -153,7 +148,7 @@ def _recording(tmp_path: Path) -> bytes:
     from gaitscope.sessions.formats.imports import ImportJob, import_log
 
     csv_path, target = tmp_path / "walk.csv", tmp_path / "walk.mcap"
-    csv_path.write_bytes(_replay_csv())
+    csv_path.write_bytes(replay_csv())
     subject = schema.Subject(id=1, created_utc="2024-01-01T00:00:00+00:00", **SUBJECT)
     import_log(ImportJob(csv_path, "walk.csv", target, subject, load_model(default_model_path())[0]))
     return target.read_bytes()
@@ -181,7 +176,7 @@ def test_replay_csv_and_mcap_import(make_client: Callable[..., TestClient], tmp_
     sid = _subject(client)
     code, raw = _upload(client, _mcap(_frames()), "raw.mcap", sid)  # sensor frames only: estimated
     assert code == 201 and raw["samples"] == len(_frames()), raw
-    code, csv_trial = _upload(client, _replay_csv(), "walk.csv", sid)
+    code, csv_trial = _upload(client, replay_csv(), "walk.csv", sid)
     assert code == 201 and csv_trial["samples"] == len(_frames()), csv_trial
     recording = _recording(tmp_path)
     code, kept = _upload(client, recording, "recorded.mcap", sid)  # has gait states: kept as recorded
@@ -211,7 +206,7 @@ def test_an_imported_trial_reruns_as_recorded(
     """The recording keeps session time on /sensor and the sample period the import estimated with,
     so a review re-run reproduces the imported states."""
     client = make_client()
-    content = {"walk.csv": _replay_csv(), "raw.mcap": _mcap(_frames())}.get(source) or _locohub_bytes(
+    content = {"walk.csv": replay_csv(), "raw.mcap": _mcap(_frames())}.get(source) or _locohub_bytes(
         ".parquet", tmp_path
     )
     code, trial = _upload(client, content, source, _subject(client))
@@ -275,7 +270,7 @@ def test_bad_files_are_refused_in_the_users_terms(
 ) -> None:
     client = make_client()
     sid = _subject(client)
-    code, good = _upload(client, _replay_csv(), "kept.csv", sid)
+    code, good = _upload(client, replay_csv(), "kept.csv", sid)
     assert code == 201
     data_dir = tmp_path / "data"
     before = _files(data_dir)
@@ -338,7 +333,7 @@ def test_control_characters_in_the_name_are_refused(make_client: Callable[..., T
 
 def test_ordinary_names_are_kept(make_client: Callable[..., TestClient]) -> None:
     client = make_client()
-    code, trial = _upload(client, _replay_csv(), "Gang 2 (Müller) – 5°.csv", _subject(client))
+    code, trial = _upload(client, replay_csv(), "Gang 2 (Müller) – 5°.csv", _subject(client))
     assert code == 201 and trial["name"] == "Gang 2 (Müller) – 5°.csv"
 
 
@@ -365,12 +360,12 @@ def test_rows_and_recording_are_stored_together(
     before = _files(tmp_path / "data")
     monkeypatch.setattr(store, "create_upload_trial", failing_commit)
     with pytest.raises(OSError, match="simulated"):
-        _upload(client, _replay_csv(), "walk.csv", sid)
+        _upload(client, replay_csv(), "walk.csv", sid)
     assert len(moved) == 1 and not moved[0].exists()
     assert _files(tmp_path / "data") == before
     assert client.get("/api/trials").json() == [] and client.get("/api/sessions").json() == []
     monkeypatch.undo()
-    code, trial = _upload(client, _replay_csv(), "walk.csv", sid)
+    code, trial = _upload(client, replay_csv(), "walk.csv", sid)
     assert code == 201 and (tmp_path / "data" / trial["path"]).is_file()
 
 
@@ -472,9 +467,8 @@ def test_idle_uploads_expire(make_client: Callable[..., TestClient], tmp_path: P
     client = make_client(max_open_uploads=1, upload_idle_s=0.05)
     body = {"filename": "a.csv", "size": 10, "subject_id": _subject(client)}
     stale = client.post("/api/uploads", json=body).json()
-    time.sleep(0.1)
-    fresh = client.post("/api/uploads", json=body)
-    assert fresh.status_code == 201
+    # refused (one open at most) until the stale one has been idle 0.05 s and expires
+    fresh = wait_until(lambda: (r := client.post("/api/uploads", json=body)).status_code == 201 and r, 10.0, "expiry")
     assert client.put(f"/api/uploads/{stale['id']}?offset=0", content=b"0123456789").status_code == 404
     assert [p.name for p in (tmp_path / "data" / "uploads").iterdir()] == [f"{fresh.json()['id']}.part"]
 
@@ -514,7 +508,7 @@ def test_imports_run_in_a_worker_process(tmp_path: Path) -> None:
     with TestClient(create_app(_settings(tmp_path))) as client:
         uploads = client.app.state.ctx.uploads  # type: ignore[attr-defined]
         assert not uploads.worker_started  # created lazily
-        code, _ = _upload(client, _replay_csv(), "walk.csv", _subject(client))
+        code, _ = _upload(client, replay_csv(), "walk.csv", _subject(client))
         assert code == 201 and uploads.worker_started and uploads.start_method in ("forkserver", "spawn")
     assert not uploads.worker_started  # the lifespan shut it down
 

@@ -2,39 +2,12 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
 
-SHORT = {
-    "kind": "simulated",
-    "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 200}],
-    "rate_hz": 200,
-}
-
-
-def _subject(client: TestClient, code: str = "P01") -> int:
-    r = client.post("/api/subjects", json={"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
-    assert r.status_code == 201, r.text
-    return int(r.json()["id"])
-
-
-def _session(client: TestClient, source: dict | None = None) -> dict:
-    r = client.post("/api/sessions", json={"subject_id": _subject(client), "source": source or SHORT})
-    assert r.status_code == 201, r.text
-    return r.json()
-
-
-def _wait_samples(client: TestClient, session_id: int, seconds: float = 1.0) -> None:
-    """Let a live session run (its source paces in real time)."""
-    app = client.app
-    runtime = app.state.ctx.manager.get(session_id)  # type: ignore[attr-defined]
-    deadline = time.monotonic() + 15
-    while runtime.samples < 200 * seconds and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert runtime.samples >= 200 * seconds
+from tests.server.apps import session, subject, wait_samples
 
 
 def test_health_schema_and_openapi(client: TestClient) -> None:
@@ -45,7 +18,7 @@ def test_health_schema_and_openapi(client: TestClient) -> None:
 
 
 def test_subjects(client: TestClient) -> None:
-    sid = _subject(client)
+    sid = subject(client)
     assert client.get(f"/api/subjects/{sid}").json()["code"] == "P01"
     r = client.post("/api/subjects", json={"code": "P01", "leg_length_m": 0.9, "mass_kg": 70.0})
     assert r.status_code == 409 and "P01" in r.json()["detail"]
@@ -56,9 +29,9 @@ def test_subjects(client: TestClient) -> None:
 
 
 def test_session_runs_records_and_reviews(client: TestClient, tmp_path: Path) -> None:
-    s = _session(client)
+    s = session(client)
     assert s["state"] == "running"
-    _wait_samples(client, s["id"], 1.5)
+    wait_samples(client, s["id"], 1.5)
     stopped = client.post(f"/api/sessions/{s['id']}/stop").json()
     assert stopped["state"] == "stopped" and stopped["stopped_utc"]
     trials = client.get(f"/api/trials?session_id={s['id']}").json()
@@ -77,7 +50,7 @@ def test_session_runs_records_and_reviews(client: TestClient, tmp_path: Path) ->
 
 
 def test_settings_change_is_validated_rate_limited_and_recorded(client: TestClient) -> None:
-    s = _session(client)
+    s = session(client)
     url = f"/api/sessions/{s['id']}/settings"
     r = client.patch(url, json={"torque_gain": 1.4, "actor": "local", "reason": "more push-off"})
     assert r.status_code == 200 and r.json()["settings"]["torque_gain"] == 1.4
@@ -98,7 +71,7 @@ def test_settings_change_is_validated_rate_limited_and_recorded(client: TestClie
 
 
 def test_annotations_and_recording_controls(client: TestClient) -> None:
-    s = _session(client)
+    s = session(client)
     r = client.post(f"/api/sessions/{s['id']}/annotations", json={"text": "subject reports knee discomfort"})
     assert r.status_code == 201 and r.json()["kind"] == "annotation"
     assert client.post(f"/api/sessions/{s['id']}/annotations", json={"text": ""}).status_code == 422
@@ -111,8 +84,8 @@ def test_annotations_and_recording_controls(client: TestClient) -> None:
 
 
 def test_rerun_with_other_settings(client: TestClient) -> None:
-    s = _session(client)
-    _wait_samples(client, s["id"], 2.0)
+    s = session(client)
+    wait_samples(client, s["id"], 2.0)
     client.post(f"/api/sessions/{s['id']}/stop")
     tid = client.get(f"/api/trials?session_id={s['id']}").json()[0]["id"]
     base = client.get(f"/api/trials/{tid}/series?max_points=5000").json()
@@ -138,7 +111,7 @@ def test_models_are_listed_with_provenance(client: TestClient) -> None:
 def test_a_device_that_declares_its_channels_gets_the_stack_they_feed_and_a_refusal_naming_what_it_lacks(
     client: TestClient,
 ) -> None:
-    sid = _subject(client, "DEV1")
+    sid = subject(client, "DEV1")
     source = {"kind": "device", "rate_hz": 100, "channels": ["foot_angle_deg", "foot_vel_dps", "shank_angle_deg"]}
     r = client.post("/api/sessions", json={"subject_id": sid, "source": source})
     assert r.status_code == 201, r.text

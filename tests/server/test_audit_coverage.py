@@ -7,7 +7,6 @@ file: the entry must be there, with the caller's name and the target.
 from __future__ import annotations
 
 import re
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -22,11 +21,9 @@ from gaitscope.server.origin import SAFE_METHODS
 from gaitscope.server.settings import Settings
 from gaitscope.sessions import schema
 from gaitscope.sessions.gp_models import GP_EKF
-from tests.safety.test_uploads import _replay_csv
-from tests.server.test_fingerprints import _recorded, _walk
-from tests.server.test_imu_calibration import IMU_CHANNELS
-
-PASSWORD = "correct horse battery"
+from tests.server.apps import PASSWORD, app_routes, recorded
+from tests.waiting import ShiftedClock
+from tests.walks import IMU_CHANNELS, replay_csv, walk_frames
 
 #: (method, route) -> the action its entry has.
 AUDITED: dict[tuple[str, str], str] = {
@@ -71,15 +68,6 @@ EXEMPT: dict[tuple[str, str], str] = {
 }
 
 
-def _routes(routes: list[Any]) -> Iterator[Any]:
-    for route in routes:
-        inner = getattr(route, "original_router", None)
-        if inner is not None:
-            yield from _routes(inner.routes)
-        else:
-            yield route
-
-
 @pytest.fixture
 def client(tmp_path: Path) -> Iterator[TestClient]:
     settings = Settings(
@@ -96,7 +84,7 @@ def client(tmp_path: Path) -> Iterator[TestClient]:
 def test_every_state_changing_route_is_audited_or_exempt_with_a_reason(client: TestClient) -> None:
     changing = {
         (method, route.path)
-        for route in _routes(client.app.routes)  # type: ignore[attr-defined]
+        for route in app_routes(client.app.routes)  # type: ignore[attr-defined]
         if isinstance(route, APIRoute)
         for method in route.methods
         if method not in SAFE_METHODS
@@ -111,6 +99,8 @@ class _Driver:
 
     def __init__(self, client: TestClient) -> None:
         self.client = client
+        self.clock = ShiftedClock()  # the sessions' clock: a rate limit's wait is moved through, not slept
+        client.app.state.ctx.manager.clock = self.clock  # type: ignore[attr-defined]
         self.driven: set[tuple[str, str]] = set()
 
     def login(self) -> None:
@@ -126,7 +116,7 @@ class _Driver:
             wait = re.search(r"try again in ([0-9.]+) s", r.text) if r.status_code == 409 else None
             if wait is None:
                 break
-            time.sleep(float(wait[1]) + 0.05)
+            self.clock.advance(float(wait[1]) + 0.05)
             r = self.client.request(method, url, **kw)
         assert r.status_code == status if status else 200 <= r.status_code < 300, (method, url, r.status_code, r.text)
         if route == "/api/auth/login":
@@ -172,7 +162,7 @@ def test_each_audited_route_writes_its_entry_when_it_succeeds(client: TestClient
     d.call("POST", "/api/sessions/{session_id}/imu-calibration", {"session_id": device}, json={"duration_s": 2})
 
     # a recorded walk: a fingerprint calibrated, promoted, rolled back, exported and imported; review notes
-    trial, _ = _recorded(client, subject, _walk())
+    trial, _ = recorded(client, subject, walk_frames())
     made = d.call("POST", "/api/subjects/{subject_id}/fingerprints", ids, json={"trial_id": trial})
     ids["personalization_id"] = made["id"]
     d.call("POST", "/api/subjects/{subject_id}/fingerprints/{personalization_id}/promote", ids, json={})
@@ -185,7 +175,7 @@ def test_each_audited_route_writes_its_entry_when_it_succeeds(client: TestClient
     d.call("DELETE", "/api/trials/{trial_id}/annotations/{annotation_id}", ids)
 
     # uploads: one cancelled, one imported
-    data = _replay_csv()
+    data = replay_csv()
     up = d.call("POST", "/api/uploads", {}, json={"filename": "a.CSV", "size": len(data), "subject_id": subject})
     d.call("DELETE", "/api/uploads/{upload_id}", {"upload_id": up["id"]})
     up = d.call("POST", "/api/uploads", {}, json={"filename": "B.CSV", "size": len(data), "subject_id": subject})

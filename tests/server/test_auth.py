@@ -17,13 +17,12 @@ from gaitscope.server.app import create_app
 from gaitscope.server.auth import COOKIE, CSRF_HEADER
 from gaitscope.server.cli import main
 from gaitscope.sessions import schema
-from tests.server.test_api import SHORT, _wait_samples
-from tests.server.test_roles import PASSWORD, _settings, login
+from tests.server.apps import PASSWORD, SHORT, auth_settings, login, wait_samples
 
 
 @pytest.fixture
 def app(tmp_path: Path) -> Iterator[TestClient]:
-    with TestClient(create_app(_settings(tmp_path, lockout_after=3))) as c:
+    with TestClient(create_app(auth_settings(tmp_path, lockout_after=3))) as c:
         accounts = c.app.state.ctx.accounts  # type: ignore[attr-defined]
         for name, role in (("ada", "admin"), ("cleo", "clinician"), ("eve", "experimenter"), ("vic", "viewer")):
             accounts.add_user(schema.UserCreate(name=name, role=role, password=PASSWORD), by="test")
@@ -169,7 +168,7 @@ def test_user_add_from_the_command_line(tmp_path: Path, monkeypatch: pytest.Monk
     assert main(["user", "--data-dir", str(data), "add", "b2", "--role", "admin", "--password-stdin"]) == 2
     monkeypatch.setattr("sys.stdin", io.StringIO("a long enough password\n"))
     assert main(["user", "--data-dir", str(data), "add", "boss", "--role", "viewer", "--password-stdin"]) == 2
-    with TestClient(create_app(_settings(tmp_path))) as c:
+    with TestClient(create_app(auth_settings(tmp_path))) as c:
         headers = login(c, "boss", "a long enough password")
         assert c.get("/api/users", headers=headers).json()[0]["role"] == "admin"
 
@@ -177,7 +176,7 @@ def test_user_add_from_the_command_line(tmp_path: Path, monkeypatch: pytest.Monk
 def test_only_its_author_deletes_a_review_note(app: TestClient) -> None:
     cleo, eve = login(app, "cleo"), login(app, "eve")
     _, sid = _subject_and_session(app, cleo, SHORT)
-    _wait_samples(app, sid, 2.0)
+    wait_samples(app, sid, 2.0)
     assert app.post(f"/api/sessions/{sid}/stop", headers=cleo).status_code == 200
     trial = app.get("/api/trials", params={"session_id": sid}, headers=cleo).json()[0]
     url = f"/api/trials/{trial['id']}/annotations"

@@ -27,17 +27,9 @@ from starlette.websockets import WebSocketDisconnect
 from gaitscope.server.app import create_app
 from gaitscope.server.settings import Settings
 from gaitscope.sessions import schema
+from tests.server.apps import app_routes
 
 BAD_IDS = [str(2**63), str(2**64), "-1", "0", "abc", "1e308", "nan"]
-
-
-def _routes(routes: list[Any]) -> Iterator[Any]:
-    for route in routes:
-        inner = getattr(route, "original_router", None)
-        if inner is not None:
-            yield from _routes(inner.routes)
-        else:
-            yield route
 
 
 def _leaves(tp: Any, metadata: tuple[Any, ...] = ()) -> Iterator[tuple[Any, tuple[Any, ...]]]:
@@ -95,7 +87,7 @@ def client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
 def test_every_number_a_route_takes_is_bounded(client: TestClient) -> None:
     problems: list[str] = []
     seen: set[type[BaseModel]] = set()
-    for route in _routes(client.app.routes):  # type: ignore[attr-defined]
+    for route in app_routes(client.app.routes):  # type: ignore[attr-defined]
         if not isinstance(route, (APIRoute, APIWebSocketRoute)):
             continue
         d = route.dependant
@@ -112,7 +104,7 @@ def test_every_number_a_route_takes_is_bounded(client: TestClient) -> None:
 
 def _id_routes(client: TestClient) -> list[tuple[str, str, list[str]]]:
     out = []
-    for route in _routes(client.app.routes):  # type: ignore[attr-defined]
+    for route in app_routes(client.app.routes):  # type: ignore[attr-defined]
         if isinstance(route, APIRoute) and (names := re.findall(r"\{(\w+)\}", route.path)):
             out.extend((method, route.path, names) for method in sorted(route.methods))
     return out

@@ -35,6 +35,7 @@ from websockets.sync.client import connect
 from gaitscope.server.bench.launch import RunningServer, start_server
 from gaitscope.sessions import schema
 from tests.device_tokens import issue_token
+from tests.load import p95, post, steady
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
 pytestmark = pytest.mark.slow
@@ -47,31 +48,6 @@ RATE = 200.0
 MIN_ROUND_TRIPS = 300
 #: What each misbehaving device does (see :func:`_misbehave`).
 KINDS = ("flood", "big", "keys", "keys_fit", "malformed", "binary")
-
-
-def _post(url: str, body: dict) -> dict:
-    req = urllib.request.Request(url, json.dumps(body).encode(), {"Content-Type": "application/json"}, method="POST")
-    with urllib.request.urlopen(req, timeout=10) as r:
-        return json.loads(r.read())
-
-
-def _frame(k: int, t: float) -> str:
-    """The steady device's frame: the seven version 1 channels of a walk."""
-    w = 2 * math.pi * t
-    return json.dumps(
-        {
-            "type": "frame",
-            "seq": k,
-            "t": t,
-            "foot_angle_deg": 25 * math.sin(w),
-            "foot_vel_dps": 150 * math.cos(w),
-            "shank_angle_deg": 20 * math.sin(w),
-            "shank_vel_dps": 120 * math.cos(w),
-            "heel_forward_m": 0.1 * math.sin(w),
-            "heel_up_m": 0.05 + 0.05 * math.cos(w),
-            "thigh_angle_deg": 15 * math.sin(w),
-        }
-    )
 
 
 def _full_frame(k: int, t: float) -> str:
@@ -171,32 +147,6 @@ def _lowly() -> None:
     _FRAMES["keys_fit"] = json.dumps({"type": "frame", "seq": 0, "t": 0.0, **{f"x{i}": 0 for i in range(1_500)}})
 
 
-async def _steady(port: int, token: str, sid: int, seconds: float) -> tuple[int, list[float], list[float]]:
-    """Frames at 200 Hz, one at a time: (frames sent, round trips in s, torques in Nm)."""
-    rtts: list[float] = []
-    torques: list[float] = []
-    sent = 0
-    async with websockets.connect(f"ws://127.0.0.1:{port}/ws/devices/{sid}?token={token}") as ws:
-        start = time.monotonic()
-        while time.monotonic() - start < seconds:
-            await asyncio.sleep(max(0.0, start + sent / RATE - time.monotonic()))
-            t_send = time.monotonic()
-            await ws.send(_frame(sent, sent / RATE))
-            sent += 1
-            try:
-                reply = json.loads(await asyncio.wait_for(ws.recv(), timeout=3.0))
-            except TimeoutError:
-                break
-            if reply["type"] == "torque" and reply["seq"] == sent - 1:
-                rtts.append(time.monotonic() - t_send)
-                torques.append(reply["torque_Nm"])
-    return sent, rtts, torques
-
-
-def _p95(xs: list[float]) -> float:
-    return sorted(xs)[int(0.95 * len(xs))]
-
-
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningServer]:
     server = start_server(tmp_path_factory.mktemp("isolation"), "--no-leg-view", "--no-demo")
@@ -205,9 +155,9 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningServer]:
 
 
 def _device_session(base: str, rate_hz: float) -> int:
-    subject = _post(f"{base}/api/subjects", {"code": f"D{time.monotonic_ns()}", "leg_length_m": 0.9, "mass_kg": 70})
+    subject = post(f"{base}/api/subjects", {"code": f"D{time.monotonic_ns()}", "leg_length_m": 0.9, "mass_kg": 70})
     body = {"subject_id": subject["id"], "source": {"kind": "device", "rate_hz": rate_hz}}
-    return int(_post(f"{base}/api/sessions", body)["id"])
+    return int(post(f"{base}/api/sessions", body)["id"])
 
 
 def test_a_device_may_not_declare_over_the_largest_rate(server: RunningServer) -> None:
@@ -218,13 +168,13 @@ def test_a_device_may_not_declare_over_the_largest_rate(server: RunningServer) -
 
 def test_whatever_a_device_sends_the_other_gets_every_torque_on_time(server: RunningServer) -> None:
     base = server.base
-    steady = _device_session(base, RATE)
-    settings = json.loads(urllib.request.urlopen(f"{base}/api/sessions/{steady}", timeout=10).read())["settings"]
+    steady_sid = _device_session(base, RATE)
+    settings = json.loads(urllib.request.urlopen(f"{base}/api/sessions/{steady_sid}", timeout=10).read())["settings"]
     bound = settings["max_torque_Nm"]
-    sent, rtts, torques = asyncio.run(_steady(server.port, issue_token(base, steady), steady, STEADY_S))
-    assert len(rtts) == sent >= MIN_ROUND_TRIPS
-    quiet = _p95(rtts)
-    print(f"alone: {sent} sent, {len(rtts)} answered, p95 {quiet * 1e3:.1f} ms")
+    alone = asyncio.run(steady(server.port, steady_sid, issue_token(base, steady_sid), STEADY_S, RATE))
+    assert len(alone.rtts) == alone.sent >= MIN_ROUND_TRIPS
+    quiet = p95(alone.rtts)
+    print(f"alone: {alone.sent} sent, {len(alone.rtts)} answered, p95 {quiet * 1e3:.1f} ms")
     results: dict[str, tuple[int, int, float, dict[str, object]]] = {}
     with multiprocessing.get_context("spawn").Pool(1, initializer=_lowly) as pool:
         pool.apply(time.sleep, (0,))  # started: the misbehaving device's imports are done, its frames made
@@ -234,25 +184,27 @@ def test_whatever_a_device_sends_the_other_gets_every_torque_on_time(server: Run
             end = time.monotonic() + 0.7 + STEADY_S + 0.3
             bad = pool.apply_async(_misbehave, (server.port, other, token, kind, end))
             time.sleep(0.7)  # well into it: connected and sending
-            sent, rtts, torques = asyncio.run(_steady(server.port, issue_token(base, steady), steady, STEADY_S))
+            run = asyncio.run(steady(server.port, steady_sid, issue_token(base, steady_sid), STEADY_S, RATE))
             # it stops itself at `end`; the wait only covers a machine too busy to give a nice-19 process a turn
             got = bad.get(timeout=120)
-            results[kind] = (sent, len(rtts), _p95(rtts) if rtts else math.inf, got)
-            print(f"{kind}: {sent} sent, {len(rtts)} answered, p95 {results[kind][2] * 1e3:.1f} ms; it got {got}")
-            assert all(math.isfinite(x) and abs(x) <= bound for x in torques), kind
-    sent, rtts, _ = asyncio.run(_steady(server.port, issue_token(base, steady), steady, STEADY_S))
-    print(f"alone again: {sent} sent, {len(rtts)} answered, p95 {_p95(rtts) * 1e3:.1f} ms")
-    quiet = max(quiet, _p95(rtts))  # the machine's load drifts: the quieter of the two would be unfair
+            results[kind] = (run.sent, len(run.rtts), p95(run.rtts) if run.rtts else math.inf, got)
+            print(
+                f"{kind}: {run.sent} sent, {len(run.rtts)} answered, p95 {results[kind][2] * 1e3:.1f} ms; it got {got}"
+            )
+            assert all(math.isfinite(x) and abs(x) <= bound for x in run.torques), kind
+    again = asyncio.run(steady(server.port, steady_sid, issue_token(base, steady_sid), STEADY_S, RATE))
+    print(f"alone again: {again.sent} sent, {len(again.rtts)} answered, p95 {p95(again.rtts) * 1e3:.1f} ms")
+    quiet = max(quiet, p95(again.rtts))  # the machine's load drifts: the quieter of the two would be unfair
     report = {k: (s, n, round(p * 1e3, 1), g) for k, (s, n, p, g) in results.items()}
-    for kind, (sent, replies, p95, got) in results.items():
+    for kind, (sent, replies, late, got) in results.items():
         assert replies == sent >= MIN_ROUND_TRIPS, (kind, report)  # every frame answered, none 3 s late
         # the issue's quiet p95 + 10 ms, with room for a loaded 2-core machine running both ends
-        assert p95 <= quiet + 0.025, (kind, quiet, report)
+        assert late <= quiet + 0.025, (kind, quiet, report)
         assert int(got["longest_notice"]) < 2000, (kind, report)  # type: ignore[call-overload]
     # and each was refused as it should be: by the websocket's limit before it was read, or by a short notice
     assert all("1009" in results[k][3]["closes"] for k in ("big", "keys")), report  # type: ignore[operator]
     for kind, notice in (("keys_fit", "too_large"), ("malformed", "invalid"), ("binary", "binary")):
         assert notice in results[kind][3]["notices"] and "1008" in results[kind][3]["closes"], report  # type: ignore[operator]
     assert int(results["flood"][3]["torque"]) > 0, report  # type: ignore[call-overload]
-    health = json.loads(urllib.request.urlopen(f"{base}/api/sessions/{steady}", timeout=10).read())
+    health = json.loads(urllib.request.urlopen(f"{base}/api/sessions/{steady_sid}", timeout=10).read())
     assert health["state"] == "running"

@@ -4,51 +4,22 @@ promote (live sessions told, fp_ls takes it), roll back, export and import; bad 
 from __future__ import annotations
 
 import math
-import time
 from typing import Any
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from gaitscope.sessions.live.runtime import SessionRuntime
-from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
-from gaitscope.sessions.schema import SensorFrame
 from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
-from gaitscope.sessions.synth.trials import sensor_trial
+from tests.server.apps import recorded, subject
+from tests.walks import walk_frames
 
 RATE_HZ = 100.0
 
 
-def _subject(client: TestClient, code: str = "P01") -> int:
-    r = client.post("/api/subjects", json={"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
-    assert r.status_code == 201, r.text
-    return int(r.json()["id"])
-
-
-def _recorded(client: TestClient, sid: int, frames: list[SensorFrame]) -> tuple[int, SessionRuntime]:
-    """A device session of subject ``sid`` driven through the real runtime; returns its trial id and runtime."""
-    ctx = client.app.state.ctx  # type: ignore[attr-defined]
-    r = client.post("/api/sessions", json={"subject_id": sid, "source": {"kind": "device"}, "start": False})
-    assert r.status_code == 201, r.text
-    session = ctx.store.get_session(r.json()["id"])
-    model, _ = ctx.models.get("default")
-    runtime = SessionRuntime(session, ctx.store.get_subject(sid), model, LiveDevice(), ctx.store, ctx.settings.data_dir)
-    trial = runtime.start_recording("calibration")
-    for frame in frames:
-        runtime.process(frame, time.time_ns())
-    runtime.stop_recording()
-    return trial.id, runtime
-
-
-def _walk(strides: int = 20, subject: int = 3) -> list[SensorFrame]:
-    sensors, _, _ = sensor_trial([(1.0, 0.0, strides)], subject=subject, rate_hz=RATE_HZ)
-    return frames_from_table(sensors)
-
-
 def test_calibrate_compare_promote_and_roll_back(client: TestClient) -> None:
-    sid = _subject(client)
-    tid, _ = _recorded(client, sid, _walk())
+    sid = subject(client)
+    tid, _ = recorded(client, sid, walk_frames())
     listing = client.get(f"/api/subjects/{sid}/fingerprints").json()
     assert listing["components"] == 3 and listing["active"] is None and listing["versions"] == []
     assert len(listing["cohort"]) == 10 and all(len(p["fingerprint"]) == 3 for p in listing["cohort"])
@@ -78,7 +49,7 @@ def test_calibrate_compare_promote_and_roll_back(client: TestClient) -> None:
     assert before["active"] is None
     r = client.post(f"/api/subjects/{sid}/fingerprints/{v1['id']}/promote", json={"actor": "local", "reason": "fits"})
     assert r.status_code == 200 and r.json()["state"] == "active" and r.json()["promoted_by"] == "local"
-    tid2, runtime = _recorded(client, sid, _walk(8, subject=3))
+    tid2, runtime = recorded(client, sid, walk_frames(8, subject=3))
     assert "fp_ls" in runtime.estimator.stack.names and runtime.fingerprint == v1["fingerprint"]
     v2 = client.post(f"/api/subjects/{sid}/fingerprints", json={"trial_id": tid2}).json()
     assert v2["version"] == 2
@@ -105,13 +76,13 @@ def test_calibrate_compare_promote_and_roll_back(client: TestClient) -> None:
 
 
 def test_export_and_import_move_a_fingerprint_and_refuse_another_map(client: TestClient) -> None:
-    sid = _subject(client)
-    tid, _ = _recorded(client, sid, _walk(12))
+    sid = subject(client)
+    tid, _ = recorded(client, sid, walk_frames(12))
     v1 = client.post(f"/api/subjects/{sid}/fingerprints", json={"trial_id": tid}).json()
     r = client.get(f"/api/subjects/{sid}/fingerprints/{v1['id']}/export")
     assert r.status_code == 200 and "attachment" in r.headers["content-disposition"]
     exported: dict[str, Any] = r.json()
-    other = _subject(client, "P02")
+    other = subject(client, "P02")
     r = client.post(f"/api/subjects/{other}/fingerprints/import", json=exported)
     assert r.status_code == 201, r.text
     assert r.json()["fingerprint"] == v1["fingerprint"] and r.json()["source_trial_id"] is None
@@ -134,20 +105,20 @@ def test_export_and_import_move_a_fingerprint_and_refuse_another_map(client: Tes
 def test_a_walk_that_cannot_calibrate_is_refused_with_why_and_nothing_is_stored(
     client: TestClient, spoil: Any, why: str
 ) -> None:
-    sid = _subject(client)
-    frames = [spoil(f) for f in _walk(12)]
-    tid, _ = _recorded(client, sid, frames)
+    sid = subject(client)
+    frames = [spoil(f) for f in walk_frames(12)]
+    tid, _ = recorded(client, sid, frames)
     r = client.post(f"/api/subjects/{sid}/fingerprints", json={"trial_id": tid})
     assert r.status_code == 422 and why in r.json()["detail"], r.text
     assert client.get(f"/api/subjects/{sid}/fingerprints").json()["versions"] == []
 
 
 def test_too_short_a_walk_and_a_trial_of_someone_else_are_refused(client: TestClient) -> None:
-    sid = _subject(client)
-    tid, _ = _recorded(client, sid, _walk(4))
+    sid = subject(client)
+    tid, _ = recorded(client, sid, walk_frames(4))
     r = client.post(f"/api/subjects/{sid}/fingerprints", json={"trial_id": tid})
     assert r.status_code == 422 and "usable strides" in r.json()["detail"] and "at least 8" in r.json()["detail"]
-    other = _subject(client, "P02")
+    other = subject(client, "P02")
     r = client.post(f"/api/subjects/{other}/fingerprints", json={"trial_id": tid})
     assert r.status_code == 422 and "not of subject" in r.json()["detail"]
     assert client.post(f"/api/subjects/{sid}/fingerprints", json={"trial_id": 999}).status_code == 404

@@ -6,7 +6,6 @@ walking, it is refused with each sensor's reason and nothing changes."""
 from __future__ import annotations
 
 import json
-import math
 from typing import Any
 
 import numpy as np
@@ -14,16 +13,10 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.testclient import WebSocketTestSession
 
-from gaitscope.estimators.imu_frontend import G0, ImuFrontEnd, imu_inputs
+from gaitscope.estimators.imu_frontend import ImuFrontEnd
 from gaitscope.sessions.formats.mcap_io import read_events, read_messages
-from gaitscope.sessions.live.sources import frames_from_table
-from gaitscope.sessions.synth.trials import sensor_trial
 from tests.device_tokens import device_path
-
-RATE = 100.0
-#: the sensors' mounting: pitch offset (deg) and gyro bias (x, y, z; deg/s)
-MOUNTING = {"shank": (8.0, (0.5, -0.3, 1.2)), "foot": (-5.0, (-0.4, 0.2, -0.8))}
-IMU_CHANNELS = [c for seg in MOUNTING for c in imu_inputs(seg)]
+from tests.walks import IMU_CHANNELS, MOUNTING, imu_standing, imu_walking
 
 
 def _session(client: TestClient, code: str = "C01", subject_id: int | None = None) -> tuple[int, int]:
@@ -35,30 +28,6 @@ def _session(client: TestClient, code: str = "C01", subject_id: int | None = Non
     r = client.post("/api/sessions", json={"subject_id": subject_id, "source": source})
     assert r.status_code == 201, r.text
     return subject_id, int(r.json()["id"])
-
-
-def _standing(t0: float, seconds: float, seed: int = 0) -> list[dict[str, Any]]:
-    """Frames of a subject standing still, upright, with the sensors mounted as :data:`MOUNTING`."""
-    rng = np.random.default_rng(seed)
-    frames = []
-    for k in range(round(seconds * RATE)):
-        frame: dict[str, Any] = {"type": "frame", "t": t0 + k / RATE}
-        for seg, (offset, bias) in MOUNTING.items():
-            a = math.radians(offset)
-            gyro = np.array(bias) + rng.normal(0.0, 0.2, 3)
-            accel = np.array([G0 * math.sin(a), G0 * math.cos(a), 0.0]) + rng.normal(0.0, 0.02, 3)
-            frame.update(zip(imu_inputs(seg), [*gyro.tolist(), *accel.tolist()], strict=True))
-        frames.append(frame)
-    return frames
-
-
-def _walking(t0: float) -> list[dict[str, Any]]:
-    sensors, _, _ = sensor_trial([(1.0, 0.0, 4)], rate_hz=RATE)
-    out = []
-    for frame in frames_from_table(sensors):
-        values = frame.model_dump(include=set(IMU_CHANNELS))
-        out.append({"type": "frame", "t": t0 + frame.t, **values})
-    return out
 
 
 def _send(device: WebSocketTestSession, frames: list[dict[str, Any]], seq0: int = 0) -> None:
@@ -76,16 +45,16 @@ def test_standing_still_calibrates_stores_logs_records_and_is_applied_again(clie
     subject_id, sid = _session(client)
     assert client.get(f"/api/sessions/{sid}/imu-calibration").json()["state"] == "idle"
     with client.websocket_connect(device_path(client, sid)) as device:
-        _send(device, _standing(0.0, 1.0))
+        _send(device, imu_standing(0.0, 1.0))
         body = {"duration_s": 2, "actor": "local", "note": "upright"}
         r = client.post(f"/api/sessions/{sid}/imu-calibration", json=body)
         assert r.status_code == 202, r.text
         assert r.json()["state"] == "collecting" and r.json()["segments"] == ["foot", "shank"]
         assert client.post(f"/api/sessions/{sid}/imu-calibration", json={}).status_code == 409  # one at a time
-        _send(device, _standing(1.0, 1.0, seed=1), 100)
+        _send(device, imu_standing(1.0, 1.0, seed=1), 100)
         status = client.get(f"/api/sessions/{sid}/imu-calibration").json()
         assert status["state"] == "collecting" and 0.45 < status["progress"] < 0.55
-        _send(device, _standing(2.0, 4.0, seed=2), 200)  # the period ends at 3.0 s; then 3 s calibrated
+        _send(device, imu_standing(2.0, 4.0, seed=2), 200)  # the period ends at 3.0 s; then 3 s calibrated
         status = client.get(f"/api/sessions/{sid}/imu-calibration").json()
         ends = _front_ends(client, sid)
     assert status["state"] == "done" and status["progress"] == 1.0
@@ -140,7 +109,7 @@ def test_walking_is_refused_with_each_sensors_reason_and_nothing_applied(client:
     with client.websocket_connect(device_path(client, sid)) as device:
         r = client.post(f"/api/sessions/{sid}/imu-calibration", json={"duration_s": 2})
         assert r.status_code == 202, r.text
-        _send(device, _walking(0.0))
+        _send(device, imu_walking(0.0))
         status = client.get(f"/api/sessions/{sid}/imu-calibration").json()
         ends = _front_ends(client, sid)
     assert status["state"] == "refused" and status["applied"] is None

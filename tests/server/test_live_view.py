@@ -9,6 +9,7 @@ import time
 from fastapi.testclient import TestClient
 
 from gaitscope.sessions.live.subscribers import HISTORY_S, attach_history
+from tests.waiting import ShiftedClock, wait_until
 
 SIM = {"kind": "simulated", "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 200}], "rate_hz": 200}
 
@@ -22,10 +23,7 @@ def _session(client: TestClient) -> int:
 
 def _wait_samples(client: TestClient, sid: int, n: int) -> None:
     runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
-    deadline = time.monotonic() + 20
-    while runtime.samples < n and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert runtime.samples >= n
+    wait_until(lambda: runtime.samples >= n, 20.0, f"{n} samples of session {sid}")
 
 
 def _messages(ws, n_states: int) -> list[dict]:
@@ -73,6 +71,8 @@ def _event_texts(client: TestClient, sid: int) -> list[dict]:
 
 
 def test_undo_sets_back_the_last_change_and_is_logged(client: TestClient) -> None:
+    clock = ShiftedClock()
+    client.app.state.ctx.manager.clock = clock  # type: ignore[attr-defined]  # the session's rate limits read it
     sid = _session(client)
     _wait_samples(client, sid, 50)
     r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})
@@ -83,7 +83,7 @@ def test_undo_sets_back_the_last_change_and_is_logged(client: TestClient) -> Non
     assert r.status_code == 200, r.text
     r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})
     assert r.status_code == 409 and "try again in" in r.json()["detail"]  # the rate limit holds for an undo too
-    time.sleep(0.65)  # a step of 0.3 in gain needs 0.6 s
+    clock.advance(0.6)  # a step of 0.3 in gain needs 0.6 s
     r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})
     assert r.status_code == 200, r.text
     assert r.json()["settings"]["torque_gain"] == 1.0 and r.json()["settings"]["max_torque_Nm"] == 30.0
@@ -93,7 +93,9 @@ def test_undo_sets_back_the_last_change_and_is_logged(client: TestClient) -> Non
         ("max_torque_Nm", 35.0, 30.0, "local"),
     ]
     assert "(undo of torque_gain 1.0 -> 1.3, max_torque_Nm 30.0 -> 35.0 by local)" in events[-2]["text"]
-    time.sleep(0.65)
+    r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})
+    assert r.status_code == 409  # the undo was a change too: its own 0.6 s
+    clock.advance(0.6)
     r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})  # undoing the undo
     assert r.status_code == 200 and r.json()["settings"]["torque_gain"] == 1.3
 

@@ -22,7 +22,8 @@ from websockets.typing import Origin, Subprotocol
 from gaitscope.server.app import create_app
 from gaitscope.server.auth import CSRF_HEADER
 from gaitscope.sessions import schema
-from tests.server.test_roles import PASSWORD, _settings, login
+from tests.server.apps import PASSWORD, auth_settings, login
+from tests.waiting import wait_until
 
 SIM = {"kind": "simulated", "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 400}], "rate_hz": 200}
 NEW_PASSWORD = "a brand new password"
@@ -32,7 +33,7 @@ STREAM = "/ws/sessions/{}?max_rate_hz=20&batch_ms=250"
 
 @pytest.fixture(scope="module")
 def app(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
-    settings = _settings(tmp_path_factory.mktemp("ends")).model_copy(update={"leg_view": True, "viser_port": 0})
+    settings = auth_settings(tmp_path_factory.mktemp("ends")).model_copy(update={"leg_view": True, "viser_port": 0})
     with TestClient(create_app(settings)) as c:
         accounts = c.app.state.ctx.accounts  # type: ignore[attr-defined]
         accounts.add_user(schema.UserCreate(name="ada", role="admin", password=PASSWORD), by="test")
@@ -157,8 +158,6 @@ def test_with_accounts_on_the_app_passes_the_watch_to_the_leg_view(app: TestClie
     with _leg_view(app, me["cookie"]) as ws:
         ws.recv(timeout=10)
         assert len(accounts.watch.open_ids()) >= 1
-    deadline = time.monotonic() + 5
-    while accounts.watch.open_ids() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert accounts.watch.open_ids() == []  # a socket that closed stops being watched
+    # a socket that closed stops being watched
+    wait_until(lambda: accounts.watch.open_ids() == [], 5.0, "the closed socket no longer watched")
     assert CSRF_HEADER in me

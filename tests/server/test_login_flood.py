@@ -27,15 +27,16 @@ import threading
 import time
 import urllib.error
 import urllib.request
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import pytest
-import websockets
 
 from gaitscope.server.bench.launch import RunningServer, start_server
 from gaitscope.server.cli import main
 from gaitscope.sessions.synth.trials import replay_input, sensor_trial
+from tests.load import p95, steady
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
 pytestmark = pytest.mark.slow
@@ -76,7 +77,7 @@ def _login(base: str, name: str) -> dict[str, str]:
     return {"Cookie": cookie, "X-CSRF-Token": json.loads(body)["csrf_token"]}
 
 
-def _guess(base: str, seconds: float, seed: int) -> list[int]:
+def _guess(base: str, seconds: float, seed: int, started: Any) -> list[int]:
     """One anonymous guesser: logins with invented names (and now and then a real one) and wrong passwords,
     one after another for ``seconds``; the statuses it got."""
     rnd = random.Random(seed)
@@ -85,39 +86,20 @@ def _guess(base: str, seconds: float, seed: int) -> list[int]:
     while time.monotonic() < end:
         name = rnd.choice(["admin", "clinician", f"user{rnd.randrange(10**6)}", f"guess{rnd.randrange(10**6)}"])
         statuses.append(_request(base, "POST", "/api/auth/login", {"name": name, "password": f"pw{rnd.random()}"})[0])
+        started.set()
     return statuses
 
 
-def _flood(base: str, seconds: float, out: multiprocessing.Queue) -> None:
+def _flood(base: str, seconds: float, out: multiprocessing.Queue, started: Any) -> None:
+    """The guessers, in a process of their own; ``started`` is set once a guess was answered."""
     with ThreadPoolExecutor(GUESSERS) as pool:
-        done = list(pool.map(lambda i: _guess(base, seconds, i), range(GUESSERS)))
+        done = list(pool.map(lambda i: _guess(base, seconds, i, started), range(GUESSERS)))
     out.put([s for statuses in done for s in statuses])
 
 
-async def _steady(
-    port: int, sid: int, token: str, seconds: float, frames: list[dict[str, float]]
-) -> tuple[int, list[float]]:
-    """Frames at 200 Hz, one at a time: (frames sent, round trips in s)."""
-    rtts: list[float] = []
-    sent = 0
-    async with websockets.connect(f"ws://127.0.0.1:{port}/ws/devices/{sid}?token={token}") as ws:
-        start = time.monotonic()
-        while time.monotonic() - start < seconds:
-            await asyncio.sleep(max(0.0, start + sent / RATE - time.monotonic()))
-            t_send = time.monotonic()
-            await ws.send(json.dumps({"type": "frame", **frames[sent % len(frames)], "seq": sent, "t": sent / RATE}))
-            sent += 1
-            try:
-                reply = json.loads(await asyncio.wait_for(ws.recv(), timeout=10.0))
-            except TimeoutError:
-                break
-            if reply["type"] == "torque" and reply["seq"] == sent - 1:
-                rtts.append(time.monotonic() - t_send)
-    return sent, rtts
-
-
-def _p95(xs: list[float]) -> float:
-    return sorted(xs)[int(0.95 * len(xs))]
+def _frames(frames: list[dict[str, float]]) -> Callable[[int, float], str]:
+    """The steady device's frame ``k`` at time ``t``: the walk's frames over and over."""
+    return lambda k, t: json.dumps({"type": "frame", **frames[k % len(frames)], "seq": k, "t": t})
 
 
 @pytest.fixture(scope="module")
@@ -150,9 +132,9 @@ def test_a_login_flood_does_not_stall_a_device_or_a_clinician(server: RunningSer
     token = json.loads(issued)["token"]
     clinician = _login(base, "clinician")
 
-    sent, rtts = asyncio.run(_steady(server.port, sid, token, QUIET_S, frames))
-    assert len(rtts) == sent >= 0.8 * QUIET_S * RATE
-    quiet = _p95(rtts)
+    alone = asyncio.run(steady(server.port, sid, token, QUIET_S, RATE, _frames(frames), reply_timeout=10.0))
+    assert len(alone.rtts) == alone.sent >= 0.8 * QUIET_S * RATE
+    quiet = p95(alone.rtts)
 
     gets: list[float] = []
     notes: list[float] = []
@@ -174,21 +156,23 @@ def test_a_login_flood_does_not_stall_a_device_or_a_clinician(server: RunningSer
                 assert status == 201
                 notes.append(time.monotonic() - t0)
 
-    out = multiprocessing.get_context("spawn").Queue()
-    flood = multiprocessing.get_context("spawn").Process(target=_flood, args=(base, FLOOD_S + 1.5, out))
+    spawn = multiprocessing.get_context("spawn")
+    out, started = spawn.Queue(), spawn.Event()
+    flood = spawn.Process(target=_flood, args=(base, FLOOD_S + 1.5, out, started))
     flood.start()
     reader = threading.Thread(target=clinician_works)
     try:
-        time.sleep(1.0)  # the guessers are at it
+        assert started.wait(60), "the guessers did not start"  # the guessers are at it
         reader.start()
-        sent, rtts = asyncio.run(_steady(server.port, sid, token, FLOOD_S, frames))
+        loaded_run = asyncio.run(steady(server.port, sid, token, FLOOD_S, RATE, _frames(frames), reply_timeout=10.0))
+        sent, rtts = loaded_run.sent, loaded_run.rtts
     finally:
         stop.set()
         statuses = out.get(timeout=120)
         flood.join(timeout=30)
         if reader.is_alive():
             reader.join(timeout=30)
-    loaded = _p95(rtts) if rtts else math.inf
+    loaded = p95(rtts) if rtts else math.inf
     median_get = statistics.median(gets) if gets else math.inf
     print(
         f"device alone p95 {quiet * 1e3:.1f} ms; beside {GUESSERS} guessers ({len(statuses)} logins refused in"

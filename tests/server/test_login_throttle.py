@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 from gaitscope.server.app import create_app
 from gaitscope.sessions import schema
 from gaitscope.sessions.accounts import LoginThrottle
-from tests.server.test_roles import PASSWORD, _settings, login
+from tests.server.apps import PASSWORD, auth_settings, login
 
 
 class Clock:
@@ -30,7 +30,7 @@ class Clock:
 
 @pytest.fixture
 def app(tmp_path: Path) -> Iterator[TestClient]:
-    with TestClient(create_app(_settings(tmp_path, lockout_after=3)), client=("10.0.0.1", 40000)) as c:
+    with TestClient(create_app(auth_settings(tmp_path, lockout_after=3)), client=("10.0.0.1", 40000)) as c:
         accounts = c.app.state.ctx.accounts  # type: ignore[attr-defined]
         accounts.throttle = LoginThrottle(free=3, free_address=12, free_account=12, cap_s=900.0, clock=Clock())
         accounts.add_user(schema.UserCreate(name="ada", role="admin", password=PASSWORD), by="test")

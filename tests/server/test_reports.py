@@ -6,7 +6,6 @@ from __future__ import annotations
 import csv
 import io
 import itertools
-import time
 from typing import Any
 
 import pytest
@@ -15,6 +14,7 @@ from pypdf import PdfReader
 
 from gaitscope.sessions.reports.estimates_csv import CSV_COLUMNS
 from gaitscope.sessions.reports.pdf import FIGURE_TITLES
+from tests.waiting import wait_until
 
 TWO_SPEEDS = {
     "kind": "simulated",
@@ -29,10 +29,7 @@ TWO_SPEEDS = {
 
 def _wait(client: TestClient, session_id: int, seconds: float) -> None:
     runtime = client.app.state.ctx.manager.get(session_id)  # type: ignore[attr-defined]
-    deadline = time.monotonic() + seconds + 20
-    while runtime.samples < 200 * seconds and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert runtime.samples >= 200 * seconds
+    wait_until(lambda: runtime.samples >= 200 * seconds, seconds + 20, f"{seconds:g} s of samples")
 
 
 @pytest.fixture(scope="module")
@@ -63,11 +60,15 @@ def _export(client: TestClient, session_id: int, kind: str) -> tuple[dict[str, A
     assert r.status_code == 202, r.text
     job = r.json()
     seen = [job["progress"]]
-    deadline = time.monotonic() + 60
-    while job["state"] == "running" and time.monotonic() < deadline:
-        time.sleep(0.05)
+
+    def finished() -> bool:
+        nonlocal job
         job = client.get(f"/api/exports/{job['id']}").json()
         seen.append(job["progress"])
+        return bool(job["state"] != "running")
+
+    if job["state"] == "running":
+        wait_until(finished, 60.0, f"export job {job['id']}")
     assert job["state"] == "done", job
     r = client.get(f"/api/exports/{job['id']}/file")
     assert r.status_code == 200

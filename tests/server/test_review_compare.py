@@ -8,17 +8,17 @@ import math
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.server.test_api import SHORT, _session, _wait_samples
+from tests.server.apps import SHORT, session, wait_samples
 
 
 @pytest.fixture
 def trial(client: TestClient) -> tuple[int, int]:
     """(session id, trial id) of a finished 3-second recording of a simulated walk, with a gain change."""
-    s = _session(client)
-    _wait_samples(client, s["id"], 1.0)
+    s = session(client)
+    wait_samples(client, s["id"], 1.0)
     r = client.patch(f"/api/sessions/{s['id']}/settings", json={"torque_gain": 1.3, "actor": "dr-k"})
     assert r.status_code == 200, r.text
-    _wait_samples(client, s["id"], 3.0)
+    wait_samples(client, s["id"], 3.0)
     client.post(f"/api/sessions/{s['id']}/stop")
     trials = client.get(f"/api/trials?session_id={s['id']}").json()
     return s["id"], trials[0]["id"]
@@ -105,7 +105,7 @@ def test_review_notes_saved_listed_and_deleted(client: TestClient, trial: tuple[
 
 
 def test_a_trial_still_recording_says_so(client: TestClient) -> None:
-    s = _session(client, SHORT)
+    s = session(client, SHORT)
     trials = client.get(f"/api/trials?session_id={s['id']}").json()
     assert trials[0]["status"] == "recording"
     r = client.post(f"/api/trials/{trials[0]['id']}/compare", json={"runs": [{"name": "A"}, {"name": "B"}]})

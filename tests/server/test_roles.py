@@ -13,7 +13,6 @@ from __future__ import annotations
 import itertools
 import re
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -23,11 +22,10 @@ from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
 from gaitscope.server.app import create_app
-from gaitscope.server.auth import COOKIE, CSRF_HEADER, PERMISSIONS, _device, _Guard, _public
-from gaitscope.server.settings import Settings
+from gaitscope.server.auth import CSRF_HEADER, PERMISSIONS, _device, _Guard, _public
 from gaitscope.sessions import schema
+from tests.server.apps import PASSWORD, app_routes, auth_settings, login
 
-PASSWORD = "correct horse battery"
 #: (method, path) -> the permission it needs; "public": anyone; "device": its session's device token.
 EXPECTED: dict[tuple[str, str], str] = {
     ("GET", "/api/health"): "public",
@@ -104,43 +102,15 @@ EXPECTED: dict[tuple[str, str], str] = {
 }
 
 
-def _settings(tmp_path: Path, **kw: Any) -> Settings:
-    return Settings(
-        data_dir=tmp_path / "data", demo=False, leg_view=False, allowed_hosts=["testserver"], disk_warn_mb=1,
-        disk_stop_mb=1, upload_min_free_mb=1, auth=True, **kw,
-    )  # fmt: skip
-
-
 @pytest.fixture(scope="module")
 def app_with_users(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
     """The app with accounts on and one user of each role (``<role>1``)."""
-    with TestClient(create_app(_settings(tmp_path_factory.mktemp("roles")))) as c:
+    with TestClient(create_app(auth_settings(tmp_path_factory.mktemp("roles")))) as c:
         for role in schema.ROLES:
             c.app.state.ctx.accounts.add_user(  # type: ignore[attr-defined]
                 schema.UserCreate(name=f"{role}1", role=role, password=PASSWORD), by="test"
             )
         yield c
-
-
-def login(client: TestClient, name: str, password: str = PASSWORD) -> dict[str, str]:
-    """Log ``name`` in; returns the headers a browser would send next (its cookie and CSRF token)."""
-    client.cookies.clear()
-    r = client.post("/api/auth/login", json={"name": name, "password": password})
-    assert r.status_code == 200, r.text
-    token = client.cookies.get(COOKIE)
-    assert token
-    client.cookies.clear()  # sent explicitly, per request, so that one client can act as several users
-    return {"cookie": f"{COOKIE}={token}", CSRF_HEADER: r.json()["csrf_token"]}
-
-
-def _walk(routes: list[Any]) -> Iterator[Any]:
-    """The app's routes, those of included routers too (FastAPI >= 0.16x wraps each included router)."""
-    for route in routes:
-        inner = getattr(route, "original_router", None)
-        if inner is not None:
-            yield from _walk(inner.routes)
-        else:
-            yield route
 
 
 #: The routes left out of the OpenAPI document: the document itself and its two viewers.
@@ -151,7 +121,7 @@ def _routes(client: TestClient) -> set[tuple[str, str]]:
     """Every REST route of the OpenAPI document, and every websocket route of the app."""
     document = client.app.openapi()  # type: ignore[attr-defined]
     found = {(m.upper(), path) for path, item in document["paths"].items() for m in item}
-    walked = list(_walk(client.app.routes))  # type: ignore[attr-defined]
+    walked = list(app_routes(client.app.routes))  # type: ignore[attr-defined]
     found |= {("WEBSOCKET", r.path) for r in walked if isinstance(r, APIWebSocketRoute)}
     rest = {(m, r.path) for r in walked if isinstance(r, APIRoute) for m in r.methods}
     assert rest - found == HIDDEN  # none hidden but these
@@ -177,7 +147,7 @@ def test_every_route_has_a_rule_and_declares_it(app_with_users: TestClient) -> N
     routes = _routes(app_with_users)
     assert sorted(set(routes) - set(EXPECTED)) == [], "routes without an expected rule: add them to EXPECTED"
     assert sorted(set(EXPECTED) - set(routes)) == [], "rules for routes that do not exist"
-    for route in _walk(app_with_users.app.routes):  # type: ignore[attr-defined]
+    for route in app_routes(app_with_users.app.routes):  # type: ignore[attr-defined]
         if isinstance(route, APIRoute):
             for method in route.methods:
                 assert _rules(route.dependant) == [EXPECTED[(method, route.path)]], (method, route.path)

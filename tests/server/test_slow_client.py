@@ -11,22 +11,16 @@ import json
 import os
 import socket
 import time
-import urllib.request
 from pathlib import Path
 
 import pytest
 import websockets
 
 from gaitscope.server.bench.launch import start_server
+from tests.load import post
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
 pytestmark = pytest.mark.slow
-
-
-def _post(url: str, body: dict) -> dict:
-    req = urllib.request.Request(url, json.dumps(body).encode(), {"Content-Type": "application/json"}, method="POST")
-    with urllib.request.urlopen(req, timeout=10) as r:
-        return json.loads(r.read())
 
 
 async def _watch(port: int, sid: int, seconds: float) -> list[dict]:
@@ -53,14 +47,14 @@ def test_slow_client_is_dropped_without_slowing_anyone(tmp_path: Path) -> None:
     port = server.port
     try:
         base = f"http://127.0.0.1:{port}/api"
-        subject = _post(f"{base}/subjects", {"code": "S1", "leg_length_m": 0.9, "mass_kg": 70})
+        subject = post(f"{base}/subjects", {"code": "S1", "leg_length_m": 0.9, "mass_kg": 70})
         # 1 kHz so that the socket buffers (up to 4 MiB here) fill in seconds rather than a minute
         source = {
             "kind": "simulated",
             "rate_hz": 1000,
             "protocol": [{"speed_m_s": 1.2, "incline_deg": 0, "strides": 60}],
         }
-        sid = _post(f"{base}/sessions", {"subject_id": subject["id"], "source": source})["id"]
+        sid = post(f"{base}/sessions", {"subject_id": subject["id"], "source": source})["id"]
         time.sleep(2.0)
         health = asyncio.run(_watch(port, sid, 25.0))
     finally:
@@ -96,10 +90,10 @@ def test_a_client_that_stopped_reading_is_closed_with_1013_and_the_reason(tmp_pa
     server = start_server(tmp_path, "--no-leg-view", "--no-demo", env=env)
     try:
         base = f"http://127.0.0.1:{server.port}/api"
-        subject = _post(f"{base}/subjects", {"code": "S2", "leg_length_m": 0.9, "mass_kg": 70})
+        subject = post(f"{base}/subjects", {"code": "S2", "leg_length_m": 0.9, "mass_kg": 70})
         source = {"kind": "simulated", "rate_hz": 1000,
                   "protocol": [{"speed_m_s": 1.2, "incline_deg": 0, "strides": 60}]}  # fmt: skip
-        sid = _post(f"{base}/sessions", {"subject_id": subject["id"], "source": source})["id"]
+        sid = post(f"{base}/sessions", {"subject_id": subject["id"], "source": source})["id"]
         closed = asyncio.run(_stop_reading(server.port, sid, 10.0))
     finally:
         server.stop()

@@ -15,6 +15,7 @@ from gaitscope.sessions.live.sources import DeviceBudget
 from gaitscope.sessions.schema import MAX_FRAME_BYTES, MAX_NOTICE_ERRORS, GaitState
 from gaitscope.sessions.synth.trials import replay_input, sensor_trial
 from tests.device_tokens import device_path
+from tests.waiting import wait_until
 
 SIM = {
     "kind": "simulated",
@@ -64,9 +65,7 @@ def test_browser_stream_full_and_decimated(client: TestClient) -> None:
 def test_health_and_settings_reach_every_client(client: TestClient) -> None:
     sid = _session(client, SIM)
     runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
-    deadline = time.monotonic() + 10
-    while runtime.samples < 400 and time.monotonic() < deadline:  # a full second of data behind the health
-        time.sleep(0.05)
+    wait_until(lambda: runtime.samples >= 400, 20.0, "2 s of samples")  # a full second of data behind the health
     with (
         client.websocket_connect(f"/ws/sessions/{sid}?max_rate_hz=20") as a,
         client.websocket_connect(f"/ws/sessions/{sid}?max_rate_hz=20") as b,
@@ -198,9 +197,7 @@ def test_stopping_a_session_closes_its_streams(client: TestClient) -> None:
 def test_replay_session_plays_a_recorded_trial_faster(client: TestClient) -> None:
     sid = _session(client, SIM)
     runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
-    deadline = time.monotonic() + 10
-    while runtime.samples < 500 and time.monotonic() < deadline:
-        time.sleep(0.05)
+    wait_until(lambda: runtime.samples >= 500, 20.0, "2.5 s of samples")
     client.post(f"/api/sessions/{sid}/stop")
     trial = client.get(f"/api/trials?session_id={sid}").json()[0]
     subject_id = client.get(f"/api/sessions/{sid}").json()["subject_id"]

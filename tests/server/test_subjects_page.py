@@ -3,9 +3,9 @@
 
 from __future__ import annotations
 
-import time
-
 from fastapi.testclient import TestClient
+
+from tests.waiting import wait_until
 
 SHORT = {"kind": "simulated", "protocol": [{"speed_m_s": 1.0, "incline_deg": 0.0, "strides": 200}], "rate_hz": 200}
 
@@ -24,7 +24,8 @@ def _record(client: TestClient, sid: int, action: str, name: str = "") -> tuple[
 
 def test_trial_names_are_unique_within_a_session(client: TestClient) -> None:
     sid = _session(client)
-    time.sleep(0.3)
+    runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
+    wait_until(lambda: runtime.samples > 0, 15.0, "the session's first samples")
     assert _record(client, sid, "stop")[0] == 200  # "trial 1", recorded from the start
     code, t = _record(client, sid, "start", "fast walk")
     assert code == 200 and t["name"] == "fast walk"

@@ -3,29 +3,18 @@ real app, SQLite and a real recorded session."""
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
-import httpx2 as httpx
 import pytest
 from fastapi.testclient import TestClient
 
 from gaitscope.server.routes.uploads import RECOVERABLE, RECOVERABLE_HEADER
 from gaitscope.sessions.errors import DataFormatError
 from gaitscope.sessions.formats.mcap_io import check_mcap
+from tests.uploads import send
+from tests.waiting import wait_until
 
 SHORT = {"kind": "simulated", "protocol": [{"speed_m_s": 1.0, "incline_deg": 0.0, "strides": 200}], "rate_hz": 200}
-
-
-def _send(client: TestClient, name: str, data: bytes, subject_id: int, recover: bool = False) -> httpx.Response:
-    r = client.post("/api/uploads", json={"filename": name, "size": len(data), "subject_id": subject_id})
-    assert r.status_code == 201, r.text
-    up = r.json()
-    for off in range(0, len(data), up["chunk_size"]):
-        assert client.put(
-            f"/api/uploads/{up['id']}?offset={off}", content=data[off : off + up["chunk_size"]]
-        ).is_success
-    return client.post(f"/api/uploads/{up['id']}/finish" + ("?recover=true" if recover else ""))
 
 
 @pytest.fixture
@@ -34,9 +23,7 @@ def recorded(client: TestClient) -> tuple[int, dict, bytes]:
     sid = client.post("/api/subjects", json={"code": "UPL01", "leg_length_m": 0.9, "mass_kg": 70.0}).json()["id"]
     s = client.post("/api/sessions", json={"subject_id": sid, "source": SHORT}).json()
     runtime = client.app.state.ctx.manager.get(s["id"])  # type: ignore[attr-defined]
-    deadline = time.monotonic() + 20
-    while runtime.samples < 400 and time.monotonic() < deadline:
-        time.sleep(0.05)
+    wait_until(lambda: runtime.samples >= 400, 20.0, "2 s of samples")
     client.post(f"/api/sessions/{s['id']}/stop")
     trial = client.get(f"/api/trials?session_id={s['id']}").json()[0]
     return sid, trial, client.get(f"/api/trials/{trial['id']}/download").content
@@ -44,11 +31,11 @@ def recorded(client: TestClient) -> tuple[int, dict, bytes]:
 
 def test_a_bad_value_is_named_by_row_and_column(client: TestClient) -> None:
     sid = client.post("/api/subjects", json={"code": "UPL02", "leg_length_m": 0.9, "mass_kg": 70.0}).json()["id"]
-    r = _send(client, "walk.csv", b"time_s,foot_angle_deg\n0.00,10\n0.01,11\n0.02,eleven\n", sid)
+    r = send(client, "walk.csv", b"time_s,foot_angle_deg\n0.00,10\n0.01,11\n0.02,eleven\n", sid)
     assert r.status_code == 422
     assert r.json()["detail"] == "file walk.csv, column 'foot_angle_deg', row 4: not a number: 'eleven'"
     assert RECOVERABLE_HEADER not in r.headers
-    r = _send(client, "walk.txt.csv", b"\x89MCAP0\r\n" + bytes(40), sid)
+    r = send(client, "walk.txt.csv", b"\x89MCAP0\r\n" + bytes(40), sid)
     assert (
         r.status_code == 422 and r.json()["detail"] == "file walk.txt.csv: not a CSV file: the content is an MCAP file"
     )
@@ -62,7 +49,7 @@ def test_an_unfinished_recording_is_refused_as_recoverable_then_recovered(
     (tmp_path / "cut.mcap").write_bytes(cut)
     with pytest.raises(DataFormatError, match=RECOVERABLE):  # what the server recognises, from mcap_io
         check_mcap(tmp_path / "cut.mcap")
-    r = _send(client, "session_cut.mcap", cut, sid)
+    r = send(client, "session_cut.mcap", cut, sid)
     assert r.status_code == 422 and r.headers[RECOVERABLE_HEADER] == "1"
     detail = r.json()["detail"]
     assert detail.startswith("file session_cut.mcap: the MCAP file is incomplete (its recording was never finished")
@@ -70,7 +57,7 @@ def test_an_unfinished_recording_is_refused_as_recoverable_then_recovered(
     assert client.get("/api/trials").json() == [trial]  # nothing stored
     assert not list((tmp_path / "data" / "uploads").glob("*"))  # and nothing left behind
 
-    r = _send(client, "session_cut.mcap", cut, sid, recover=True)
+    r = send(client, "session_cut.mcap", cut, sid, recover=True)
     assert r.status_code == 201, r.text
     new = r.json()
     assert new["status"] == "uploaded" and new["name"] == "session_cut.mcap"
@@ -83,7 +70,7 @@ def test_recover_on_a_finished_recording_imports_it_as_it_is(
     client: TestClient, recorded: tuple[int, dict, bytes]
 ) -> None:
     sid, trial, whole = recorded
-    r = _send(client, "whole.mcap", whole, sid, recover=True)
+    r = send(client, "whole.mcap", whole, sid, recover=True)
     assert r.status_code == 201 and r.json()["samples"] == trial["samples"]
 
 
@@ -91,7 +78,7 @@ def test_nothing_to_recover_says_what_is_missing(
     client: TestClient, tmp_path: Path, recorded: tuple[int, dict, bytes]
 ) -> None:
     sid, trial, _ = recorded
-    r = _send(client, "junk.mcap", b"\x89MCAP0\r\n" + bytes(64), sid, recover=True)
+    r = send(client, "junk.mcap", b"\x89MCAP0\r\n" + bytes(64), sid, recover=True)
     assert r.status_code == 422
     assert r.json()["detail"] == "file junk.mcap: no /sensor channel (gaitscope needs the raw sensor frames)"
     assert client.get("/api/trials").json() == [trial]
