@@ -5,8 +5,9 @@
 ``schema.WIRE`` and every class their JSON schemas refer to (fields and types from
 ``model_json_schema()``, which ``GET /api/schema`` serves too), and the bounds the browser checks
 before the server does (``SETTING_LIMITS``, ``SENSOR_LIMITS``, every field's ``FIELD_LIMITS``) with
-the default ``SessionSettings``, and every registered estimator (:data:`gaitscope.sessions.registry.DECLARED`: its
-name on screen and its outputs). The file is committed (the UI has no build step);
+the default ``SessionSettings``, and every registered estimator as its descriptor states it
+(:data:`gaitscope.sessions.registry.DESCRIPTORS`: its name on screen, outputs, quantities, plots, tunables and
+roles), so that no view names an estimator. The file is committed (the UI has no build step);
 ``tests/server/test_wire.py`` fails when it differs from what :func:`render` makes of the schema.
 """
 
@@ -18,6 +19,7 @@ import typing
 from pathlib import Path
 from typing import Any, Final
 
+from gaitscope.estimators.descriptor import Descriptor
 from gaitscope.sessions import registry, schema
 
 __all__ = ["COMMAND", "render", "write"]
@@ -93,18 +95,46 @@ def render() -> str:
             "Readonly<SessionSettings>",
         )
     )
-    estimators = {
-        name: {"label": d.label, "outputs": dict(d.outputs), "opt_in": name in registry.OPT_IN}
-        for name, d in registry.DECLARED.items()
-    }
+    parts.append(
+        _comment(
+            [
+                "A plot a view draws of an estimator's outputs (`PlotHint`): its key in the view, title, y label",
+                "and the outputs it draws, a line each.",
+                "@typedef {object} PlotHint",
+                "@property {string} key",
+                "@property {string} title",
+                "@property {string} y_label",
+                "@property {Array<string>} outputs",
+            ]
+        )
+    )
+    parts.append(
+        _comment(
+            [
+                "A registered estimator as its descriptor states it (`estimators/descriptor.py`): its name on",
+                "screen, its outputs (name: unit; a re-run's columns are `<name>.<output>`), the gait-state",
+                "quantity of some of them (`phase`, `stance_phase`, `stride_length`, ...), the plots a view draws",
+                "of them, whether a session runs it only when named and whether it is a front end deriving",
+                "channels, the name on screen of a model it learns online (setting events whose field is the",
+                "estimator's name carry that model's versions) and its gait-fingerprint variant.",
+                "@typedef {object} EstimatorInfo",
+                "@property {string} label",
+                "@property {Record<string, string>} outputs",
+                "@property {Record<string, string>} quantities",
+                "@property {Array<PlotHint>} plots",
+                "@property {boolean} opt_in",
+                "@property {boolean} derives",
+                "@property {string | null} learned_model",
+                '@property {"average" | "personal" | "online" | null} fingerprint',
+            ]
+        )
+    )
     parts.append(
         _const(
             "ESTIMATORS",
-            estimators,
-            "Every registered estimator (`sessions.registry`), in the order a stack runs them: its name on screen,\n"
-            "its outputs (name: unit; a re-run's columns are `<name>.<output>`), and whether a session runs it\n"
-            "only when named (`OPT_IN`).",
-            "Readonly<Record<string, {label: string, outputs: Record<string, string>, opt_in: boolean}>>",
+            {name: _estimator(d) for name, d in registry.descriptors().items()},
+            "Every registered estimator (`sessions.registry.DESCRIPTORS`), in the order a stack runs them.",
+            "Readonly<Record<string, EstimatorInfo>>",
         )
     )
     limits = {name: lim for name, sch in classes.items() if (lim := _field_limits(sch))}
@@ -130,6 +160,20 @@ def render() -> str:
         )
     )
     return "\n".join(parts)
+
+
+def _estimator(d: Descriptor) -> dict[str, Any]:
+    """What the browser knows of a registered estimator (:class:`EstimatorInfo` in ``wire.js``)."""
+    return {
+        "label": d.label,
+        "outputs": dict(d.declared_outputs),
+        "quantities": dict(d.quantities),
+        "plots": [{"key": p.key, "title": p.title, "y_label": p.y_label, "outputs": list(p.outputs)} for p in d.plots],
+        "opt_in": d.opt_in,
+        "derives": d.derives,
+        "learned_model": d.learned_model,
+        "fingerprint": d.fingerprint,
+    }
 
 
 def _browser_message() -> str:

@@ -1145,26 +1145,67 @@ export const DEFAULT_SETTINGS = deepFreeze({
 });
 
 /**
- * Every registered estimator (`sessions.registry`), in the order a stack runs them: its name on screen,
- * its outputs (name: unit; a re-run's columns are `<name>.<output>`), and whether a session runs it
- * only when named (`OPT_IN`).
- * @type {Readonly<Record<string, {label: string, outputs: Record<string, string>, opt_in: boolean}>>}
+ * A plot a view draws of an estimator's outputs (`PlotHint`): its key in the view, title, y label
+ * and the outputs it draws, a line each.
+ * @typedef {object} PlotHint
+ * @property {string} key
+ * @property {string} title
+ * @property {string} y_label
+ * @property {Array<string>} outputs
+ */
+
+/**
+ * A registered estimator as its descriptor states it (`estimators/descriptor.py`): its name on
+ * screen, its outputs (name: unit; a re-run's columns are `<name>.<output>`), the gait-state
+ * quantity of some of them (`phase`, `stance_phase`, `stride_length`, ...), the plots a view draws
+ * of them, whether a session runs it only when named and whether it is a front end deriving
+ * channels, the name on screen of a model it learns online (setting events whose field is the
+ * estimator's name carry that model's versions) and its gait-fingerprint variant.
+ * @typedef {object} EstimatorInfo
+ * @property {string} label
+ * @property {Record<string, string>} outputs
+ * @property {Record<string, string>} quantities
+ * @property {Array<PlotHint>} plots
+ * @property {boolean} opt_in
+ * @property {boolean} derives
+ * @property {string | null} learned_model
+ * @property {"average" | "personal" | "online" | null} fingerprint
+ */
+
+/**
+ * Every registered estimator (`sessions.registry.DESCRIPTORS`), in the order a stack runs them.
+ * @type {Readonly<Record<string, EstimatorInfo>>}
  */
 export const ESTIMATORS = deepFreeze({
   imu_foot: {
     label: "IMU front end (foot)",
     outputs: { foot_angle_deg: "deg", foot_vel_dps: "deg/s", imu_code: "code", foot_flat: "bool", toe_off: "bool" },
+    quantities: {},
+    plots: [],
     opt_in: false,
+    derives: true,
+    learned_model: null,
+    fingerprint: null,
   },
   imu_shank: {
     label: "IMU front end (shank)",
     outputs: { shank_angle_deg: "deg", shank_vel_dps: "deg/s", imu_code: "code" },
+    quantities: {},
+    plots: [],
     opt_in: false,
+    derives: true,
+    learned_model: null,
+    fingerprint: null,
   },
   imu_thigh: {
     label: "IMU front end (thigh)",
     outputs: { thigh_angle_deg: "deg", thigh_vel_dps: "deg/s", imu_code: "code" },
+    quantities: {},
+    plots: [],
     opt_in: false,
+    derives: true,
+    learned_model: null,
+    fingerprint: null,
   },
   imu_foot_contra: {
     label: "IMU front end (foot contra)",
@@ -1175,19 +1216,43 @@ export const ESTIMATORS = deepFreeze({
       foot_flat: "bool",
       toe_off: "bool",
     },
+    quantities: {},
+    plots: [],
     opt_in: false,
+    derives: true,
+    learned_model: null,
+    fingerprint: null,
   },
   imu_shank_contra: {
     label: "IMU front end (shank contra)",
     outputs: { shank_angle_contra_deg: "deg", shank_vel_contra_dps: "deg/s", imu_code: "code" },
+    quantities: {},
+    plots: [],
     opt_in: false,
+    derives: true,
+    learned_model: null,
+    fingerprint: null,
   },
   imu_thigh_contra: {
     label: "IMU front end (thigh contra)",
     outputs: { thigh_angle_contra_deg: "deg", thigh_vel_contra_dps: "deg/s", imu_code: "code" },
+    quantities: {},
+    plots: [],
     opt_in: false,
+    derives: true,
+    learned_model: null,
+    fingerprint: null,
   },
-  hs_detector: { label: "Heel-strike detector", outputs: { heel_strike: "bool" }, opt_in: false },
+  hs_detector: {
+    label: "Heel-strike detector",
+    outputs: { heel_strike: "bool" },
+    quantities: { heel_strike: "heel_strike" },
+    plots: [],
+    opt_in: false,
+    derives: false,
+    learned_model: null,
+    fingerprint: null,
+  },
   phase_ekf: {
     label: "Phase EKF (seed 000)",
     outputs: {
@@ -1202,23 +1267,58 @@ export const ESTIMATORS = deepFreeze({
       shank_pred_deg: "deg",
       standing: "1",
     },
+    quantities: {
+      phase: "phase",
+      phase_rate: "phase_rate",
+      stride_length_m: "stride_length",
+      incline_deg: "incline",
+      heel_strike: "heel_strike",
+    },
+    plots: [],
     opt_in: false,
+    derives: false,
+    learned_model: null,
+    fingerprint: null,
   },
-  tbe: { label: "Timing-based estimate", outputs: { phase: "1", phase_rate: "1/s" }, opt_in: false },
+  tbe: {
+    label: "Timing-based estimate",
+    outputs: { phase: "1", phase_rate: "1/s" },
+    quantities: { phase: "phase", phase_rate: "phase_rate" },
+    plots: [],
+    opt_in: false,
+    derives: false,
+    learned_model: null,
+    fingerprint: null,
+  },
   hs_backup: {
     label: "Heel-strike backup",
     outputs: { phase: "1", phase_rate: "1/s", stride_length_m: "m", incline_deg: "deg" },
+    quantities: { phase: "phase", phase_rate: "phase_rate", stride_length_m: "stride_length", incline_deg: "incline" },
+    plots: [],
     opt_in: true,
+    derives: false,
+    learned_model: null,
+    fingerprint: null,
   },
   fp_avg: {
     label: "Average thigh model (seed 004)",
     outputs: { phase: "1", phase_rate: "1/s", stride_length_m: "m", thigh_pred_deg: "deg" },
+    quantities: { phase: "phase", phase_rate: "phase_rate", stride_length_m: "stride_length" },
+    plots: [],
     opt_in: false,
+    derives: false,
+    learned_model: null,
+    fingerprint: "average",
   },
   fp_ls: {
     label: "Personalized thigh model (seed 004 LS-GF)",
     outputs: { phase: "1", phase_rate: "1/s", stride_length_m: "m", thigh_pred_deg: "deg" },
+    quantities: { phase: "phase", phase_rate: "phase_rate", stride_length_m: "stride_length" },
+    plots: [],
     opt_in: false,
+    derives: false,
+    learned_model: null,
+    fingerprint: "personal",
   },
   fp_gf: {
     label: "Online fingerprint EKF (seed 004 GF)",
@@ -1231,12 +1331,22 @@ export const ESTIMATORS = deepFreeze({
       g2: "deg",
       g3: "deg",
     },
+    quantities: { phase: "phase", phase_rate: "phase_rate", stride_length_m: "stride_length" },
+    plots: [],
     opt_in: false,
+    derives: false,
+    learned_model: null,
+    fingerprint: "online",
   },
   com_kin: {
     label: "Centre of mass from leg kinematics (seed 001)",
     outputs: { com_forward_m: "m", com_up_m: "m", com_forward_vel_m_s: "m/s", com_up_vel_m_s: "m/s" },
+    quantities: {},
+    plots: [],
     opt_in: false,
+    derives: true,
+    learned_model: null,
+    fingerprint: null,
   },
   intent: {
     label: "Speed-change intent (seed 001)",
@@ -1247,12 +1357,27 @@ export const ESTIMATORS = deepFreeze({
       intent_confidence: "1",
       speed_m_s: "m/s",
     },
+    quantities: { desired_speed_m_s: "desired_speed", speed_m_s: "speed" },
+    plots: [{
+      key: "intent",
+      title: "Speed-change intent: desired vs actual speed",
+      y_label: "m/s",
+      outputs: ["desired_speed_m_s", "speed_m_s"],
+    }],
     opt_in: false,
+    derives: false,
+    learned_model: null,
+    fingerprint: null,
   },
   sdre_knee: {
     label: "SDRE knee angle from IMUs (seed 002)",
     outputs: { knee_sdre_deg: "deg", thigh_sdre_deg: "deg" },
+    quantities: { knee_sdre_deg: "knee_angle" },
+    plots: [],
     opt_in: true,
+    derives: false,
+    learned_model: null,
+    fingerprint: null,
   },
   gp_ekf: {
     label: "GP-EKF (seed 003)",
@@ -1268,7 +1393,12 @@ export const ESTIMATORS = deepFreeze({
       fault: "code",
       time_phase: "1",
     },
+    quantities: { phase: "stance_phase", phase_rate: "stance_phase_rate", heel_strike: "heel_strike" },
+    plots: [],
     opt_in: true,
+    derives: false,
+    learned_model: "GP-EKF model",
+    fingerprint: null,
   },
 });
 

@@ -43,6 +43,12 @@ def test_every_wire_class_and_every_class_it_refers_to_is_typed_field_by_field()
     schemas = _schemas()
     # FIELD_LIMITS' entry type, not a wire class: one optional property per bound
     assert typedefs.pop("FieldLimit") == [("string" if k == "pattern" else "number", k) for k in _LIMIT_KEYS.values()]
+    # ESTIMATORS' entry type, not a wire class: an estimator's descriptor as the browser reads it
+    assert [field for _, field in typedefs.pop("EstimatorInfo")] == [
+        "label", "outputs", "quantities", "plots", "opt_in", "derives", "learned_model", "fingerprint"
+    ]  # fmt: skip
+    assert typedefs.pop("PlotHint") == [("string", "key"), ("string", "title"), ("string", "y_label"),
+                                        ("Array<string>", "outputs")]  # fmt: skip
     assert set(typedefs) == set(schemas)
     for name, sch in schemas.items():
         assert [field for _, field in typedefs[name]] == list(sch["properties"]), name
@@ -92,14 +98,36 @@ def test_wire_js_is_a_module_whose_constants_are_the_schemas(tmp_path: Path) -> 
     assert got["d"] == schema.SessionSettings().model_dump(mode="json")
     assert got["f"]["SubjectCreate"]["leg_length_m"] == {"min": 0.5, "max": 1.3}
     assert got["f"]["ReplaySource"]["speed"] == {"min": 1.0, "max": 50.0}
-    assert got["e"] == {
-        name: {"label": d.label, "outputs": dict(d.outputs), "opt_in": name in registry.OPT_IN}
-        for name, d in registry.DECLARED.items()
-    }
     assert list(got["e"]) == list(registry.ESTIMATORS)  # the order a stack runs them in
+    assert {n: (e["label"], e["outputs"], e["opt_in"]) for n, e in got["e"].items()} == {
+        name: (d.label, dict(d.outputs), name in registry.OPT_IN) for name, d in registry.DECLARED.items()
+    }
     assert got["e"]["tbe"] == {
         "label": "Timing-based estimate",
         "outputs": {"phase": "1", "phase_rate": "1/s"},
+        "quantities": {"phase": "phase", "phase_rate": "phase_rate"},
+        "plots": [],
         "opt_in": False,
+        "derives": False,
+        "learned_model": None,
+        "fingerprint": None,
     }
+    # what the views read instead of naming an estimator
+    gp, intent = got["e"]["gp_ekf"], got["e"]["intent"]
+    assert (gp["quantities"]["phase"], gp["learned_model"], gp["opt_in"]) == ("stance_phase", "GP-EKF model", True)
+    assert intent["plots"] == [
+        {
+            "key": "intent",
+            "title": "Speed-change intent: desired vs actual speed",
+            "y_label": "m/s",
+            "outputs": ["desired_speed_m_s", "speed_m_s"],
+        }
+    ]
+    assert {n: e["fingerprint"] for n, e in got["e"].items() if e["fingerprint"]} == {
+        "fp_avg": "average",
+        "fp_ls": "personal",
+        "fp_gf": "online",
+    }
+    derivers = [n for n in registry.ESTIMATORS if n in registry.DERIVERS]
+    assert [n for n, e in got["e"].items() if e["derives"]] == derivers
     assert got["frozen"] is True
