@@ -17,9 +17,10 @@ from gaitscope.server.bench.launch import start_server
 from gaitscope.server.settings import Settings
 from gaitscope.sessions import schema
 from gaitscope.sessions.errors import DataFormatError
-from gaitscope.sessions.formats.mcap_io import check_mcap, read_messages
+from gaitscope.sessions.formats.mcap_io import check_mcap, read_messages, recover
 from gaitscope.sessions.formats.recording import Recorder
 from gaitscope.sessions.store import Store
+from tests.waiting import wait_until
 
 #: A real server over real sockets: seconds per test, and timing depends on the machine's load.
 pytestmark = pytest.mark.slow
@@ -36,12 +37,26 @@ def settings_for(data: Path) -> Settings:
     return Settings(data_dir=data, demo=False, leg_view=False, allowed_hosts=["testserver"], node=NODE)
 
 
+def _states_on_disk(data: Path, scratch: Path) -> int:
+    """How many gait states of the server's recording are on disk now (a copy, recovered as after a crash)."""
+    files = list((data / "recordings").glob("*.mcap"))
+    if not files:
+        return 0
+    copy = scratch / "on-disk.mcap"
+    shutil.copyfile(files[0], copy)
+    try:
+        recover(copy)
+    except (DataFormatError, OSError):  # no complete chunk yet
+        return 0
+    return sum(1 for _ in read_messages(copy, ["/gait_state"]))
+
+
 def test_killed_server_loses_at_most_a_second_and_restart_recovers(tmp_path: Path) -> None:
     data = tmp_path / "data"
     # the restarted server is the same node (a supervisor restarts it on its port; here another port, so named)
     server = start_server(data, "--no-leg-view", env={**os.environ, "GAITSCOPE_NODE": NODE}, timeout=60)
-    try:
-        time.sleep(4.0)  # the demo session records at 200 Hz: several chunks on disk
+    try:  # the demo session records at 200 Hz: several chunks on disk
+        wait_until(lambda: _states_on_disk(data, tmp_path) >= 600, 60, "3 s of gait states on disk", interval=0.25)
     finally:
         killed_ns = time.time_ns()
         os.kill(server.proc.pid, signal.SIGKILL)
