@@ -8,26 +8,25 @@
 // knee plot is drawn only from every sample (a view the server did not decimate): see `derive`.
 // Issue #12: the recorded setting changes and the review notes as labelled markers (review_markers.js),
 // playback and keys (review_playback.js), notes saved with the trial (review_notes.js), A/B comparison of
-// named re-runs (review_ab.js); a trial still recording opens with a link to its live session.
+// named re-runs (review_ab.js), the re-run card (review_rerun.js); a trial still recording opens with a link
+// to its live session.
 
 import { errorText } from "./api.js";
 import * as api from "./api_client.js";
-import { fence, may } from "./auth.js";
-import { EstimatorPicker, estimatorLabel, estimatorOverlay, listText, overlayLegend, rerunEstimators } from "./estimators.js";
+import { may } from "./auth.js";
+import { estimatorLabel, estimatorOverlay, listText, rerunEstimators } from "./estimators.js";
 import { EventList } from "./events.js";
 import { legView } from "./leg_view.js";
 import { bandPlot, INTENT_SPEC, intentValue, kneeFlexion, PLOT_SPECS } from "./live.js";
 import { COLORS, decimateMinMax, markersPlugin, Plot, PlotGroup, StrideOverlay, uPlot } from "./plots.js";
 import { abCard } from "./review_ab.js";
-import { changeText, eventMarkers, markerLabels, noteMarkers, settingLabel, spanShading } from "./review_markers.js";
+import { eventMarkers, markerLabels, noteMarkers, spanShading } from "./review_markers.js";
 import { notesCard } from "./review_notes.js";
 import { playback, reviewKeys } from "./review_playback.js";
-import { SETTING_LIMITS, SettingsEditor } from "./settings.js";
-import { errorBox, fmt, fmtUtc, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
-import { DEFAULT_SETTINGS } from "./wire.js";
+import { RERUN_POINTS, rerunCard } from "./review_rerun.js";
+import { errorBox, fmt, fmtUtc, h, readNumber, showError, ValidationError } from "./ui.js";
 
 const MAX_POINTS = 2000; // per request, as the server decimates
-const RERUN_POINTS = 10000; // kept of a re-run, decimated again to MAX_POINTS per view
 const RERUN_COLS = { phase: "phase_pct", torque: "torque_Nm", incline: "incline_deg" }; // plot key -> column
 const RERUN_STYLE = { label: "re-run", color: COLORS.purple, width: 2 }; // the re-run's gait state
 const INTENT_RERUN_COLS = INTENT_SPEC.cols.map((c) => `intent.${c}`); // a re-run's intent outputs
@@ -38,13 +37,9 @@ const INTENT_RERUN_SERIES = INTENT_SPEC.series.map((s) => ({ ...s, label: `${s.l
  * `maxPoints` samples the server decimates, each bucket's rows holding every angle's own extremes, which are
  * not at the same instants: thigh − shank is then no knee angle, so the knee is left out (null, and
  * `kneeLeftOut` says so when there was one to show). Fewer rows than `maxPoints` are every sample.
- * @param {Record<string, (number | null)[]>} series a `/series` or re-run answer
+ * @param {Record<string, any>} series a `/series` or re-run answer (columns by name)
  * @param {number} maxPoints the `max_points` it was asked with
- */
-/**
- * @param {Record<string, any>} series columns by name (`t`, then one per channel)
- * @param {number} maxPoints
- * @returns {Record<string, any>} the columns, and the derived ones
+ * @returns {Record<string, any>} its columns and the derived ones, and `kneeLeftOut`
  */
 function derive(series, maxPoints) {
   const pct = (a) => (a || []).map((v) => (v == null ? null : v * 100));
@@ -127,65 +122,9 @@ export function mountReview(root, trialId) {
     h("div", { class: "card-head" }, h("h2", { text: "Strides in view: mean ± SD" }), strideNote),
     h("div", { class: "overlay-plots" }, bandT, bandF));
 
-  // --- re-run -----------------------------------------------------------------------------------------
-  // Two modes (RerunRequest): "recorded" sends no settings, and the server replays the recorded ones
-  // and their changes, so the overlay lies on the recording; "whatif" holds the editor's settings over
-  // the whole trial. Editing a setting chooses "what if".
-  // The estimators: the trial's recorded stack by default (then no `estimators` is sent), any runnable subset.
-  const picker = new EstimatorPicker(() => refresh());
-  const editor = new SettingsEditor("rerun");
-  // SessionSettings' defaults until the trial's recorded settings are loaded.
-  editor.setBaseline(DEFAULT_SETTINGS);
-  const modeChoice = (mode, text) => h("label", { class: "choice" },
-    h("input", { type: "radio", name: "rerun-mode", value: mode, "data-testid": `rerun-mode-${mode}`, checked: mode === "recorded" }),
-    h("span", { text }));
-  const modeRecorded = modeChoice("recorded", "Re-run with the recorded settings (default)");
-  const modeWhatIf = modeChoice("whatif", "What if: these settings over the whole trial");
-  const modeNote = h("p", { class: "hint", "data-testid": "rerun-mode-note" });
-  const rerunBtn = h("button", { type: "button", class: "primary", "data-testid": "rerun-submit",
-    "aria-describedby": "rerun-estimators-error" });
-  const rerunClear = h("button", { type: "button", "data-testid": "rerun-clear", text: "Remove overlay", disabled: true });
-  const rerunError = errorBox("rerun-error");
-  const rerunOk = h("p", { class: "ok", role: "status", "data-testid": "rerun-ok" });
-  const rerunLegend = h("ul", { class: "overlay-legend", "data-testid": "rerun-legend", "aria-label": "Estimators overlaid", hidden: true });
-  const rerunStart = h("p", { class: "rerun-start", "data-testid": "rerun-start", text: "A re-run starts from the settings "
-    + "that ran: those recorded when the trial began, then each recorded change at the moment it happened (listed below "
-    + "and marked on the timeline). Choose \"What if\" to hold other settings over the whole trial instead." });
-  const rerunChanges = h("ul", { class: "rerun-changes", "data-testid": "rerun-changes", "aria-label": "Recorded setting changes" });
-  const rerunCard = h("section", { class: "card", "data-testid": "rerun-card" }, h("h2", { text: "Re-run" }),
-    rerunStart, h("h3", { text: "Recorded setting changes" }), rerunChanges,
-    h("p", { class: "hint", text: "The trial's raw sensor frames through the chosen estimators again. The re-run's gait state "
-      + "(the phase the torque follows, the torque, the incline) is overlaid in purple; each estimator's own outputs in its colour." }),
-    picker.el,
-    h("fieldset", { class: "choices" }, h("legend", { text: "Settings" }), modeRecorded, modeWhatIf), modeNote,
-    editor.el, h("div", { class: "buttons" }, rerunBtn, rerunClear), rerunError, rerunOk, rerunLegend);
-  fence(rerunCard, "run");
-  const radio = (label) => label.querySelector("input");
-  const whatIf = () => radio(modeWhatIf).checked;
-  let rerunning = false;
-  // The button says what will be re-run, and how; it is disabled while the choice cannot run (the picker says why).
-  function refresh() {
-    const problem = picker.problem();
-    const what = picker.summary();
-    rerunBtn.textContent = problem ? "Re-run: choose the estimators first"
-      : whatIf() ? `Re-run ${what}: what if` : `Re-run ${what} with the recorded settings`;
-    rerunBtn.title = picker.selected() ? picker.selected().map((n) => `${estimatorLabel(n)} (${n})`).join(", ") : "";
-    rerunBtn.disabled = rerunning || problem !== null;
-  }
-  function showMode() {
-    refresh();
-    modeNote.textContent = whatIf()
-      ? "These settings held from the first frame to the last; the recorded changes are not applied."
-      : "The settings in force when the trial began (shown below), and every recorded change where it happened: the re-run reproduces what ran.";
-  }
-  rerunCard.addEventListener("change", (ev) => {
-    if (ev.target.name === "rerun-mode") showMode();
-  });
-  editor.el.addEventListener("input", () => {
-    radio(modeWhatIf).checked = true;
-    showMode();
-  });
-  showMode();
+  // --- re-run (review_rerun.js): the answer is drawn by showRerun, removed by clearRerun ----------------
+  const rerun = rerunCard(trialId, { alive: () => st.alive, baseSettings: () => st.baseSettings, events: () => st.events,
+    show: showRerun, clear: clearRerun });
 
   const events = new EventList("review-events", { onSelect: (ev) => setCursor(ev.t, true) });
   const notes = notesCard(trialId, { cursor: () => st.cursor, range: bounds, onSelect: (t) => setCursor(t, true),
@@ -199,7 +138,7 @@ export function mountReview(root, trialId) {
   const body = h("div", { class: "review-body" }, timelineCard,
     h("div", { class: "live-grid" },
       h("div", { class: "main-col" }, plotsBox, overlayCard, intentCard),
-      h("aside", { class: "side-col" }, legView(null), notes.el, rerunCard,
+      h("aside", { class: "side-col" }, legView(null), notes.el, rerun.el,
         h("section", { class: "card" }, h("h2", { text: "Events of the trial" }), events.el))),
     ab.el);
   root.append(h("div", { class: "page review-page" },
@@ -432,69 +371,26 @@ export function mountReview(root, trialId) {
     zoom: zoomBy,
   });
 
-  rerunBtn.addEventListener("click", () => {
-    if (picker.problem() !== null) return;
-    rerunOk.textContent = "";
-    rerunning = true;
-    runAction(rerunBtn, rerunError, async () => {
-      const asWhatIf = whatIf();
-      const settings = asWhatIf ? editor.values() : null;
-      const estimators = picker.request(); // null: the recorded stack, as recorded
-      rerunOk.textContent = "re-running…";
-      // The model and anything the editor does not show come from the recorded settings.
-      const body = { ...(asWhatIf ? { settings: { ...st.baseSettings, ...settings } } : {}), ...(estimators ? { estimators } : {}) };
-      const res = await api.rerun(trialId, body, { max_points: RERUN_POINTS });
-      if (!st.alive) return;
-      const r = derive(res, RERUN_POINTS);
-      if (!r.t || !r.t.length) throw new ValidationError("The re-run produced no samples (the trial has no raw sensor frames).");
-      // The server puts the re-run on the recording's session times: no alignment here.
-      const names = rerunEstimators(res);
-      const overlay = estimatorOverlay(names, res);
-      const intent = INTENT_RERUN_COLS.every((c) => Array.isArray(res[c]));
-      st.rerun = { t: r.t, cols: { ...Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c]])), ...overlay.cols,
-        ...(intent ? Object.fromEntries(INTENT_RERUN_COLS.map((c) => [c, res[c]])) : {}) }, series: overlay.series, intent };
-      showIntentNote();
-      overlayLegend(rerunLegend, names, overlay.drawn);
-      rerunClear.disabled = false;
-      const changes = st.events.filter((e) => e.kind === "setting").length;
-      const ran = `Estimators: ${listText(names.map(estimatorLabel))}.`;
-      rerunOk.textContent = asWhatIf
-        ? `Overlaid: ${whatIfText(settings)} (what if, over the whole trial). ${ran}`
-        : `Overlaid: the recorded settings, ${changes} recorded change${changes === 1 ? "" : "s"} replayed`
-          + `${estimators ? "" : " (what ran)"}. ${ran}`;
-      drawView();
-    }).then(() => {
-      rerunning = false;
-      refresh();
-      if (rerunOk.textContent === "re-running…") rerunOk.textContent = "";
-    });
-  });
-  /** A what-if's settings in words: those that differ from the ones the trial began with. */
-  function whatIfText(settings) {
-    const base = st.baseSettings || {};
-    const changed = Object.entries(settings).filter(([k, v]) => base[k] === undefined || Math.abs(v - base[k]) > 1e-9);
-    if (!changed.length) return "the settings the trial began with, held without its changes";
-    return changed.map(([k, v]) => `${settingLabel(k)} ${fmt(v, (SETTING_LIMITS[k] && SETTING_LIMITS[k].digits) || 2)}`).join(", ");
-  }
-  rerunClear.addEventListener("click", () => {
-    st.rerun = null;
-    rerunClear.disabled = true;
-    rerunOk.textContent = "";
-    overlayLegend(rerunLegend, [], {});
+  /** Overlays a re-run's answer (the server puts it on the recording's session times: no alignment here). */
+  function showRerun(res) {
+    const r = derive(res, RERUN_POINTS);
+    if (!r.t || !r.t.length) throw new ValidationError("The re-run produced no samples (the trial has no raw sensor frames).");
+    const names = rerunEstimators(res);
+    const overlay = estimatorOverlay(names, res);
+    const intent = INTENT_RERUN_COLS.every((c) => Array.isArray(res[c]));
+    st.rerun = { t: r.t, cols: { ...Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c]])), ...overlay.cols,
+      ...(intent ? Object.fromEntries(INTENT_RERUN_COLS.map((c) => [c, res[c]])) : {}) }, series: overlay.series, intent };
     showIntentNote();
     drawView();
-  });
-
-  // --- load -------------------------------------------------------------------------------------------
-  /** The recorded setting changes in words, for the re-run form (what a re-run with them replays). */
-  function showChanges() {
-    const changes = st.events.filter((e) => e.kind === "setting");
-    rerunChanges.replaceChildren(...(changes.length
-      ? changes.map((e) => h("li", { "data-testid": "rerun-change" }, h("span", { class: "num", text: `at ${fmt(e.t, 1)} s: ` }),
-        h("span", { text: changeText(e) })))
-      : [h("li", { class: "hint", text: "None: the settings stayed as they began." })]));
+    return { names, drawn: overlay.drawn };
+  }
+  function clearRerun() {
+    st.rerun = null;
+    showIntentNote();
+    drawView();
   }
 
+  // --- load -------------------------------------------------------------------------------------------
   /** A trial still being recorded: say so, link its live session, and open the review once it stops. */
   function stillRecording(trial) {
     download.hidden = true;
@@ -526,9 +422,9 @@ export function mountReview(root, trialId) {
     showError(error, null);
     page.append(body);
     api.trialEstimators(trialId).then((choices) => {
-      if (st.alive) picker.set(choices);
+      if (st.alive) rerun.picker.set(choices);
     }).catch((err) => {
-      if (st.alive) picker.failed(`The estimators of this trial could not be listed: ${errorText(err)}.`);
+      if (st.alive) rerun.picker.failed(`The estimators of this trial could not be listed: ${errorText(err)}.`);
     });
     notes.load().catch((err) => showError(error, `The notes of this trial could not be loaded: ${errorText(err)}`));
     try {
@@ -547,7 +443,7 @@ export function mountReview(root, trialId) {
       info.textContent = `${trial.status}, ${fmt(trial.duration_s, 1)} s, ${trial.samples} samples, session ${trial.session_id}, started ${fmtUtc(trial.started_utc)}`;
       st.events = evs;
       events.add(...evs);
-      showChanges();
+      rerun.showChanges();
       st.full = derive(series, MAX_POINTS);
       if (!st.full.t.length) throw new ValidationError("This trial holds no gait states to show.");
       const [T0, T1] = [st.full.t[0], st.full.t[st.full.t.length - 1]];
@@ -563,15 +459,10 @@ export function mountReview(root, trialId) {
       } catch (err) {
         // Not recorded (a log from another tool): only a what-if can run, from the session's settings.
         st.baseSettings = (await api.getSession(trial.session_id)).settings;
-        radio(modeRecorded).disabled = true;
-        radio(modeWhatIf).checked = true;
-        showMode();
-        modeNote.textContent = `${errorText(err)}.`;
-        rerunStart.textContent = "This trial does not record the settings it began with, so a re-run cannot start from what "
-          + "ran: it holds the settings below over the whole trial.";
+        rerun.notRecorded(`${errorText(err)}.`);
       }
       if (!st.alive) return;
-      editor.setBaseline(st.baseSettings);
+      rerun.setBaseline(st.baseSettings);
       ab.setBaseline(st.baseSettings);
       // the torque plots' range: 0 to the trial's torque bound
       group.setContext({ max_torque_Nm: st.baseSettings.max_torque_Nm });
