@@ -34,7 +34,7 @@ SCRIPT = textwrap.dedent(
     def compiled():
         out = {}
         for m in pkgutil.iter_modules(estimators.__path__):
-            mod = importlib.import_module(f"estimators.{m.name}")
+            mod = importlib.import_module(f"gaitscope.estimators.{m.name}")
             for name, v in vars(mod).items():
                 if isinstance(v, CPUDispatcher) and v.__module__ == mod.__name__:
                     out[f"{mod.__name__}.{name}"] = len(v.signatures)
