@@ -34,7 +34,6 @@ QUANTITIES: Final = (
     "incline",
     "speed",
     "desired_speed",
-    "heel_strike",
     "knee_angle",
 )
 #: The variants of a gait-fingerprint filter (seed 004, :attr:`Descriptor.fingerprint`): the population's
@@ -100,6 +99,8 @@ class Descriptor:
     quantities: Mapping[str, str] = field(default_factory=dict, hash=False)
     tunables: tuple[Tunable, ...] = ()
     plots: tuple[PlotHint, ...] = ()
+    #: outputs a browser gets live besides those with a quantity and those plotted (every output is recorded)
+    live: tuple[str, ...] = ()
     #: run only when a session names it (by default a session runs every estimator its source can feed)
     opt_in: bool = False
     #: a front end deriving channels a source may not send: a default stack leaves it out when the source
@@ -126,6 +127,9 @@ class Descriptor:
             unknown = [o for o in p.outputs if o not in names]
             if unknown or not p.outputs:
                 raise ValueError(f"{self.name}: plot {p.key} draws {list(p.outputs)}, outputs are {names}")
+        unknown = [o for o in self.live if o not in names]
+        if unknown:
+            raise ValueError(f"{self.name}: live outputs {unknown} are not outputs {names}")
         for t in self.tunables:
             if t.min is not None and t.max is not None and not t.min <= t.max:
                 raise ValueError(f"{self.name}: tunable {t.name} has min {t.min} > max {t.max}")
@@ -134,6 +138,13 @@ class Descriptor:
     def declared_outputs(self) -> tuple[Output, ...]:
         """``(name, unit)`` of every output, as ``Estimator.outputs`` declares them."""
         return tuple((o.name, o.unit) for o in self.outputs)
+
+    @property
+    def streamed(self) -> tuple[str, ...]:
+        """The outputs a browser gets live, in output order: those with a quantity, those plotted and
+        :attr:`live`."""
+        shown = {*self.quantities, *(o for p in self.plots for o in p.outputs), *self.live}
+        return tuple(o.name for o in self.outputs if o.name in shown)
 
     @property
     def tunable_names(self) -> tuple[str, ...]:

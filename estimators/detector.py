@@ -142,6 +142,5 @@ DESCRIPTOR: Final = Descriptor(
     inputs=HeelStrikeDetector.inputs,
     optional_inputs=HeelStrikeDetector.optional_inputs,
     outputs=(out(HEEL_STRIKE, "bool"),),
-    quantities={HEEL_STRIKE: "heel_strike"},
     tunables=(Tunable("max_foot_angle_deg"), Tunable("refractory_s", min=0.0), Tunable("accel_threshold")),
 )

@@ -530,4 +530,5 @@ def descriptor(mode: Mode, n_components: int = 3) -> Descriptor:
         quantities={"phase": "phase", "phase_rate": "phase_rate", "stride_length_m": "stride_length"},
         tunables=tuple(Tunable(p) for p in FingerprintEKF.tunables),
         fingerprint=role,
+        live=tuple(o.name for o in outputs[4:]),  # the online fingerprint, which the subject page draws moving
     )

@@ -509,7 +509,7 @@ DESCRIPTOR: Final = Descriptor(
         out("fault", "code", "a fault code (gaitscope.estimators.protocol.FAULTS)"),
         out("time_phase", "1", "the stance phase from the stance's elapsed time alone"),
     ),
-    quantities={"phase": "stance_phase", "phase_rate": "stance_phase_rate", HS_CHANNEL: "heel_strike"},
+    quantities={"phase": "stance_phase", "phase_rate": "stance_phase_rate"},
     tunables=(Tunable("measurement_noise_scale"), Tunable("torque_scale", 0.0, 1.0)),
     opt_in=True,
     learned_model="GP-EKF model",

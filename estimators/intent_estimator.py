@@ -276,6 +276,7 @@ DESCRIPTOR: Final = Descriptor(
         out("speed_m_s", "m/s", "the centre of mass's forward speed at the last mid-stance"),
     ),
     quantities={"desired_speed_m_s": "desired_speed", "speed_m_s": "speed"},
+    live=("intent_code", "intent_confidence"),  # the live view's indicator
     tunables=(Tunable("deadband_m_s", min=0.0), Tunable("min_confidence", min=0.0)),
     plots=(
         PlotHint("intent", "Speed-change intent: desired vs actual speed", "m/s", ("desired_speed_m_s", "speed_m_s")),

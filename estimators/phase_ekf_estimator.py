@@ -190,7 +190,6 @@ DESCRIPTOR: Final = Descriptor(
         "phase_rate": "phase_rate",
         "stride_length_m": "stride_length",
         "incline_deg": "incline",
-        HEEL_STRIKE: "heel_strike",
     },
     tunables=(Tunable("measurement_noise_scale", 0.1, 10.0), Tunable("process_noise_scale", 0.1, 10.0)),
 )

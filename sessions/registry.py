@@ -82,6 +82,7 @@ __all__ = [
     "gp_ekf_default",
     "redundant",
     "resolve",
+    "streamed",
 ]
 
 _CHANNELS: Final = frozenset(CHANNELS)
@@ -258,6 +259,15 @@ OPT_IN: Final[AbstractSet[str]] = _Names(lambda d: d.opt_in)
 #: default stack leaves one out when the source already sends (or an earlier estimator derives) every channel
 #: it would derive, since a sent channel wins over a derived one and its work would be thrown away.
 DERIVERS: Final[AbstractSet[str]] = _Names(lambda d: d.derives)
+
+
+def streamed(name: str) -> frozenset[str]:
+    """The outputs of estimator ``name`` a browser gets live (:attr:`Descriptor.streamed`); of one not registered
+    (a test double, an experiment: ``build_stack``'s ``extra``), those of these names any registered one streams."""
+    found = descriptors().get(name)
+    if found is not None:
+        return frozenset(found.streamed)
+    return frozenset(o for d in DESCRIPTORS for o in d.streamed)
 
 
 def redundant(name: str, available: Collection[str]) -> bool:

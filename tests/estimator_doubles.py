@@ -1,13 +1,17 @@
 """Test doubles of :class:`gaitscope.estimators.protocol.Estimator`: a timing-based phase, shifted if asked, that
-breaks on cue (raises, returns NaN, or lets its covariance diverge after ``n`` samples)."""
+breaks on cue (raises, returns NaN, or lets its covariance diverge after ``n`` samples); and registering an
+estimator for one test (:func:`register`: its line in ``gaitscope.sessions.registry.DESCRIPTORS``)."""
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+import pytest
 from numpy.typing import NDArray
 
+from gaitscope.estimators.descriptor import Descriptor, out
 from gaitscope.estimators.protocol import HEEL_STRIKE, Output, check_params
 from gaitscope.estimators.tbe import TimingBasedEstimator
 
@@ -69,3 +73,27 @@ class Scripted:
         if self.diverge_after is not None and self.samples > self.diverge_after:
             self.P *= 100.0
         return y
+
+
+def scripted(name: str, **kw: Any) -> Descriptor:
+    """The descriptor of a :class:`Scripted` double called ``name`` (``kw``: its arguments), built by the registry."""
+    return Descriptor(
+        name=name,
+        label=f"Scripted double {name}",
+        inputs=Scripted.inputs,
+        outputs=(out("phase", "1", "the timing-based phase, shifted"), out("phase_rate", "1/s", "its rate")),
+        quantities={"phase": "phase", "phase_rate": "phase_rate"},
+    ).built_by(lambda ctx: Scripted(name, **kw))
+
+
+def register(monkeypatch: pytest.MonkeyPatch, descriptor: Descriptor) -> None:
+    """Register ``descriptor`` for this test, as its line in the registry would: it replaces the registered
+    one of its name, else comes last. Everything read from the registry sees it until the test ends."""
+    from gaitscope.sessions import registry
+
+    names = [d.name for d in registry.DESCRIPTORS]
+    if descriptor.name in names:
+        listed = [descriptor if d.name == descriptor.name else d for d in registry.DESCRIPTORS]
+    else:
+        listed = [*registry.DESCRIPTORS, descriptor]
+    monkeypatch.setattr(registry, "DESCRIPTORS", listed)

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gaitscope.sessions import schema
+from gaitscope.sessions.registry import streamed
 from gaitscope.sessions.schema import GaitState
 
 if TYPE_CHECKING:
@@ -21,25 +22,6 @@ if TYPE_CHECKING:
 
 #: Samples a subscriber may have waiting before its oldest are dropped (about 5 s at 200 Hz).
 SUBSCRIBER_CAPACITY = 1000
-#: The estimator outputs a browser gets (those an estimator has): its estimates, to overlay, the online
-#: fingerprint (seed 004 GF), which the subject page draws moving, the speed-change intent (seed 001),
-#: which the live view's indicator and its desired-vs-actual speed plot read, and the SDRE knee (seed 002),
-#: which the live view's hip and knee plot draws. Every output is recorded (``/estimators/<name>``); the
-#: primary's are in the gait states already.
-STREAMED_OUTPUTS = (
-    "phase",
-    "phase_rate",
-    "stride_length_m",
-    "incline_deg",
-    "g1",
-    "g2",
-    "g3",
-    "desired_speed_m_s",
-    "intent_code",
-    "intent_confidence",
-    "speed_m_s",
-    "knee_sdre_deg",
-)
 #: Decimals kept of a streamed estimator output (1e-5 of a cycle, m, deg: far below what a plot shows).
 STREAMED_DECIMALS = 5
 
@@ -51,7 +33,8 @@ class Subscriber:
     Attributes:
         decimation: every n-th sample is kept.
         layout: the session's estimators and their output names, in stack order (of those outputs, the
-            :data:`STREAMED_OUTPUTS` are sent).
+            :func:`~gaitscope.sessions.registry.streamed` ones are sent: those its descriptor
+            has a gait-state quantity of, plots or shows live; every output is recorded, ``/estimators/<name>``).
         pending: samples not yet sent (bounded; the oldest go first when it is full).
         pending_outputs: each pending sample's estimator outputs (None: failed), row for row.
         dropped: samples lost because the client was too slow.
@@ -103,10 +86,11 @@ class Subscriber:
         estimators = {}
         for k, (name, outs) in enumerate(self.layout):
             ys = [row[k] if k < len(row) else None for row in rows]
+            shown = streamed(name)
             columns = {
                 o: [None if y is None else round(float(y[i]), STREAMED_DECIMALS) for y in ys]
                 for i, o in enumerate(outs)
-                if o in STREAMED_OUTPUTS
+                if o in shown
             }
             failed = bool(ys) and ys[-1] is None
             estimators[name] = schema.EstimatorColumns.model_construct(failed=failed, columns=columns)

@@ -26,6 +26,7 @@ from gaitscope.sessions.intent_boost import MAX_STEP_S, IntentBoost
 from gaitscope.sessions.live.runtime import SessionRuntime, SettingRejected
 from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
 from gaitscope.sessions.synth.trials import sensor_trial
+from tests.estimator_doubles import register
 
 ANY_FLOAT = st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True)
 OUTPUT = st.one_of(ANY_FLOAT, st.sampled_from([-1.0, 0.0, 1.0, 1e300, -1e300]), st.floats(-10.0, 10.0))
@@ -108,7 +109,7 @@ def test_whatever_the_intent_says_the_torque_on_the_wire_is_finite_and_bounded(
 ) -> None:
     """The intent double says ``rows`` from frame ``start`` on (steady before, so the boost may be ramped
     up when it starts); the command sent for every frame is finite and within the session's bound."""
-    monkeypatch.setitem(registry.ESTIMATORS, "intent", lambda ctx: SaysAnything())
+    register(monkeypatch, registry.descriptors()["intent"].built_by(lambda ctx: SaysAnything()))
     SaysAnything.rows = [[1.2, 0.3, 1.0, 10.0, 1.2]] * start + rows
     runtime = _runtime(
         client,
@@ -226,7 +227,7 @@ def test_the_boost_stays_within_the_soft_starts_ramp(
     """A walker speeding up from the first frame (issue #21: 1.26x the unboosted torque during the 3 s ramp):
     while the soft start ramps the gain, the boosted torque never exceeds the unboosted one (the ramp's), then
     comes in as a ramp of its own: the effective gain within ``0.5/s x t``, the torque within the ramped bound."""
-    monkeypatch.setitem(registry.ESTIMATORS, "intent", lambda ctx: SaysAnything())
+    register(monkeypatch, registry.descriptors()["intent"].built_by(lambda ctx: SaysAnything()))
     SaysAnything.rows = [[1.2, 0.3, 1.0, confidence, 1.2]]
     stack: dict[str, Any] = {"estimators": ["phase_ekf", "intent"], "torque_gain": gain, "max_torque_Nm": bound}
     boosted, plain = _runtime(client, intent_gain_boost=boost, **stack), _runtime(client, **stack)
@@ -251,7 +252,7 @@ def _check_within_the_ramp(boosted: SessionRuntime, plain: SessionRuntime, gain:
 
 
 def test_once_the_ramp_allows_it_the_boost_comes_in(client: TestClient, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(registry.ESTIMATORS, "intent", lambda ctx: SaysAnything())
+    register(monkeypatch, registry.descriptors()["intent"].built_by(lambda ctx: SaysAnything()))
     SaysAnything.rows = [[1.2, 0.3, 1.0, 10.0, 1.2]]
     stack: dict[str, Any] = {"estimators": ["phase_ekf", "intent"], "torque_gain": 0.5, "max_torque_Nm": 80.0}
     boosted, plain = _runtime(client, intent_gain_boost=0.3, **stack), _runtime(client, **stack)

@@ -23,7 +23,7 @@ from gaitscope.sessions.schema import PRIMARY_BLEND_S, GaitState, SensorFrame, S
 from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
 from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_walk
 from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
-from tests.estimator_doubles import Scripted
+from tests.estimator_doubles import Scripted, register, scripted
 from tests.uploads import upload
 
 PERIOD = 0.01
@@ -342,7 +342,7 @@ def test_a_running_session_records_streams_and_reports_every_estimator(
 ) -> None:
     """Through the real runtime: a broken estimator of the stack fails alone (event, data health, its
     recorded channel), the primary switches through the settings path (logged, rate-limited)."""
-    monkeypatch.setitem(registry.ESTIMATORS, "broken", lambda ctx: Scripted("broken", nan_after=150))
+    register(monkeypatch, scripted("broken", nan_after=150))
     ctx = client.app.state.ctx  # type: ignore[attr-defined]
     settings = {"estimators": ["phase_ekf", "tbe", "broken"]}
     r = client.post(
