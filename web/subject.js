@@ -5,12 +5,13 @@
 // subjects (fingerprint_plot.js), with the live online fingerprint (`fp_gf`) of a running session of theirs. The
 // "record a calibration walk now" flow is people_calibration_walk.js.
 
-import { ApiError, errorText, openSessionStream } from "./api.js";
+import { ApiError, errorText } from "./api.js";
 import * as api from "./api_client.js";
 import { limitsCard } from "./assistance_limits.js";
 import { currentUser, fence, may, refusalReason } from "./auth.js";
 import { fingerprintScatter, gText } from "./fingerprint_plot.js";
 import { calibrationWalk } from "./people_calibration_walk.js";
+import { LiveFingerprint } from "./subject_live.js";
 import { COLORS, Plot } from "./plots.js";
 import { errorBox, field, fmt, fmtUtc, h, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
@@ -19,7 +20,6 @@ import { FIELD_LIMITS } from "./wire.js";
 const TEXT_MAX = FIELD_LIMITS.CalibrationRequest.note.maxLength;
 const REASON_MAX = FIELD_LIMITS.PersonalizationChange.reason.maxLength;
 const POLL_MS = 5000; // sessions, trials and versions refreshed (another screen may record or promote)
-const LIVE_RATE_HZ = 5; // the online fingerprint moves slowly: a few samples a second are plenty
 const RERUN_POINTS = 2000;
 const COLUMNS = ["Version", "State", "Calibration walk", "Fit RMSE (deg) average → personal", "Fingerprint (deg)", "Created, promoted", "Actions"];
 const USABLE = (t) => t.status !== "recording" && t.status !== "damaged";
@@ -37,9 +37,14 @@ const rmseText = (v) => `${fmt(v.fit_rmse_avg_deg, 2)} → ${fmt(v.fit_rmse_pers
 
 export function mountSubject(root, subjectId) {
   const st = { subject: null, fps: null, fpsSig: null, sessions: [], trialsBySession: new Map(), trials: [], trialsSig: null,
-    live: null, stream: null, streamSession: null, pending: null, plots: null, fitting: false, walking: false, comparing: false,
+    pending: null, plots: null, fitting: false, walking: false, comparing: false,
     alive: true };
   const code = () => (st.subject ? st.subject.code : `subject ${subjectId}`);
+  // the live online fingerprint of the newest running session of the subject (subject_live.js)
+  const live = new LiveFingerprint((scatterToo) => {
+    renderLive();
+    if (scatterToo) renderScatter();
+  });
 
   // --- header ---------------------------------------------------------------------------------------
   const title = h("h1", { "data-testid": "subject-title", text: `Subject ${subjectId}` });
@@ -189,15 +194,11 @@ export function mountSubject(root, subjectId) {
       scatterBox.replaceChildren(h("p", { class: "hint", text: "The model has no fingerprint map: there is nothing to place the subject in." }));
       return;
     }
-    scatterBox.replaceChildren(fingerprintScatter(fps, code(), st.live));
+    scatterBox.replaceChildren(fingerprintScatter(fps, code(), live.live));
   }
 
   function renderLive() {
-    const l = st.live;
-    liveText.textContent = st.streamSession === null ? "No session of this subject is running: no live fingerprint."
-      : !l ? `Session ${st.streamSession} is running: waiting for its online fingerprint…`
-        : l.why ? `Session ${st.streamSession}: ${l.why}`
-          : `Live, session ${st.streamSession} (online fingerprint filter fp_gf): ${gText(l.g)} at ${fmt(l.t, 1)} s.`;
+    liveText.textContent = live.text();
   }
 
   function fillTrialSelects() {
@@ -237,7 +238,7 @@ export function mountSubject(root, subjectId) {
     st.sessions = sessions;
     st.trials = [...st.trialsBySession.values()].flat().filter(USABLE).sort((a, b) => b.id - a.id);
     fillTrialSelects();
-    followLive();
+    live.follow(st.sessions);
     syncCalibrate();
   }
 
@@ -248,52 +249,6 @@ export function mountSubject(root, subjectId) {
     } catch (err) {
       if (st.alive && pageError.hidden) showError(pageError, `Could not refresh the page: ${errorText(err)}`);
     }
-  }
-
-  // --- the live online fingerprint of the newest running session of the subject --------------------------------
-  function closeStream() {
-    if (st.stream) st.stream.close();
-    st.stream = null;
-    st.streamSession = null;
-    st.live = null;
-  }
-
-  /** @param {import("./wire.js").BrowserMessage} msg */
-  function onLive(msg) {
-    if (msg.type !== "states" || !msg.states.length) return;
-    const gf = (msg.estimators || {}).fp_gf;
-    if (!gf) st.live = { why: "it runs no online fingerprint filter (fp_gf needs a thigh angle and a model with a fingerprint map)." };
-    else if (gf.failed) st.live = { why: "its online fingerprint filter (fp_gf) has failed." };
-    else {
-      const cols = Object.keys(gf.columns).filter((c) => /^g\d+$/.test(c)).sort((a, b) => Number(a.slice(1)) - Number(b.slice(1)));
-      let i = msg.states.length - 1;
-      while (i >= 0 && cols.some((c) => gf.columns[c][i] == null)) i--;
-      if (i < 0 || !cols.length) return;
-      st.live = { g: cols.map((c) => gf.columns[c][i]), t: msg.states[i].t };
-    }
-    renderLive();
-    renderScatter();
-  }
-
-  function followLive() {
-    const running = st.sessions.filter((s) => s.state === "running").sort((a, b) => b.id - a.id)[0];
-    const id = running ? running.id : null;
-    if (id === st.streamSession) return;
-    closeStream();
-    if (id !== null) {
-      st.streamSession = id;
-      st.stream = openSessionStream(id, {
-        onMessage: onLive,
-        onStatus(s, info) {
-          if (s === "closed") {
-            st.live = { why: `the live stream closed (${info.reason || `code ${info.code}`}).` };
-            renderLive();
-          }
-        },
-      }, { maxRateHz: LIVE_RATE_HZ, batchMs: 200 });
-    }
-    renderLive();
-    renderScatter();
   }
 
   // --- calibrate --------------------------------------------------------------------------------------------
@@ -329,7 +284,7 @@ export function mountSubject(root, subjectId) {
   function syncCalibrate() {
     const can = !!(st.fps && st.fps.components);
     if (!st.fitting) calBtn.disabled = st.walking || !can; // while fitting, runAction holds it
-    const sid = st.streamSession;
+    const sid = live.sessionId;
     const rec = sid === null ? null : (st.trialsBySession.get(sid) || []).find((t) => t.status === "recording") || null;
     walk.update({ session: sid, recording: rec, enabled: can && !st.fitting });
   }
@@ -495,7 +450,7 @@ export function mountSubject(root, subjectId) {
       st.alive = false;
       clearInterval(timer);
       walk.stop();
-      closeStream();
+      live.close();
       if (st.plots) for (const p of st.plots) p.destroy();
     },
   };
