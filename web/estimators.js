@@ -40,8 +40,33 @@ const OVERLAID = [
 ];
 
 /** Estimators whose `phase` and `phase_rate` are of STANCE (0 at heel strike, 1 at toe-off: seed 003's GP-EKF),
- * not of the gait cycle: kept off the gait-phase and phase-rate plots, where they would read as gait phase. */
-const STANCE_PHASE = new Set(["gp_ekf"]);
+ * not of the gait cycle (their descriptors' quantity `stance_phase`): kept off the gait-phase and phase-rate plots,
+ * where they would read as gait phase. */
+export const STANCE_PHASE = new Set(NAMES.filter((n) => ESTIMATORS[n].quantities.phase === "stance_phase"));
+
+/** The estimator that learns a model online (its descriptor's `learned_model`: seed 003's GP-EKF), or null. */
+export const LEARNER = NAMES.find((n) => ESTIMATORS[n].learned_model) || null;
+
+/** The speed-change intent estimator (the one estimating the desired speed: seed 001's), or null. */
+export const INTENT = NAMES.find((n) => Object.values(ESTIMATORS[n].quantities).includes("desired_speed")) || null;
+
+/**
+ * The name on screen of the model an estimator learns online: setting events whose field is that estimator's
+ * name carry the model's versions. Null for any other field.
+ * @param {string} field
+ * @returns {string | null}
+ */
+export function learnedModel(field) {
+  return Object.hasOwn(ESTIMATORS, field) ? ESTIMATORS[field].learned_model : null;
+}
+
+/**
+ * The registered gait-fingerprint filters of these variants (seed 004), in registry order.
+ * @param {...("average" | "personal" | "online")} roles
+ */
+export function fingerprintEstimators(...roles) {
+  return NAMES.filter((n) => roles.includes(ESTIMATORS[n].fingerprint));
+}
 
 const hasPhase = (name) => ESTIMATORS[name] !== undefined && "phase" in ESTIMATORS[name].outputs;
 
