@@ -2,6 +2,7 @@
 // newest first, each in plain words ("Torque gain 1.00 → 1.30, by clinician"), never a raw field name;
 // `describeEvent` gives the same words to the live plots' markers.
 
+import { learnedModel } from "./estimators.js";
 import { SETTING_LIMITS } from "./settings.js";
 import { fmt, h } from "./ui.js";
 import { ESTIMATORS } from "./wire.js";
@@ -12,13 +13,14 @@ export const EVENT_COLORS = { setting: "#c2410c", annotation: "#0b5cad", recordi
 
 function _value(field, v) {
   if (v === null || v === undefined) return "–";
-  if (field === "gp_ekf" && typeof v === "number") return `v${Math.round(v)}`; // the GP-EKF's model versions
+  if (learnedModel(field) && typeof v === "number") return `v${Math.round(v)}`; // a learned model's versions
   if (typeof v === "number") return fmt(v, (SETTING_LIMITS[field] && SETTING_LIMITS[field].digits) || 3);
   return String(v);
 }
 
-/** Event fields shown by another name than their machine name (the settings' names come from SETTING_LIMITS). */
-const FIELD_NAMES = { gp_ekf: "GP-EKF model", primary: "Torque follows", imu_calibration: "IMU calibration" };
+/** Event fields shown by another name than their machine name (the settings' names come from SETTING_LIMITS, a
+ * learned model's from its estimator's descriptor). */
+const FIELD_NAMES = { primary: "Torque follows", imu_calibration: "IMU calibration" };
 
 /** What each kind of event is called on screen. */
 export const KIND_NAMES = { setting: "Setting", annotation: "Note", system: "System", recording: "Recording", intent: "Intent" };
@@ -26,7 +28,7 @@ export const KIND_NAMES = { setting: "Setting", annotation: "Note", system: "Sys
 /** A field's name on screen. */
 export function fieldName(field) {
   if (SETTING_LIMITS[field]) return SETTING_LIMITS[field].label.split(":")[0]; // no explanation after a colon
-  return FIELD_NAMES[field] || field.replace(/_/g, " ").replace(/^./, (c) => c.toUpperCase());
+  return FIELD_NAMES[field] || learnedModel(field) || field.replace(/_/g, " ").replace(/^./, (c) => c.toUpperCase());
 }
 
 function _shown(field, v) {
