@@ -2,16 +2,17 @@
 // in words ("Torque gain 1.00 → 1.30, by dr-k", also the re-run form's list), notes (their spans shaded) and
 // the other events.
 
-import { estimatorLabel } from "./estimators.js";
+import { estimatorLabel, learnedModel } from "./estimators.js";
 import { SETTING_LIMITS } from "./settings.js";
 import { fmt } from "./ui.js";
 
-/** Names a clinician reads for the fields a setting event may change. */
-const FIELD_LABELS = { primary: "Estimator driving the torque", gp_ekf: "GP-EKF model" };
+/** Names a clinician reads for the fields a setting event may change (a learned model's: its estimator's descriptor). */
+const FIELD_LABELS = { primary: "Estimator driving the torque" };
 
 /** A setting's plain name: its label up to any explanation after a colon ("Intent gain boost"). */
 export function settingLabel(field) {
   if (FIELD_LABELS[field]) return FIELD_LABELS[field];
+  if (learnedModel(field)) return learnedModel(field);
   const lim = SETTING_LIMITS[field];
   return lim ? lim.label.split(":")[0] : String(field).replaceAll("_", " ");
 }
@@ -19,7 +20,7 @@ export function settingLabel(field) {
 function _value(field, v) {
   if (v === null || v === undefined) return "–";
   if (field === "primary") return estimatorLabel(String(v));
-  if (field === "gp_ekf" && typeof v === "number") return `version ${Math.round(v)}`;
+  if (learnedModel(field) && typeof v === "number") return `version ${Math.round(v)}`;
   if (typeof v === "number") return fmt(v, (SETTING_LIMITS[field] && SETTING_LIMITS[field].digits) || 2);
   return String(v);
 }
