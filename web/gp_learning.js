@@ -9,14 +9,16 @@
 // Hidden for a session without `gp_ekf` (it is opt-in: the session's settings must name it).
 
 import { ApiError, errorText } from "./api.js";
+import { LEARNER } from "./estimators.js";
 import * as api from "./api_client.js";
 import { fence } from "./auth.js";
 import { COLORS, Plot, Ring } from "./plots.js";
 import { errorBox, field, fmt, h, runAction } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
 
-/** The GP-EKF's name in a stack. Its `phase` output is the STANCE phase (0 at heel strike, 1 at toe-off). */
-export const GP_EKF = "gp_ekf";
+/** The GP-EKF's name in a stack: the estimator that learns a model online (its descriptor's `learned_model`). Its
+ * `phase` output is the STANCE phase (0 at heel strike, 1 at toe-off). */
+export const GP_EKF = LEARNER;
 const POLL_MS = 2000;
 const STANCE_WINDOW_S = 10;
 /** The joints of its observation models (sessions/schema.py GP_JOINTS), each with its plot's colours. */
