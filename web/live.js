@@ -20,6 +20,7 @@ import * as api from "./api_client.js";
 import { currentUser, fence } from "./auth.js";
 import { mountControls } from "./controls.js";
 import { deviceCredentialsCard } from "./device_credentials.js";
+import { INTENT, STANCE_PHASE } from "./estimators.js";
 import { describeEvent, EVENT_COLORS, EventList, isSettingChange } from "./events.js";
 import { GP_EKF, gpLearningCard } from "./gp_learning.js";
 import { legView } from "./leg_view.js";
@@ -29,6 +30,7 @@ import { sessionEndBanner } from "./live_session_end.js";
 import { COLORS, Plot, PlotGroup, Ring, StrideOverlay } from "./plots.js";
 import { onServerChange } from "./server_status.js";
 import { errorBox, fmt, h, runAction, showError } from "./ui.js";
+import { ESTIMATORS } from "./wire.js";
 
 export const WINDOW_S = 10; // seconds of full-rate history the live plots show
 const RING_CAPACITY = 2048; // > 10 s at the 60 Hz the stream is asked for (34 s), bounded memory
@@ -65,12 +67,17 @@ export const SDRE_KNEE = { col: "knee_sdre_deg", series: { label: "knee, SDRE (s
  */
 export const kneeFlexion = (thigh, shank) => (thigh == null || shank == null ? null : thigh - shank);
 
+/** The intent estimator's plot as its descriptor states it (wire.js), or null when none is registered. */
+const INTENT_PLOT = INTENT ? ESTIMATORS[INTENT].plots[0] : null;
+
 /**
- * The speed-change intent estimator's (`intent`, seed 001) desired and actual speed; `review.js` uses it too.
- * Both hold between mid-stances (twice per step), where the filter updates them; 0 before its first one.
+ * The speed-change intent estimator's (`INTENT`, seed 001) desired and actual speed, as its descriptor's plot
+ * hint states it; `review.js` uses it too. Both hold between mid-stances (twice per step), where the filter updates
+ * them; 0 before its first one.
  */
 export const INTENT_SPEC = {
-  key: "intent", title: "Speed-change intent: desired vs actual speed", yLabel: "m/s", cols: ["desired_speed_m_s", "speed_m_s"],
+  key: INTENT_PLOT ? INTENT_PLOT.key : "intent-none", title: INTENT_PLOT ? INTENT_PLOT.title : "",
+  yLabel: INTENT_PLOT ? INTENT_PLOT.y_label : "", cols: INTENT_PLOT ? [...INTENT_PLOT.outputs] : [],
   series: [{ label: "desired", color: COLORS.blue, width: 2.5 }, { label: "actual (CoM, mid-stance)", color: COLORS.teal, dash: [6, 4] }],
 };
 
@@ -88,8 +95,8 @@ const ESTIMATOR_COLORS = [COLORS.blue, COLORS.orange, COLORS.green, COLORS.purpl
 /** Ring column of an estimator's phase (% of the cycle). */
 const estColumn = (name) => `est_${name}_pct`;
 
-/** Estimators whose `phase` output is a stance phase, not the gait phase (% of the cycle) the phase plot shows. */
-export const STANCE_PHASE = new Set([GP_EKF]);
+/** The SDRE knee estimator (its descriptor's quantity `knee_angle`: seed 002's), or null. */
+const SDRE = Object.keys(ESTIMATORS).find((n) => Object.values(ESTIMATORS[n].quantities).includes("knee_angle")) || null;
 
 /**
  * The phase plot's spec for a stack: one line per estimator that estimates a gait phase (from a batch's
@@ -353,11 +360,12 @@ export function mountLive(root, sessionId) {
         showStack();
       }
     }
-    showIntent(est.intent);
+    const intentEst = INTENT ? est[INTENT] : undefined;
+    showIntent(intentEst);
     gp.push(states, est[GP_EKF]);
-    const intentCols = est.intent && est.intent.columns && est.intent.columns.desired_speed_m_s ? est.intent.columns : null;
+    const intentCols = intentEst && intentEst.columns && intentEst.columns[INTENT_SPEC.cols[0]] ? intentEst.columns : null;
     if (intentCols && intentDiv.hidden) intentDiv.hidden = false;
-    const sdreKnee = est.sdre_knee && est.sdre_knee.columns ? est.sdre_knee.columns[SDRE_KNEE.col] : null;
+    const sdreKnee = SDRE && est[SDRE] && est[SDRE].columns ? est[SDRE].columns[SDRE_KNEE.col] : null;
     if (sdreKnee) showSdre();
     for (let i = 0; i < states.length; i++) {
       const s = states[i];
