@@ -14,7 +14,7 @@
 import { errorText } from "./api.js";
 import * as api from "./api_client.js";
 import { may } from "./auth.js";
-import { estimatorLabel, estimatorOverlay, listText, rerunEstimators } from "./estimators.js";
+import { estimatorLabel, estimatorOverlay, INTENT, listText, rerunEstimators } from "./estimators.js";
 import { EventList } from "./events.js";
 import { legView } from "./leg_view.js";
 import { bandPlot, INTENT_SPEC, intentValue, kneeFlexion, PLOT_SPECS } from "./live.js";
@@ -29,7 +29,7 @@ import { errorBox, fmt, fmtUtc, h, readNumber, showError, ValidationError } from
 const MAX_POINTS = 2000; // per request, as the server decimates
 const RERUN_COLS = { phase: "phase_pct", torque: "torque_Nm", incline: "incline_deg" }; // plot key -> column
 const RERUN_STYLE = { label: "re-run", color: COLORS.purple, width: 2 }; // the re-run's gait state
-const INTENT_RERUN_COLS = INTENT_SPEC.cols.map((c) => `intent.${c}`); // a re-run's intent outputs
+const INTENT_RERUN_COLS = INTENT ? INTENT_SPEC.cols.map((c) => `${INTENT}.${c}`) : []; // a re-run's intent outputs
 const INTENT_RERUN_SERIES = INTENT_SPEC.series.map((s) => ({ ...s, label: `${s.label}, re-run`, width: 1.5, dash: [2, 3] }));
 
 /**
@@ -231,7 +231,7 @@ export function mountReview(root, trialId) {
       intentNote.textContent = `No speed-change intent: this trial does not record ${listText(i.missing)}, which the intent estimator needs.`;
     } else {
       intentNote.textContent = rerun ? "The intent estimator did not run when the trial was recorded; shown: the re-run's."
-        : `The intent estimator did not run when the trial was recorded: re-run it with "${estimatorLabel("intent")}" checked to see it.`;
+        : `The intent estimator did not run when the trial was recorded: re-run it with "${estimatorLabel(INTENT || "")}" checked to see it.`;
     }
   }
 
@@ -377,7 +377,7 @@ export function mountReview(root, trialId) {
     if (!r.t || !r.t.length) throw new ValidationError("The re-run produced no samples (the trial has no raw sensor frames).");
     const names = rerunEstimators(res);
     const overlay = estimatorOverlay(names, res);
-    const intent = INTENT_RERUN_COLS.every((c) => Array.isArray(res[c]));
+    const intent = INTENT_RERUN_COLS.length > 0 && INTENT_RERUN_COLS.every((c) => Array.isArray(res[c]));
     st.rerun = { t: r.t, cols: { ...Object.fromEntries(Object.values(RERUN_COLS).map((c) => [c, r[c]])), ...overlay.cols,
       ...(intent ? Object.fromEntries(INTENT_RERUN_COLS.map((c) => [c, res[c]])) : {}) }, series: overlay.series, intent };
     showIntentNote();
