@@ -9,12 +9,16 @@ import { ApiError, errorText } from "./api.js";
 import * as api from "./api_client.js";
 import { limitsCard } from "./assistance_limits.js";
 import { currentUser, fence, may, refusalReason } from "./auth.js";
+import { fingerprintEstimators } from "./estimators.js";
 import { fingerprintScatter, gText } from "./fingerprint_plot.js";
 import { calibrationWalk } from "./people_calibration_walk.js";
 import { LiveFingerprint } from "./subject_live.js";
 import { COLORS, Plot } from "./plots.js";
 import { errorBox, field, fmt, fmtUtc, h, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
+
+/** The average and the personalized thigh-model filters (seed 004), by their descriptors' fingerprint variants. */
+const [AVERAGE, PERSONAL] = [fingerprintEstimators("average")[0], fingerprintEstimators("personal")[0]];
 
 // CalibrationRequest.note and PersonalizationChange.reason (sessions/schema.py), from the generated wire.js.
 const TEXT_MAX = FIELD_LIMITS.CalibrationRequest.note.maxLength;
@@ -313,7 +317,7 @@ export function mountSubject(root, subjectId) {
     const col = (c) => res[c] || res.t.map(() => null); // a column the re-run lacks: drawn as a gap
     specs.forEach((s, i) => {
       st.plots[i].setSeries(s.series);
-      st.plots[i].setData([res.t, ...(s.measured ? [col(s.measured)] : []), scale(col(`fp_avg.${s.out}`), s.scale), scale(col(`fp_ls.${s.out}`), s.scale)]);
+      st.plots[i].setData([res.t, ...(s.measured ? [col(s.measured)] : []), scale(col(`${AVERAGE}.${s.out}`), s.scale), scale(col(`${PERSONAL}.${s.out}`), s.scale)]);
     });
   }
 
@@ -329,7 +333,7 @@ export function mountSubject(root, subjectId) {
     await runAction(cmpBtn, cmpError, async () => {
       const tid = trialId || v.source_trial_id;
       if (!tid) throw new ValidationError(`v${v.version} was imported: it has no calibration walk here. Choose a walk to re-run.`);
-      const res = await api.rerun(tid, { estimators: ["fp_avg", "fp_ls"], personalization_id: v.id },
+      const res = await api.rerun(tid, { estimators: [AVERAGE, PERSONAL], personalization_id: v.id },
         { max_points: RERUN_POINTS });
       if (!st.alive) return;
       if (!res.t || !res.t.length) throw new ValidationError(`The re-run of trial ${tid} produced no samples (it holds no sensor frames).`);
