@@ -3,8 +3,12 @@
 // there is none. subject.js draws it (the text under the scatter, the live point on it).
 
 import { openSessionStream } from "./api.js";
+import { fingerprintEstimators } from "./estimators.js";
 import { gText } from "./fingerprint_plot.js";
 import { fmt } from "./ui.js";
+
+/** The online fingerprint filter (seed 004 GF), by its descriptor's fingerprint variant. */
+const ONLINE = fingerprintEstimators("online")[0];
 
 const LIVE_RATE_HZ = 5; // the online fingerprint moves slowly: a few samples a second are plenty
 
@@ -59,7 +63,7 @@ export class LiveFingerprint {
   /** @param {import("./wire.js").BrowserMessage} msg */
   _onMessage(msg) {
     if (msg.type !== "states" || !msg.states.length) return;
-    const gf = (msg.estimators || {}).fp_gf;
+    const gf = ONLINE ? (msg.estimators || {})[ONLINE] : undefined;
     if (!gf) this.live = { why: "it runs no online fingerprint filter (fp_gf needs a thigh angle and a model with a fingerprint map)." };
     else if (gf.failed) this.live = { why: "its online fingerprint filter (fp_gf) has failed." };
     else {
