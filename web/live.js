@@ -26,6 +26,7 @@ import { GP_EKF, gpLearningCard } from "./gp_learning.js";
 import { legView } from "./leg_view.js";
 import { HealthBox } from "./live_health_box.js";
 import { PanelLayout } from "./live_layout.js";
+import { EstimatorPlots } from "./live_estimator_plots.js";
 import { sessionEndBanner } from "./live_session_end.js";
 import { COLORS, Plot, PlotGroup, Ring, StrideOverlay } from "./plots.js";
 import { onServerChange } from "./server_status.js";
@@ -202,6 +203,8 @@ export function mountLive(root, sessionId) {
   const intentDiv = h("div", { class: "plot", "data-testid": "plot-intent-speed", hidden: true });
   moreBox.prepend(intentDiv);
   const intentPlot = new Plot(intentDiv, { ...INTENT_SPEC, xRange: follow, group });
+  // the plots other estimators' descriptors ask for, as their estimators appear in the stream
+  const estimatorPlots = new EstimatorPlots(moreBox, { group, xRange: follow, seconds: WINDOW_S, except: INTENT ? [INTENT] : [] });
   const joints = plots.find((p) => p.spec.key === "joints");
   /** The SDRE knee joins the joints plot once a batch says the stack runs `sdre_knee`. */
   function showSdre() {
@@ -363,6 +366,7 @@ export function mountLive(root, sessionId) {
     const intentEst = INTENT ? est[INTENT] : undefined;
     showIntent(intentEst);
     gp.push(states, est[GP_EKF]);
+    estimatorPlots.push(states, est);
     const intentCols = intentEst && intentEst.columns && intentEst.columns[INTENT_SPEC.cols[0]] ? intentEst.columns : null;
     if (intentCols && intentDiv.hidden) intentDiv.hidden = false;
     const sdreKnee = SDRE && est[SDRE] && est[SDRE].columns ? est[SDRE].columns[SDRE_KNEE.col] : null;
@@ -507,6 +511,7 @@ export function mountLive(root, sessionId) {
       dataDirty = false;
       for (const { spec, plot } of plots) plot.setData(ring.window("t", spec.cols, WINDOW_S));
       if (!intentDiv.hidden) intentPlot.setData(ring.window("t", INTENT_SPEC.cols, WINDOW_S));
+      estimatorPlots.draw();
     }
     if (strideDirty) {
       strideDirty = false;
@@ -558,6 +563,7 @@ export function mountLive(root, sessionId) {
       stream.close();
       for (const p of plots) p.plot.destroy();
       intentPlot.destroy();
+      estimatorPlots.destroy();
       for (const b of bands) b.plot.destroy();
       gp.destroy();
     },
