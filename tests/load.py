@@ -1,5 +1,6 @@
 """A steady device beside a misbehaving load, for the tests on a real server over real sockets (accounts off
-unless said): REST calls, the device's frames of a walk, its round trips timed at its rate, their p95.
+unless said): REST calls, the device's frames of a walk, its round trips timed at its rate, their p95; and
+a session's time read from its stream.
 
 The steady device paces itself at its declared rate on the real clock (a real device's frames come at its
 rate, and the round trip of each is what these tests time): the one sleep here is that pacing.
@@ -17,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import websockets
+from websockets.sync.client import connect
 
 #: The seven version 1 channels of a walk at 1 Hz: each one's value at phase angle ``w`` (rad).
 _WALK: dict[str, Callable[[float], float]] = {
@@ -85,6 +87,32 @@ async def steady(
                     out.rtts.append(time.monotonic() - t_send)
                     out.torques.append(reply["torque_Nm"])
     return out
+
+
+def session_time(
+    base: str,
+    session_id: int,
+    at_least: float = -math.inf,
+    headers: dict[str, str] | None = None,
+    timeout: float = 60.0,
+) -> float:
+    """The running session's time (s, of its last state) on the real server at ``base``, read from its browser
+    stream (``headers``: a login's cookie, with accounts on); with ``at_least``, once it has reached that (the
+    stream's states come as the session makes them).
+
+    Raises:
+        AssertionError: not reached in ``timeout`` seconds."""
+    url = base.replace("http://", "ws://") + f"/ws/sessions/{session_id}?max_rate_hz=20"
+    deadline = time.monotonic() + timeout
+    with connect(url, additional_headers=headers or {}) as ws:
+        while True:
+            left = deadline - time.monotonic()
+            assert left > 0, f"session {session_id} did not reach t = {at_least:g} s in {timeout:g} s"
+            message = json.loads(ws.recv(timeout=left))
+            if message.get("type") == "states" and message["states"]:
+                t = float(message["states"][-1]["t"])
+                if t >= at_least:
+                    return t
 
 
 def p95(xs: list[float]) -> float:

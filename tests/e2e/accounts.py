@@ -25,7 +25,7 @@ from http.cookies import SimpleCookie
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from websockets.sync.client import connect
+from tests import load
 
 if TYPE_CHECKING:
     from playwright.sync_api import BrowserContext
@@ -150,33 +150,20 @@ def call(base: str, method: str, path: str, body: dict[str, Any] | None = None, 
     return client(base, user).call(method, path, body)
 
 
-def session_time(base: str, session_id: int, at_least: float = -math.inf, timeout: float = 60.0) -> float:
-    """The running session's time (s, of its last state), read from its browser stream as the clinician;
-    with ``at_least``, once it has reached that (the stream's states come as the session makes them).
-
-    Raises:
-        AssertionError: not reached in ``timeout`` seconds."""
+def session_time(base: str, session_id: int, at_least: float = -math.inf) -> float:
+    """The running session's time (s), once it has reached ``at_least``: :func:`tests.load.session_time` as
+    the clinician."""
     c = client(base)
     if not c.cookie:
         c.log_in()
-    url = base.replace("http://", "ws://") + f"/ws/sessions/{session_id}?max_rate_hz=20"
-    deadline = time.monotonic() + timeout
-    with connect(url, additional_headers={"Cookie": f"{COOKIE}={c.cookie}"}) as ws:
-        while True:
-            left = deadline - time.monotonic()
-            assert left > 0, f"session {session_id} did not reach t = {at_least:g} s in {timeout:g} s"
-            message = json.loads(ws.recv(timeout=left))
-            if message.get("type") == "states" and message["states"]:
-                t = float(message["states"][-1]["t"])
-                if t >= at_least:
-                    return t
+    return load.session_time(base, session_id, at_least, {"Cookie": f"{COOKIE}={c.cookie}"})
 
 
 def record(base: str, session_id: int, seconds: float, name: str) -> dict[str, Any]:
-    """A recording named ``name`` of the running session's next ``seconds`` of session time; the finished
-    trial."""
+    """A recording named ``name`` of the running session's next ``seconds`` (the session streams in real
+    time: the wait is the walk being recorded, as long as a clinician would let it run); the finished trial."""
     call(base, "POST", f"/api/sessions/{session_id}/recording", {"action": "start", "name": name})
-    session_time(base, session_id, session_time(base, session_id) + seconds)
+    time.sleep(seconds)
     trial: dict[str, Any] = call(base, "POST", f"/api/sessions/{session_id}/recording", {"action": "stop"})
     assert trial["status"] == "finished", trial
     return trial

@@ -27,6 +27,7 @@ import time
 import urllib.error
 import urllib.request
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 import websockets
@@ -62,9 +63,9 @@ def _full_frame(k: int, t: float) -> str:
 _FRAMES: dict[str, str] = {}
 
 
-def _misbehave(port: int, sid: int, token: str, kind: str, end: float) -> dict[str, object]:
+def _misbehave(port: int, sid: int, token: str, kind: str, end: float, connected: Any) -> dict[str, object]:
     """Misbehave as ``kind`` until ``end`` (``time.monotonic()``, one clock for every process of the machine),
-    reconnecting at once after each close; what came back.
+    reconnecting at once after each close; what came back. ``connected`` (an event) is set once it is connected.
 
     ``flood``: frames of every channel as fast as the socket takes them (at the largest declared rate);
     ``big``: 5 MB frames (a 1M-element array) at 200 Hz; ``keys``: 6.9 MB frames of 500,000 unknown keys;
@@ -84,6 +85,7 @@ def _misbehave(port: int, sid: int, token: str, kind: str, end: float) -> dict[s
         try:
             with connect(url, max_queue=None, max_size=None, open_timeout=5, close_timeout=1) as ws:
                 got["connects"] = int(got["connects"]) + 1  # type: ignore[call-overload]
+                connected.set()
                 deadline = threading.Timer(max(0.0, end - time.monotonic()), _shut, (ws.socket,))
                 deadline.daemon = True
                 deadline.start()
@@ -176,14 +178,16 @@ def test_whatever_a_device_sends_the_other_gets_every_torque_on_time(server: Run
     quiet = p95(alone.rtts)
     print(f"alone: {alone.sent} sent, {len(alone.rtts)} answered, p95 {quiet * 1e3:.1f} ms")
     results: dict[str, tuple[int, int, float, dict[str, object]]] = {}
-    with multiprocessing.get_context("spawn").Pool(1, initializer=_lowly) as pool:
+    spawn = multiprocessing.get_context("spawn")
+    with spawn.Pool(1, initializer=_lowly) as pool, spawn.Manager() as manager:
         pool.apply(time.sleep, (0,))  # started: the misbehaving device's imports are done, its frames made
         for kind in KINDS:
             other = _device_session(base, schema.MAX_DEVICE_RATE_HZ if kind == "flood" else RATE)
             token = issue_token(base, other)
             end = time.monotonic() + 0.7 + STEADY_S + 0.3
-            bad = pool.apply_async(_misbehave, (server.port, other, token, kind, end))
-            time.sleep(0.7)  # well into it: connected and sending
+            connected = manager.Event()
+            bad = pool.apply_async(_misbehave, (server.port, other, token, kind, end, connected))
+            assert connected.wait(60), kind  # connected, and sending from then on
             run = asyncio.run(steady(server.port, steady_sid, issue_token(base, steady_sid), STEADY_S, RATE))
             # it stops itself at `end`; the wait only covers a machine too busy to give a nice-19 process a turn
             got = bad.get(timeout=120)

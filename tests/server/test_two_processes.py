@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import time
 import urllib.error
 import urllib.request
 from collections.abc import Iterator
@@ -23,6 +22,7 @@ from typing import Any
 import pytest
 
 from gaitscope.server.bench.launch import RunningServer, start_server
+from tests.load import session_time
 
 pytestmark = [
     pytest.mark.slow,
@@ -89,7 +89,7 @@ def test_each_server_sees_the_others_subjects_and_trials(
     assert session["state"] == "running"
     assert _call(a, "GET", f"/api/sessions/{session['id']}") == session  # A knows it, though B runs it
     trial = _call(b, "POST", f"/api/sessions/{session['id']}/recording", {"action": "start", "name": "on B"})
-    time.sleep(2.0)
+    session_time(b.base, session["id"], session_time(b.base, session["id"]) + 2.0)  # 2 s of it recorded
     trial = _call(b, "POST", f"/api/sessions/{session['id']}/recording", {"action": "stop"})
     stopped = _call(b, "POST", f"/api/sessions/{session['id']}/stop")
     assert stopped["state"] == "stopped"
