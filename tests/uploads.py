@@ -5,11 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import httpx
+import httpx2
 from fastapi.testclient import TestClient
 
 
-def send(client: TestClient, name: str, data: bytes, subject_id: int, recover: bool = False) -> httpx.Response:
+def send(client: TestClient, name: str, data: bytes, subject_id: int, recover: bool = False) -> httpx2.Response:
     """Upload ``data`` as a file ``name`` for ``subject_id`` in the server's chunk size; the answer to its
     ``finish`` (``recover``: keep what a damaged recording holds up to the damage)."""
     r = client.post("/api/uploads", json={"filename": name, "size": len(data), "subject_id": subject_id})
