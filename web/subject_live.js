@@ -1,11 +1,12 @@
 // The subject page's live online fingerprint: the newest running session of the subject, followed over its
 // stream (a few samples a second), and the latest point of its online fingerprint filter (`fp_gf`), or why
-// there is none. subject.js draws it (the text under the scatter, the live point on it).
+// there is none; and the card that draws it (`sitsCard`: where the subject sits among the training subjects, the
+// live point on the scatter, the text under it).
 
 import { openSessionStream } from "./api.js";
 import { fingerprintEstimators } from "./estimators.js";
-import { gText } from "./fingerprint_plot.js";
-import { fmt } from "./ui.js";
+import { fingerprintScatter, gText } from "./fingerprint_plot.js";
+import { fmt, h } from "./ui.js";
 
 /** The online fingerprint filter (seed 004 GF), by its descriptor's fingerprint variant. */
 const ONLINE = fingerprintEstimators("online")[0];
@@ -75,4 +76,33 @@ export class LiveFingerprint {
     }
     this._onChange(true);
   }
+}
+
+/**
+ * The "where the subject sits" card: the subject's versions among the training subjects, and the live point.
+ * @param {LiveFingerprint} live
+ */
+export function sitsCard(live) {
+  const scatterBox = h("div", { class: "fp-scatter" });
+  // not a live region: it changes five times a second (the plot's label says where the dot is)
+  const liveText = h("p", { class: "hint", "data-testid": "fp-live-text" });
+  const el = h("section", { class: "card", "data-testid": "sits-card" }, h("h2", { text: "Where the subject sits" }), scatterBox,
+    h("ul", { class: "fp-legend", "aria-hidden": "true" }, h("li", {}, h("span", { class: "dot dot-cohort" }), "training subjects"),
+      h("li", {}, h("span", { class: "dot dot-version" }), "this subject's versions (active ringed)"),
+      h("li", {}, h("span", { class: "dot dot-live" }), "live online fingerprint")), liveText);
+  return {
+    el,
+    /** The scatter of `fps` (the subject's fingerprints; null: not loaded yet) for subject `code`. */
+    renderScatter(fps, code) {
+      if (!fps) return;
+      if (!fps.components) {
+        scatterBox.replaceChildren(h("p", { class: "hint", text: "The model has no fingerprint map: there is nothing to place the subject in." }));
+        return;
+      }
+      scatterBox.replaceChildren(fingerprintScatter(fps, code, live.live));
+    },
+    renderLive() {
+      liveText.textContent = live.text();
+    },
+  };
 }
