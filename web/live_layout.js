@@ -30,6 +30,35 @@ export function normalizeLayout(stored, panels) {
 }
 
 /**
+ * The live page's panels in their default order, from their elements: the key plots (`pauseNote`, `keyBox`), the
+ * summary, data health, the controls' cards (`controls`: session, settings, annotation, recording, imu), the
+ * per-stride overlays, the events, the more plots, the leg view, the GP-EKF card and the device credentials.
+ * @param {Record<string, any>} els
+ * @returns {{id: string, title: string, size: number, el: HTMLElement}[]}
+ */
+export function livePanels(els) {
+  const card = (id, heading, ...body) => h("section", { class: "card", "data-testid": `${id}-card` }, h("h2", { text: heading }), ...body);
+  const c = els.controls;
+  return [
+    { id: "key-plots", title: "Key plots", size: 2, el: card("key-plots", "Phase, torque, phase rate, incline",
+      h("div", { class: "live-tools" }, els.pauseNote), els.keyBox) },
+    { id: "summary", title: "Summary figures", size: 1, el: els.summary },
+    { id: "health", title: "Data health", size: 1, el: els.health },
+    { id: "session", title: "Session (start, stop)", size: 1, el: c.session },
+    { id: "settings", title: "Assistance settings", size: 1, el: c.settings },
+    { id: "overlays", title: "Per-stride overlays", size: 2, el: els.overlays },
+    { id: "events", title: "Events", size: 1, el: card("events", "Events (newest first)", els.events) },
+    { id: "more-plots", title: "More plots", size: 2, el: card("more-plots", "Stride length, foot, shank, hip and knee", els.moreBox) },
+    { id: "annotation", title: "Annotation", size: 1, el: c.annotation },
+    { id: "recording", title: "Recording", size: 1, el: c.recording },
+    { id: "leg", title: "3D leg view", size: 1, el: els.leg },
+    { id: "imu", title: "IMU calibration", size: 1, el: c.imu },
+    { id: "gp", title: "GP-EKF learning", size: 3, el: els.gp },
+    { id: "credentials", title: "Device credentials", size: 1, el: els.credentials },
+  ];
+}
+
+/**
  * The panel grid. `panels`: [{id, title, size (1-3), el}] in their default order.
  * `user` names whose layout is shown (the logged-in user's); `use(user)` switches to another's.
  */

@@ -5,7 +5,7 @@
 // view the server did not decimate): see `derive`. review.js loads the view and the re-run; this draws them.
 
 import { estimatorLabel, estimatorOverlay, INTENT, listText, rerunEstimators } from "./estimators.js";
-import { bandPlot, INTENT_SPEC, intentValue, kneeFlexion, PLOT_SPECS } from "./live.js";
+import { bandPlot, INTENT_SPEC, intentValue, kneeFlexion, PLOT_SPECS } from "./live_plots.js";
 import { COLORS, decimateMinMax, Plot, StrideOverlay, uPlot } from "./plots.js";
 import { RERUN_POINTS } from "./review_rerun.js";
 import { h, ValidationError } from "./ui.js";
