@@ -117,7 +117,64 @@ export function mountControls(sessionId, hooks) {
     h("h2", { text: "Assistance and estimator" }), limitsLine, editor.el,
     h("div", { class: "buttons" }, applyBtn, revertBtn, undoBtn), undoWhat, confirmBox, settingsError, settingsOk);
 
-  // --- recording ---------------------------------------------------------------------------------
+  // --- recording, annotations (below) ------------------------------------------------------------
+  const recording = recordingCard(sessionId);
+  const rec = recording.state;
+  const annForm = annotationCard(sessionId, hooks.onEvent);
+
+  // --- session -----------------------------------------------------------------------------------
+  const sessError = errorBox("session-control-error");
+  const sessState = h("span", { class: "state", "data-testid": "session-state", text: "…" });
+  const sessStartBtn = h("button", { type: "button", "data-testid": "session-start", text: "Start session", hidden: true });
+  const sessStopBtn = armedButton({ class: "danger", "data-testid": "session-stop" }, "Stop session", "Tap again to stop",
+    () => runAction(sessStopBtn, sessError, async () => setSession(await api.stopSession(sessionId))));
+  sessStartBtn.addEventListener("click", () => runAction(sessStartBtn, sessError, async () => setSession(await api.startSession(sessionId))));
+  const sessionCard = h("section", { class: "card", "data-testid": "session-card" }, h("h2", { text: "Session" }),
+    h("p", {}, "State: ", sessState), h("div", { class: "buttons" }, sessStartBtn, sessStopBtn), sessError);
+  fence(settingsCard, "assist_within_limits");
+  fence(sessionCard, "run");
+
+  function setSession(session) {
+    sessState.textContent = session.state;
+    sessState.className = `state state-${session.state}`;
+    sessStartBtn.hidden = session.state !== "created";
+    sessStopBtn.hidden = session.state !== "running";
+    const running = session.state === "running";
+    applyBtn.disabled = !running;
+    undoBtn.disabled = !running || !lastChange;
+    rec.running = running;
+    if (!running) rec.recording = false; // stopping a session finishes its recording
+    recording.render();
+    editor.setBaseline(session.settings);
+    loadSubjectLimits(session.subject_id);
+    imu.refresh();
+    hooks.onSession(session);
+  }
+
+  // --- IMU calibration (sessions whose stack has IMU front ends) ---------------------------------
+  const imu = imuCalibrationCard(sessionId);
+
+  recording.refresh();
+  return {
+    el: h("div", { class: "controls" }, settingsCard, imu.el, recording.el, annForm, sessionCard),
+    /** The cards one by one, for a page that lays them out itself. */
+    cards: { settings: settingsCard, imu: imu.el, recording: recording.el, annotation: annForm, session: sessionCard },
+    editor,
+    setSession,
+    setLastChange,
+    /** A `SettingsMessage` (possibly another client's change). */
+    setSettings(settings) {
+      editor.setBaseline(settings, { fromElsewhere: true });
+    },
+    refreshRecording: recording.refresh,
+  };
+}
+
+/**
+ * The recording card: start and stop a trial of the session, and what it records (or recorded last).
+ * @param {number} sessionId
+ */
+function recordingCard(sessionId) {
   const recName = h("input", { id: "recording-name", "data-testid": "recording-name", maxlength: FIELD_LIMITS.RecordingControl.name.maxLength, placeholder: "trial name (optional)" });
   const recStart = h("button", { type: "button", class: "primary", "data-testid": "recording-start", text: "● Start recording" });
   const recStop = h("button", { type: "button", "data-testid": "recording-stop", text: "■ Stop recording", disabled: true });
@@ -163,10 +220,19 @@ export function mountControls(sessionId, hooks) {
       showError(recError, err);
     }
   }
-  const recordingCard = h("section", { class: "card", "data-testid": "recording-card" }, h("h2", { text: "Recording" }),
+  const el = h("section", { class: "card", "data-testid": "recording-card" }, h("h2", { text: "Recording" }),
     recName, h("div", { class: "buttons" }, recStart, recStop), recStatus, recError);
+  fence(el, "run");
+  /** `state`: the trial, whether it records, whether the session runs (set by the session card). */
+  return { el, state: rec, render: renderRecording, refresh: refreshRecording };
+}
 
-  // --- annotations -------------------------------------------------------------------------------
+/**
+ * The annotation form: a note on the session's timeline, now.
+ * @param {number} sessionId
+ * @param {(ev: object) => void} onEvent the annotation's event, once the server has it
+ */
+function annotationCard(sessionId, onEvent) {
   const annText = h("input", { id: "annotation-text", "data-testid": "annotation-text", maxlength: FIELD_LIMITS.AnnotationCreate.text.maxLength, placeholder: "e.g. subject reports discomfort", autocomplete: "off" });
   const annAdd = h("button", { type: "submit", class: "primary", "data-testid": "annotation-add", text: "Add" });
   const annError = errorBox("annotation-error");
@@ -180,56 +246,9 @@ export function mountControls(sessionId, hooks) {
       if (text.length > 500) throw new ValidationError("An annotation may have at most 500 characters.");
       const event = await api.annotate(sessionId, { text });
       annText.value = "";
-      hooks.onEvent(event);
+      onEvent(event);
     });
   });
-
-  // --- session -----------------------------------------------------------------------------------
-  const sessError = errorBox("session-control-error");
-  const sessState = h("span", { class: "state", "data-testid": "session-state", text: "…" });
-  const sessStartBtn = h("button", { type: "button", "data-testid": "session-start", text: "Start session", hidden: true });
-  const sessStopBtn = armedButton({ class: "danger", "data-testid": "session-stop" }, "Stop session", "Tap again to stop",
-    () => runAction(sessStopBtn, sessError, async () => setSession(await api.stopSession(sessionId))));
-  sessStartBtn.addEventListener("click", () => runAction(sessStartBtn, sessError, async () => setSession(await api.startSession(sessionId))));
-  const sessionCard = h("section", { class: "card", "data-testid": "session-card" }, h("h2", { text: "Session" }),
-    h("p", {}, "State: ", sessState), h("div", { class: "buttons" }, sessStartBtn, sessStopBtn), sessError);
-  fence(settingsCard, "assist_within_limits");
-  fence(recordingCard, "run");
   fence(annForm, "annotate");
-  fence(sessionCard, "run");
-
-  function setSession(session) {
-    sessState.textContent = session.state;
-    sessState.className = `state state-${session.state}`;
-    sessStartBtn.hidden = session.state !== "created";
-    sessStopBtn.hidden = session.state !== "running";
-    const running = session.state === "running";
-    applyBtn.disabled = !running;
-    undoBtn.disabled = !running || !lastChange;
-    rec.running = running;
-    if (!running) rec.recording = false; // stopping a session finishes its recording
-    renderRecording();
-    editor.setBaseline(session.settings);
-    loadSubjectLimits(session.subject_id);
-    imu.refresh();
-    hooks.onSession(session);
-  }
-
-  // --- IMU calibration (sessions whose stack has IMU front ends) ---------------------------------
-  const imu = imuCalibrationCard(sessionId);
-
-  refreshRecording();
-  return {
-    el: h("div", { class: "controls" }, settingsCard, imu.el, recordingCard, annForm, sessionCard),
-    /** The cards one by one, for a page that lays them out itself. */
-    cards: { settings: settingsCard, imu: imu.el, recording: recordingCard, annotation: annForm, session: sessionCard },
-    editor,
-    setSession,
-    setLastChange,
-    /** A `SettingsMessage` (possibly another client's change). */
-    setSettings(settings) {
-      editor.setBaseline(settings, { fromElsewhere: true });
-    },
-    refreshRecording,
-  };
+  return annForm;
 }

@@ -65,10 +65,109 @@ function jointSeries(joint, current, compare) {
   ];
 }
 
+/** What the GP-EKF is doing, as badges: the version installed, one waiting, a fit under way or queued, frozen. */
+function statusBadges(state) {
+  const pending = state.pending;
+  const population = state.versions.find((v) => v.version === state.version && v.population);
+  return [
+    h("span", { class: "badge badge-active", "data-testid": "gp-version", "data-version": state.version,
+      text: `v${state.version}` }), ` installed${population ? " (population model)" : ""}`,
+    state.waiting === null ? null : h("span", { class: "badge badge-candidate", "data-testid": "gp-waiting",
+      text: `v${state.waiting} waiting for the next heel strike${state.rollback ? " (rollback)" : ""}` }),
+    pending ? h("span", { class: "badge badge-average", "data-testid": "gp-pending",
+      text: `fitting v${pending.version} on steps ${pending.steps[0]}–${pending.steps[1]} (${span(pending.span_s)} s)` }) : null,
+    state.queued_s === null || state.queued_s === undefined || pending ? null : h("span", {
+      class: "badge badge-average", "data-testid": "gp-queued",
+      text: `next window waiting ${state.queued_s.toFixed(0)} s for the fitting worker (shared by the server's learning sessions)` }),
+    state.frozen ? h("span", { class: "badge badge-frozen", "data-testid": "gp-frozen", text: "FROZEN: not learning" }) : null,
+  ].filter((c) => c !== null);
+}
+
+/** The kept versions, newest first: steps, time span, held-out RMSE per joint, when installed. */
+function versionRows(state) {
+  return [...state.versions].reverse().map((v) => {
+    const inUse = v.version === state.version;
+    const tags = [inUse ? "in use" : null, v.version === state.waiting ? "waiting" : null].filter(Boolean);
+    const installs = [...(v.population ? ["start"] : []), ...v.installed_t.map((t) => fmt(t, 1))];
+    return h("tr", { class: inUse ? "is-active" : "", "data-testid": "gp-version-row", "data-version": v.version },
+      h("th", { scope: "row", "data-label": "Version" }, `v${v.version}`, v.population ? h("div", { class: "hint", text: "population" }) : null,
+        tags.length ? h("div", { class: "hint", text: tags.join(", ") }) : null),
+      h("td", { class: "num", "data-label": "Steps", text: v.steps ? `${v.steps[0]}–${v.steps[1]}` : "cohort" }),
+      h("td", { class: "num", "data-label": "Time span (s)", text: span(v.span_s) }),
+      ...JOINTS.map((j) => h("td", { class: "num", "data-label": `RMSE ${j.key} (deg)`, text: fmt(v.rmse_deg[j.key], 1) })),
+      h("td", { class: "num", "data-label": "Installed at (s)", text: installs.join(", ") || "–" }));
+  });
+}
+
+/** The GP-EKF's stance phase streamed: the last 10 s in a ring, its plot, and the newest phase and rate in words. */
+class StanceTrace {
+  /** @param {HTMLElement} nowEl where the newest stance phase and rate are written */
+  constructor(nowEl) {
+    this.nowEl = nowEl;
+    this.ring = new Ring(2048, ["t", "stance_pct"]); // > 10 s at the 60 Hz the stream is asked for
+    this.lastT = -Infinity;
+    this.lastRate = NaN;
+    this.dirty = false;
+    this.lastText = 0;
+    this.stance = null;
+  }
+
+  /** Its plot, in `div`, following the newest `STANCE_WINDOW_S` seconds (`follow`). */
+  plot(div, follow) {
+    this.stance = new Plot(div, { title: "Stance phase (GP-EKF), last 10 s", yLabel: "% of stance", yRange: [0, 100],
+      xRange: follow, height: 150, series: [{ label: "stance phase", color: COLORS.teal, width: 2 }] });
+    return this.stance;
+  }
+
+  /** A batch's states and the GP-EKF's outputs at the same samples (phase, phase_rate). */
+  push(states, est) {
+    const phase = est.columns.phase;
+    const rate = est.columns.phase_rate;
+    for (let i = 0; i < states.length; i++) {
+      if (states[i].t < this.lastT) this.ring.clear(); // the source restarted
+      this.lastT = states[i].t;
+      this.ring.push({ t: this.lastT, stance_pct: phase[i] == null ? null : 100 * phase[i] });
+      if (rate && rate[i] != null) this.lastRate = rate[i];
+    }
+    if (states.length) this.dirty = true;
+  }
+
+  /** Redrawn from the live view's animation frame loop (the words at most 5 times a second). */
+  frame(now) {
+    if (this.dirty && this.stance) {
+      this.dirty = false;
+      this.stance.setData(this.ring.window("t", ["stance_pct"], STANCE_WINDOW_S));
+    }
+    if (now - this.lastText > 200) {
+      this.lastText = now;
+      this.nowEl.textContent = `stance phase ${fmt(this.ring.last("stance_pct"), 0)} %, rate ${fmt(this.lastRate, 2)} /s`;
+    }
+  }
+}
+
 /**
- * @param {number} sessionId
+ * The joints' bands of the version in use, and the compared version's mean when the state carries it.
+ * @returns {boolean} false when the state lacks the band of the version to compare with
  */
-export function gpLearningCard(sessionId) {
+function drawBands(plots, bandDivs, state, compare) {
+  const x = state.phase.map((p) => 100 * p);
+  const req = state.requested && state.requested.version === compare ? state.requested : null;
+  const prev = previousVersion(state);
+  const label = req ? `v${req.version} mean (${req.version === prev ? "previous" : "chosen below"})` : "compare: none";
+  JOINTS.forEach((j, i) => {
+    const plot = plots.bands[i];
+    plot.setSeries(jointSeries(j, state.current.version, { label }));
+    const cur = state.current;
+    plot.setData([x, cur.mean_deg[j.key], cur.lower_deg[j.key], cur.upper_deg[j.key],
+      req ? req.mean_deg[j.key] : x.map(() => null)]);
+    bandDivs[i].dataset.version = String(cur.version);
+    bandDivs[i].dataset.compare = req ? String(req.version) : "";
+  });
+  return compare === null || req !== null;
+}
+
+/** The card's elements (hidden until the stack is known to run gp_ekf). */
+function cardElements() {
   const badges = h("div", { class: "gp-badges", "data-testid": "gp-status", "aria-live": "polite" });
   const last = h("p", { class: "hint", "data-testid": "gp-last" });
   const stanceNow = h("span", { class: "gp-now", "data-testid": "gp-stance-now", text: "–" });
@@ -98,6 +197,15 @@ export function gpLearningCard(sessionId) {
       h("div", {}, versionsTable,
         fence(h("div", { class: "inline gp-controls" }, freezeBtn, field("Compare with / roll back to", rollbackSel), rollbackBtn, reason), "run"),
         error, ok)));
+  return { el, badges, last, stanceNow, stanceDiv, bandDivs, versionsBody, freezeBtn, rollbackSel, rollbackBtn, reason, error, ok, note };
+}
+
+/**
+ * @param {number} sessionId
+ */
+export function gpLearningCard(sessionId) {
+  const { el, badges, last, stanceNow, stanceDiv, bandDivs, versionsBody, freezeBtn, rollbackSel, rollbackBtn, reason, error, ok,
+    note } = cardElements();
 
   let has = false; // the stack runs gp_ekf
   let running = false;
@@ -110,18 +218,13 @@ export function gpLearningCard(sessionId) {
   let retry = false; // the last poll is being repeated at once for the compared version's band
   let dead = false;
   let plots = null; // built when first shown: {stance, bands: Plot[]}
-  const ring = new Ring(2048, ["t", "stance_pct"]); // > 10 s at the 60 Hz the stream is asked for
-  let lastT = -Infinity;
-  let lastRate = NaN;
-  let dirty = false;
-  let lastText = 0;
+  const trace = new StanceTrace(stanceNow);
 
   function build() {
     if (plots) return;
     const follow = (u, min, max) => (max == null ? [0, STANCE_WINDOW_S] : [max - STANCE_WINDOW_S, max]);
     plots = {
-      stance: new Plot(stanceDiv, { title: "Stance phase (GP-EKF), last 10 s", yLabel: "% of stance", yRange: [0, 100],
-        xRange: follow, height: 150, series: [{ label: "stance phase", color: COLORS.teal, width: 2 }] }),
+      stance: trace.plot(stanceDiv, follow),
       bands: JOINTS.map((j, i) => jointPlot(bandDivs[i], j, 0, { label: "compare: none" })),
     };
   }
@@ -148,20 +251,7 @@ export function gpLearningCard(sessionId) {
     const kept = st && st.requested && !state.requested ? st.requested : null;
     st = kept ? { ...state, requested: kept } : state;
     state = st;
-    const pending = state.pending;
-    const population = state.versions.find((v) => v.version === state.version && v.population);
-    badges.replaceChildren(...[
-      h("span", { class: "badge badge-active", "data-testid": "gp-version", "data-version": state.version,
-        text: `v${state.version}` }), ` installed${population ? " (population model)" : ""}`,
-      state.waiting === null ? null : h("span", { class: "badge badge-candidate", "data-testid": "gp-waiting",
-        text: `v${state.waiting} waiting for the next heel strike${state.rollback ? " (rollback)" : ""}` }),
-      pending ? h("span", { class: "badge badge-average", "data-testid": "gp-pending",
-        text: `fitting v${pending.version} on steps ${pending.steps[0]}–${pending.steps[1]} (${span(pending.span_s)} s)` }) : null,
-      state.queued_s === null || state.queued_s === undefined || pending ? null : h("span", {
-        class: "badge badge-average", "data-testid": "gp-queued",
-        text: `next window waiting ${state.queued_s.toFixed(0)} s for the fitting worker (shared by the server's learning sessions)` }),
-      state.frozen ? h("span", { class: "badge badge-frozen", "data-testid": "gp-frozen", text: "FROZEN: not learning" }) : null,
-    ].filter((c) => c !== null));
+    badges.replaceChildren(...statusBadges(state));
     last.textContent = state.last || "No retraining yet: the first window is offered after 5 completed stances.";
     freezeBtn.textContent = state.frozen ? "Unfreeze learning" : "Freeze learning";
     const compare = compareVersion(state);
@@ -173,42 +263,9 @@ export function gpLearningCard(sessionId) {
     rollbackBtn.disabled = !options.length || !running;
     freezeBtn.disabled = !running;
     rollbackBtn.textContent = options.length ? `Roll back to v${rollbackSel.value}` : "Roll back (no other version kept)";
-    renderVersions(state);
-    return renderBands(state, compare);
-  }
-
-  function renderVersions(state) {
-    const rows = [...state.versions].reverse().map((v) => {
-      const inUse = v.version === state.version;
-      const tags = [inUse ? "in use" : null, v.version === state.waiting ? "waiting" : null].filter(Boolean);
-      const installs = [...(v.population ? ["start"] : []), ...v.installed_t.map((t) => fmt(t, 1))];
-      return h("tr", { class: inUse ? "is-active" : "", "data-testid": "gp-version-row", "data-version": v.version },
-        h("th", { scope: "row", "data-label": "Version" }, `v${v.version}`, v.population ? h("div", { class: "hint", text: "population" }) : null,
-          tags.length ? h("div", { class: "hint", text: tags.join(", ") }) : null),
-        h("td", { class: "num", "data-label": "Steps", text: v.steps ? `${v.steps[0]}–${v.steps[1]}` : "cohort" }),
-        h("td", { class: "num", "data-label": "Time span (s)", text: span(v.span_s) }),
-        ...JOINTS.map((j) => h("td", { class: "num", "data-label": `RMSE ${j.key} (deg)`, text: fmt(v.rmse_deg[j.key], 1) })),
-        h("td", { class: "num", "data-label": "Installed at (s)", text: installs.join(", ") || "–" }));
-    });
-    versionsBody.replaceChildren(...rows);
-  }
-
-  function renderBands(state, compare) {
+    versionsBody.replaceChildren(...versionRows(state));
     build();
-    const x = state.phase.map((p) => 100 * p);
-    const req = state.requested && state.requested.version === compare ? state.requested : null;
-    const prev = previousVersion(state);
-    const label = req ? `v${req.version} mean (${req.version === prev ? "previous" : "chosen below"})` : "compare: none";
-    JOINTS.forEach((j, i) => {
-      const plot = plots.bands[i];
-      plot.setSeries(jointSeries(j, state.current.version, { label }));
-      const cur = state.current;
-      plot.setData([x, cur.mean_deg[j.key], cur.lower_deg[j.key], cur.upper_deg[j.key],
-        req ? req.mean_deg[j.key] : x.map(() => null)]);
-      bandDivs[i].dataset.version = String(cur.version);
-      bandDivs[i].dataset.compare = req ? String(req.version) : "";
-    });
-    return compare === null || req !== null;
+    return drawBands(plots, bandDivs, state, compare);
   }
 
   function schedule(ms) {
@@ -318,28 +375,13 @@ export function gpLearningCard(sessionId) {
         has = true;
         show();
       }
-      const phase = est.columns.phase;
-      const rate = est.columns.phase_rate;
-      for (let i = 0; i < states.length; i++) {
-        if (states[i].t < lastT) ring.clear(); // the source restarted
-        lastT = states[i].t;
-        ring.push({ t: lastT, stance_pct: phase[i] == null ? null : 100 * phase[i] });
-        if (rate && rate[i] != null) lastRate = rate[i];
-      }
+      trace.push(states, est);
       if (est.failed) note.textContent = "The GP-EKF has failed (data health says why): its estimate and learning stopped.";
-      if (states.length) dirty = true;
     },
     /** Redraw from the animation frame loop of the live view. */
     frame(now) {
       if (!plots || el.hidden) return;
-      if (dirty) {
-        dirty = false;
-        plots.stance.setData(ring.window("t", ["stance_pct"], STANCE_WINDOW_S));
-      }
-      if (now - lastText > 200) {
-        lastText = now;
-        stanceNow.textContent = `stance phase ${fmt(ring.last("stance_pct"), 0)} %, rate ${fmt(lastRate, 2)} /s`;
-      }
+      trace.frame(now);
     },
     destroy() {
       dead = true;
