@@ -238,7 +238,8 @@ async def undo_settings(session_id: Id, body: schema.SettingsUndo, c: Ctx, who: 
         before = {k: current[k] for k in requested}
         audit(c, who, "settings.undo", f"session {session_id}", before=before, after=requested, detail=change.reason)
 
-    return undo_last_change(runtime, c.store.list_events(session_id), who.name, check=check)
+    events = await asyncio.to_thread(c.store.list_events, session_id)  # a read off the loop, as the write is
+    return await undo_last_change(runtime, events, who.name, check=check)
 
 
 @router.websocket("/ws/devices/{session_id}")

@@ -30,21 +30,15 @@ def last_change(events: list[schema.Event]) -> list[schema.Event]:
     return group
 
 
-def undo_last_change(
-    runtime: SessionRuntime,
-    events: list[schema.Event],
-    actor: str,
-    check: Callable[[schema.SettingsChange], None] | None = None,
-) -> schema.Session:
-    """Set the fields of the newest settings change back to their values before it.
+def undo_change(runtime: SessionRuntime, events: list[schema.Event], actor: str) -> schema.SettingsChange:
+    """The settings change that sets the fields of the newest change back to their values before it.
 
-    The undo is a settings change like any other (``SessionRuntime.change_settings``): the same bounds and
-    rate limits, and one setting event per field, its text saying which change it undid. ``check``, when
-    given, sees the change first and may refuse it by raising (the caller's rights, its audit entry).
+    The undo is a settings change like any other (``SessionRuntime.change_settings`` or its async twin): the
+    same bounds and rate limits, and one setting event per field, its text saying which change it undid.
 
     Raises:
-        SettingRejected: nothing to undo, a field has changed since by other means (the primary after a
-            failure), or a rate limit (the message says how long to wait); nothing changed.
+        SettingRejected: nothing to undo, or a field has changed since by other means (the primary after a
+            failure); nothing changed.
     """
     group = last_change(events)
     if not group:
@@ -59,13 +53,30 @@ def undo_last_change(
                 "(it has changed since)"
             )
     undone = ", ".join(f"{e.field} {e.before} -> {e.after}" for e in group)
-    change = schema.SettingsChange.model_validate(
+    return schema.SettingsChange.model_validate(
         {
             **{e.field: e.before for e in group if e.field},
             "actor": actor,
             "reason": f"undo of {undone} by {group[0].actor}"[:500],
         }
     )
+
+
+async def undo_last_change(
+    runtime: SessionRuntime,
+    events: list[schema.Event],
+    actor: str,
+    check: Callable[[schema.SettingsChange], None] | None = None,
+) -> schema.Session:
+    """Undo the newest settings change (:func:`undo_change`), stored while the event loop runs on
+    (``SessionRuntime.change_settings_async``). ``check``, when given, sees the change first and may refuse it
+    by raising (the caller's rights, its audit entry).
+
+    Raises:
+        SettingRejected: as :func:`undo_change`, or a rate limit (the message says how long to wait);
+            nothing changed.
+    """
+    change = undo_change(runtime, events, actor)
     if check is not None:
         check(change)
-    return runtime.change_settings(change)
+    return await runtime.change_settings_async(change)
