@@ -124,10 +124,11 @@ def test_learning_card_bands_versions_freeze_and_rollback(
 
     # --- retraining: a new version installed, its bands drawn, an event with its window and fit ----------
     # the first fit waits for the worker process to start and import GPy; a window the held-back check refuses
-    # is retried 5 steps later
+    # is retried 5 steps later. Under a loaded 2-core machine the device streams late, the worker is slow to start
+    # and fits at most its duty share (seen: no fit within 70 s at load 8, one within 90 s at load 5)
     version = page.get_by_test_id("gp-version")
     try:
-        expect(version).to_have_text(re.compile(r"^v[1-9]\d*$"), timeout=70_000)
+        expect(version).to_have_text(re.compile(r"^v[1-9]\d*$"), timeout=150_000)
     except AssertionError:
         learning = call(server, "GET", f"/api/sessions/{sid}/gp-learning")
         raise AssertionError(f"no model installed; the learning says: {learning['last']!r}") from None
