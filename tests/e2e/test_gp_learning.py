@@ -125,7 +125,7 @@ def test_learning_card_bands_versions_freeze_and_rollback(
     # --- retraining: a new version installed, its bands drawn, an event with its window and fit ----------
     # the first fit waits for the worker process to start and import GPy; a window the held-back check refuses
     # is retried 5 steps later. Under a loaded 2-core machine the device streams late, the worker is slow to start
-    # and fits at most its duty share (seen: no fit within 70 s at load 8, one within 90 s at load 5)
+    # and fits at most its duty share (seen: no model within 70 s at load 8; the whole test took 90 s at load 5)
     version = page.get_by_test_id("gp-version")
     try:
         expect(version).to_have_text(re.compile(r"^v[1-9]\d*$"), timeout=150_000)
