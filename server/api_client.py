@@ -95,11 +95,7 @@ def render(doc: dict[str, Any] | None = None) -> str:
 
 def write(path: Path) -> bool:
     """Write :func:`render`'s text to ``path``; whether the file changed."""
-    text = render()
-    if path.is_file() and path.read_text(encoding="utf-8") == text:
-        return False
-    path.write_text(text, encoding="utf-8")
-    return True
+    return wire.write_generated(path, render())
 
 
 def _route_name(operation_id: str, path: str, method: str) -> str:

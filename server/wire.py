@@ -192,7 +192,11 @@ def _browser_message() -> str:
 
 def write(path: Path) -> bool:
     """Write :func:`render`'s text to ``path``; whether the file changed."""
-    text = render()
+    return write_generated(path, render())
+
+
+def write_generated(path: Path, text: str) -> bool:
+    """Write a generated file's ``text`` to ``path`` unless it holds that already; whether it changed."""
     if path.is_file() and path.read_text(encoding="utf-8") == text:
         return False
     path.write_text(text, encoding="utf-8")
