@@ -15,6 +15,16 @@ if ! command -v chromium >/dev/null 2>&1; then
         echo "== chromium missing and apt-get unavailable: browser tests will be skipped" >&2
     fi
 fi
+if ! command -v npm >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+        echo "== installing Debian nodejs and npm for the browser code's checks"
+        apt-get update -qq >/dev/null
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq nodejs npm >/dev/null
+    else
+        echo "== npm missing and apt-get unavailable: install Node.js (>= 18) for tsc and eslint" >&2
+        exit 1
+    fi
+fi
 echo "== ruff"
 .venv/bin/ruff check .
 echo "== mypy"
