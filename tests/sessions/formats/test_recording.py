@@ -634,8 +634,10 @@ def test_an_fsync_error_stops_the_recording(tmp_path: Path, monkeypatch: pytest.
         for i in itertools.count():  # the worker thread, and a later write says so
             rec.write("/gait_state", i / RATE_HZ, state(i))
             taken += 1
-            if i > 100:  # the chunk is handed over: wait for its fsync to fail, then write until it is said
-                assert failing.wait(10), "the chunk's fsync never ran"
+            if i > 100:  # a chunk is handed over: write on until its fsync has failed and a write says so.
+                # Not one long wait: the header's fsync may still be running when the first chunk is handed
+                # over, and then the next chunk's is the first to fail (it starts only with a later write).
+                failing.wait(0.001)
                 assert time.monotonic() < deadline, "the fsync error was never raised"
     assert failed.value.errno == errno.EIO and taken > 100
     assert str(failed.value) == (
