@@ -19,7 +19,16 @@ from typing import Any, Final, Literal
 from gaitscope.estimators.channels import CHANNELS
 from gaitscope.estimators.protocol import Estimator, Output
 
-__all__ = ["FINGERPRINT_ROLES", "QUANTITIES", "Descriptor", "OutputSpec", "PlotHint", "Tunable", "out"]
+__all__ = [
+    "FINGERPRINT_ROLES",
+    "QUANTITIES",
+    "QUANTITY_NAMES",
+    "Descriptor",
+    "OutputSpec",
+    "PlotHint",
+    "Tunable",
+    "out",
+]
 
 #: The gait-state quantities an output may estimate (:attr:`Descriptor.quantities`). ``phase`` is the gait
 #: cycle's (0 at heel strike, 1 at the next), ``stance_phase`` the stance's (0 at heel strike, 1 at toe-off):
@@ -36,6 +45,19 @@ QUANTITIES: Final = (
     "desired_speed",
     "knee_angle",
 )
+#: Each quantity's name on screen and its unit as people write it (a phase is shown in % of its cycle): the
+#: one statement of them, which the views, the events and the reports read (the browser from ``wire.js``).
+QUANTITY_NAMES: Final[dict[str, tuple[str, str]]] = {
+    "phase": ("Gait phase", "%"),
+    "phase_rate": ("Phase rate", "1/s"),
+    "stance_phase": ("Stance phase", "%"),
+    "stance_phase_rate": ("Stance-phase rate", "1/s"),
+    "stride_length": ("Stride length", "m"),
+    "incline": ("Incline", "deg"),
+    "speed": ("Speed", "m/s"),
+    "desired_speed": ("Desired speed", "m/s"),
+    "knee_angle": ("Knee angle", "deg"),
+}
 #: The variants of a gait-fingerprint filter (seed 004, :attr:`Descriptor.fingerprint`): the population's
 #: average fingerprint, the subject's personalized one, one estimated online.
 FINGERPRINT_ROLES: Final = ("average", "personal", "online")
@@ -115,6 +137,8 @@ class Descriptor:
     factory: Callable[[Any], Estimator] | None = field(default=None, compare=False, hash=False)
 
     def __post_init__(self) -> None:
+        if not self.label or self.label == self.name:
+            raise ValueError(f"{self.name}: say its name on screen (label), not its machine name")
         names = [o.name for o in self.outputs]
         if len(set(names)) != len(names):
             raise ValueError(f"{self.name}: an output is named twice in {names}")

@@ -5,7 +5,9 @@
 ``schema.WIRE`` and every class their JSON schemas refer to (fields and types from
 ``model_json_schema()``, which ``GET /api/schema`` serves too), and the bounds the browser checks
 before the server does (``SETTING_LIMITS``, ``SENSOR_LIMITS``, every field's ``FIELD_LIMITS``) with
-the default ``SessionSettings``, and every registered estimator as its descriptor states it
+the default ``SessionSettings``, the names on screen and units of the settings and of the gait-state
+quantities (one table each: ``schema.SETTING_NAMES``, ``descriptor.QUANTITY_NAMES``), and every
+registered estimator as its descriptor states it
 (:data:`gaitscope.sessions.registry.DESCRIPTORS`: its name on screen, outputs, quantities, plots, tunables and
 roles), so that no view names an estimator. The file is committed (the UI has no build step);
 ``tests/server/test_wire.py`` fails when it differs from what :func:`render` makes of the schema.
@@ -19,7 +21,7 @@ import typing
 from pathlib import Path
 from typing import Any, Final
 
-from gaitscope.estimators.descriptor import Descriptor
+from gaitscope.estimators.descriptor import QUANTITY_NAMES, Descriptor
 from gaitscope.sessions import registry, schema
 
 __all__ = ["COMMAND", "render", "write"]
@@ -85,6 +87,24 @@ def render() -> str:
             "Physically plausible range of each sensor channel (`SENSOR_LIMITS`); a value outside it is treated\n"
             "as missing for that sample.",
             "Readonly<Record<string, {min: number, max: number}>>",
+        )
+    )
+    parts.append(
+        _const(
+            "SETTING_NAMES",
+            {k: {"name": name, "unit": unit} for k, (name, unit) in schema.SETTING_NAMES.items()},
+            "The name on screen and the unit (\"\": none) of every field a setting event may change\n"
+            "(`SETTING_NAMES`): the settings, the primary estimator, the models.",
+            "Readonly<Record<string, {name: string, unit: string}>>",
+        )
+    )
+    parts.append(
+        _const(
+            "QUANTITY_NAMES",
+            {k: {"name": name, "unit": unit} for k, (name, unit) in QUANTITY_NAMES.items()},
+            "Each gait-state quantity's name on screen and unit (`estimators/descriptor.py` `QUANTITY_NAMES`;\n"
+            "a phase in % of its cycle).",
+            "Readonly<Record<string, {name: string, unit: string}>>",
         )
     )
     parts.append(

@@ -186,6 +186,20 @@ SETTING_LIMITS: Final[dict[str, tuple[float, float, float]]] = {
     "process_noise_scale": (0.1, 10.0, 5.0),
     "intent_gain_boost": (0.0, 0.3, 0.1),
 }
+#: The name on screen and the unit (as people write it; "" for none) of every field a setting event may change:
+#: the settings of :data:`SETTING_LIMITS`, the primary estimator and the models. The one statement of them:
+#: the events list, the review's markers, the session summary and its PDF read it (the browser from the
+#: generated ``web/wire.js``); an estimator's name on screen is its descriptor's ``label``.
+SETTING_NAMES: Final[dict[str, tuple[str, str]]] = {
+    "torque_gain": ("Torque gain", "×"),
+    "max_torque_Nm": ("Maximum torque", "N·m"),
+    "measurement_noise_scale": ("Measurement-noise scale", "×"),
+    "process_noise_scale": ("Process-noise scale", "×"),
+    "intent_gain_boost": ("Intent gain boost", "fraction of gain"),
+    "primary": ("Torque follows", ""),
+    "model": ("Gait model", ""),
+    "imu_calibration": ("IMU calibration", ""),
+}
 
 
 #: An estimator's name in a session's stack (``phase_ekf``, ``tbe``, ...; ``gaitscope.sessions.registry.ESTIMATORS``).
@@ -1154,6 +1168,11 @@ class StrideProfilePoint(BaseModel):
     duration_s: float
     speed_m_s: float = Field(description="estimated stride length over the stride's duration")
     incline_deg: float = Field(description="mean estimated incline over the stride")
+    after_gap: bool = Field(
+        default=False,
+        description="the first stride of its trial, or one after time not recorded or not usable: a profile's "
+        "line breaks before it rather than bridge the gap",
+    )
 
 
 class StrideCondition(BaseModel):
@@ -1204,9 +1223,17 @@ class SessionSummary(BaseModel):
     source: str = Field(description="in words: simulated walker, replay of a trial, live device, upload")
     started_utc: str | None
     stopped_utc: str | None
-    duration_s: float = Field(description="from start to stop (recorded time when those are unknown)")
+    duration_s: float = Field(description="recorded time: the sum of the trials' recorded durations (s)")
+    wall_s: float | None = Field(
+        default=None, description="the session's wall time from start to stop (s); null while it has not stopped"
+    )
     trials: list[Trial]
     strides: int
+    transition_strides: int = Field(
+        default=0,
+        description="usable strides in no condition: walked while the speed or incline changed "
+        "(see gaitscope.sessions.reports.summary)",
+    )
     mean_speed_m_s: float | None
     mean_stride_length_m: float | None
     mean_cadence_spm: float | None = Field(description="strides per minute")
@@ -1226,7 +1253,8 @@ ExportKind = Literal["pdf", "csv"]
 
 
 class ExportCreate(_Strict):
-    """``POST /api/sessions/{id}/exports``: a PDF report or a CSV of the estimates."""
+    """``POST /api/sessions/{id}/exports`` (a whole session) or ``POST /api/trials/{id}/exports`` (one trial):
+    a PDF report or a CSV of the estimates."""
 
     kind: ExportKind
 
@@ -1236,12 +1264,23 @@ class ExportJob(BaseModel):
 
     id: str
     session_id: int
+    trial_id: int | None = Field(default=None, description="the one trial exported; null: the whole session")
     kind: ExportKind
     state: Literal["running", "done", "failed"]
     progress: float = Field(ge=0.0, le=1.0)
     step: str = Field(description="what it is doing, in words")
     filename: str
     error: str = ""
+
+
+class SummaryProgress(BaseModel):
+    """``GET /api/sessions/{id}/summary/progress``: how far the making of a session's summary has got, for the
+    page waiting for it (a long session's recordings take seconds to read)."""
+
+    running: bool = Field(description="a summary of the session is being made now")
+    cached: bool = Field(description="the summary of the session as its trials are now is ready (kept)")
+    progress: float = Field(ge=0.0, le=1.0, description="fraction of the gait states read")
+    step: str = Field(description="what it is doing, in words")
 
 
 # --- review: A/B comparison of re-runs and review annotations (issue #12; gaitscope.sessions.review.compare) ---------
@@ -1581,7 +1620,7 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs, CalibrationRequest, PersonalizationChange,
     Personalization, CohortPoint, Fingerprints, PersonalizationExport, IntentSeries, ImuCalibrationRequest,
     ImuCalibration, ImuCalibrationStatus, GPArray, GPModelRecord, GPModelInfo, GPBand, GPPendingFit,
-    GPLearningState, GPLearningControl, SessionSummary, ExportCreate, ExportJob, CompareRequest, Comparison,
-    ReviewAnnotationCreate, ReviewAnnotation, SettingsUndo, User, UserCreate, UserChange, LoginRequest,
+    GPLearningState, GPLearningControl, SessionSummary, SummaryProgress, ExportCreate, ExportJob, CompareRequest,
+    Comparison, ReviewAnnotationCreate, ReviewAnnotation, SettingsUndo, User, UserCreate, UserChange, LoginRequest,
     PasswordChange, Me, DeviceToken, AssistanceLimits, SubjectLimits, AuditEntry, AuditQuery, AuditVerification,
 )  # fmt: skip

@@ -72,6 +72,7 @@
  * @property {string | null} [primary=null] switched at most every 2 s; the torque blends over 0.5 s
  * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
  * @property {string} [reason=""]
+ * @property {boolean} [confirm=false] the user confirmed a change that can raise the torque on the person (a raise of the torque gain, the maximum torque or the intent boost, or a switch of the primary), having been shown its peak torque before and after; without it such a change is refused (409, a TorqueRaiseRefused), and at most one is made every 3 s. Lowering needs no confirmation and is never held back
  */
 
 /**
@@ -283,22 +284,24 @@
  * @typedef {object} GaitState
  * @property {number} seq
  * @property {number} t
- * @property {number} phase
- * @property {number} phase_rate
- * @property {number} stride_length_m
- * @property {number} incline_deg
+ * @property {number | null} phase the primary estimator's gait phase (null: no estimator drives the torque)
+ * @property {number | null} phase_rate the primary estimator's, else the first healthy estimator's that estimates it (named in sources); null: not estimated
+ * @property {number | null} stride_length_m the primary estimator's, else the first healthy estimator's that estimates it (named in sources); null: not estimated
+ * @property {number | null} incline_deg the primary estimator's, else the first healthy estimator's that estimates it (named in sources); null: not estimated
  * @property {number} torque_Nm
- * @property {number} tbe_phase
+ * @property {number | null} tbe_phase the timing-based estimate's phase (null: not in the stack, or failed)
  * @property {boolean} heel_strike
  * @property {boolean} backup_reset
  * @property {boolean} [fault=false] the filters were reset or the torque forced to 0 here
  * @property {number | null} foot_angle_deg
  * @property {number | null} shank_angle_deg
  * @property {number | null} thigh_angle_deg
- * @property {number} foot_pred_deg
- * @property {number} shank_pred_deg
+ * @property {number | null} foot_pred_deg the primary estimator's, else the first healthy estimator's that estimates it (named in sources); null: not estimated
+ * @property {number | null} shank_pred_deg the primary estimator's, else the first healthy estimator's that estimates it (named in sources); null: not estimated
  * @property {number | null} [sent_ns=null]
  * @property {number} recv_ns server wall clock when the sensor frame arrived (ns)
+ * @property {Object<string, string> | null} [sources=null] which estimator each quantity comes from (phase, phase_rate, stride_length_m, incline_deg, foot_pred_deg, shank_pred_deg -> estimator name; a quantity absent is not estimated), on the first state of a stream or recording and where it changed (a primary switch, a failure); null: unchanged
+ * @property {Object<string, number> | null} [torque_assumes=null] with sources: the values the torque profile takes for what the primary does not estimate (stride_length_m in m, incline_deg in deg); they drive the torque only, never shown as estimates
  */
 
 /**
@@ -652,9 +655,11 @@
  * @property {string} source in words: simulated walker, replay of a trial, live device, upload
  * @property {string | null} started_utc
  * @property {string | null} stopped_utc
- * @property {number} duration_s from start to stop (recorded time when those are unknown)
+ * @property {number} duration_s recorded time: the sum of the trials' recorded durations (s)
+ * @property {number | null} [wall_s=null] the session's wall time from start to stop (s); null while it has not stopped
  * @property {Array<Trial>} trials
  * @property {number} strides
+ * @property {number} [transition_strides=0] usable strides in no condition: walked while the speed or incline changed (see gaitscope.sessions.reports.summary)
  * @property {number | null} mean_speed_m_s
  * @property {number | null} mean_stride_length_m
  * @property {number | null} mean_cadence_spm strides per minute
@@ -668,7 +673,18 @@
  */
 
 /**
- * ``POST /api/sessions/{id}/exports``: a PDF report or a CSV of the estimates.
+ * ``GET /api/sessions/{id}/summary/progress``: how far the making of a session's summary has got, for the
+ * page waiting for it (a long session's recordings take seconds to read).
+ * @typedef {object} SummaryProgress
+ * @property {boolean} running a summary of the session is being made now
+ * @property {boolean} cached the summary of the session as its trials are now is ready (kept)
+ * @property {number} progress fraction of the gait states read (0..1)
+ * @property {string} step what it is doing, in words
+ */
+
+/**
+ * ``POST /api/sessions/{id}/exports`` (a whole session) or ``POST /api/trials/{id}/exports`` (one trial):
+ * a PDF report or a CSV of the estimates.
  * @typedef {object} ExportCreate
  * @property {"pdf" | "csv"} kind
  */
@@ -678,6 +694,7 @@
  * @typedef {object} ExportJob
  * @property {string} id
  * @property {number} session_id
+ * @property {number | null} [trial_id=null] the one trial exported; null: the whole session
  * @property {"pdf" | "csv"} kind
  * @property {"running" | "done" | "failed"} state
  * @property {number} progress (0..1)
@@ -711,6 +728,8 @@
  */
 
 /**
+ * A note of a trial: added in review, or taken live during its recording (an ``annotation`` event of the
+ * session logged while the trial recorded: its ``id`` is the event's, and it is not deleted from review).
  * @typedef {object} ReviewAnnotation
  * @property {number} t session time (s) it is at (or starts at) (0..1e+09)
  * @property {number | null} [t_end=null] end of its span (s); null: a single time (0..1e+09)
@@ -719,6 +738,7 @@
  * @property {number} id
  * @property {number} trial_id
  * @property {string} created_utc
+ * @property {"review" | "live"} [source="review"] review: added in review (deletable by its author); live: taken during the session
  */
 
 /**
@@ -726,6 +746,7 @@
  * back to their values before it, within the same bounds and rate limits as any change, logged as a change.
  * @typedef {object} SettingsUndo
  * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
+ * @property {boolean} [confirm=false] as SettingsChange.confirm: an undo that can raise the torque on the person needs it
  */
 
 /**
@@ -859,6 +880,21 @@
  * @property {string | null} [last_hash=null] the newest entry's hash: note it elsewhere to detect a cut-off tail later
  * @property {number | null} [keyed_from=null] the first entry with a MAC; those before it (written before the trail was keyed) are checked by the SHA-256 chain only. Null: no keyed entry
  * @property {number | null} [checkpoint_seq=null] the checkpoint checked against: no entry up to this seq was cut or rewritten
+ */
+
+/**
+ * The ``detail`` of the 409 to a settings change or undo that can raise the torque on the person and was not
+ * confirmed (``reason="confirm"``: resend it with ``confirm: true`` once the user agreed to the peaks shown) or
+ * came too soon after the last such change (``reason="too_soon"``: it may be made ``retry_after_s`` later).
+ * The peaks are the torque the settings command over a stride at the session's gait state
+ * (``gaitscope.sessions.peak_torque``), intent boost at its largest.
+ * @typedef {object} TorqueRaiseRefused
+ * @property {string} message
+ * @property {"confirm" | "too_soon"} reason
+ * @property {Array<string>} fields the settings of the change that can raise the torque
+ * @property {number} peak_before_Nm peak torque over a stride with the settings now (>= 0)
+ * @property {number} peak_after_Nm peak torque over a stride with the change made (>= 0)
+ * @property {number} retry_after_s how long until it may be made (0: now, with confirm) (>= 0)
  */
 
 /**
@@ -1008,6 +1044,7 @@
  * @property {number} duration_s
  * @property {number} speed_m_s estimated stride length over the stride's duration
  * @property {number} incline_deg mean estimated incline over the stride
+ * @property {boolean} [after_gap=false] the first stride of its trial, or one after time not recorded or not usable: a profile's line breaks before it rather than bridge the gap
  */
 
 /**
@@ -1021,6 +1058,7 @@
  * @typedef {object} UploadSource
  * @property {"upload"} [kind="upload"]
  * @property {string} filename
+ * @property {string | null} [sha256=null] the uploaded file's SHA-256 (null: uploaded before it was kept)
  */
 
 /**
@@ -1127,6 +1165,39 @@ export const SENSOR_LIMITS = deepFreeze({
   com_forward_vel_m_s: { min: -10.0, max: 10.0 },
   com_lateral_vel_m_s: { min: -10.0, max: 10.0 },
   com_up_vel_m_s: { min: -10.0, max: 10.0 },
+});
+
+/**
+ * The name on screen and the unit ("": none) of every field a setting event may change
+ * (`SETTING_NAMES`): the settings, the primary estimator, the models.
+ * @type {Readonly<Record<string, {name: string, unit: string}>>}
+ */
+export const SETTING_NAMES = deepFreeze({
+  torque_gain: { name: "Torque gain", unit: "\u00d7" },
+  max_torque_Nm: { name: "Maximum torque", unit: "N\u00b7m" },
+  measurement_noise_scale: { name: "Measurement-noise scale", unit: "\u00d7" },
+  process_noise_scale: { name: "Process-noise scale", unit: "\u00d7" },
+  intent_gain_boost: { name: "Intent gain boost", unit: "fraction of gain" },
+  primary: { name: "Torque follows", unit: "" },
+  model: { name: "Gait model", unit: "" },
+  imu_calibration: { name: "IMU calibration", unit: "" },
+});
+
+/**
+ * Each gait-state quantity's name on screen and unit (`estimators/descriptor.py` `QUANTITY_NAMES`;
+ * a phase in % of its cycle).
+ * @type {Readonly<Record<string, {name: string, unit: string}>>}
+ */
+export const QUANTITY_NAMES = deepFreeze({
+  phase: { name: "Gait phase", unit: "%" },
+  phase_rate: { name: "Phase rate", unit: "1/s" },
+  stance_phase: { name: "Stance phase", unit: "%" },
+  stance_phase_rate: { name: "Stance-phase rate", unit: "1/s" },
+  stride_length: { name: "Stride length", unit: "m" },
+  incline: { name: "Incline", unit: "deg" },
+  speed: { name: "Speed", unit: "m/s" },
+  desired_speed: { name: "Desired speed", unit: "m/s" },
+  knee_angle: { name: "Knee angle", unit: "deg" },
 });
 
 /**
@@ -1516,6 +1587,7 @@ export const FIELD_LIMITS = deepFreeze({
     actor: { minLength: 1, maxLength: 64 },
     reason: { maxLength: 500 },
   },
+  SummaryProgress: { progress: { min: 0.0, max: 1.0 } },
   ExportJob: { progress: { min: 0.0, max: 1.0 } },
   CompareRequest: { runs: { minItems: 2, maxItems: 4 } },
   ReviewAnnotationCreate: {
@@ -1560,6 +1632,12 @@ export const FIELD_LIMITS = deepFreeze({
     limit: { min: 1, max: 1000 },
     offset: { min: 0, max: 9.223372036854776e+18 },
   },
+  TorqueRaiseRefused: {
+    message: { maxLength: 1000 },
+    peak_before_Nm: { min: 0.0 },
+    peak_after_Nm: { min: 0.0 },
+    retry_after_s: { min: 0.0 },
+  },
   ComparedRunSpec: { name: { minLength: 1, maxLength: 40 }, estimators: { maxItems: 16 } },
   DeviceSource: { rate_hz: { min: 1.0, max: 1000.0 }, channels: { maxItems: 256 } },
   ImuSensorCalibration: {
@@ -1580,5 +1658,5 @@ export const FIELD_LIMITS = deepFreeze({
     cohort_subject: { min: 0, max: 9 },
     seed: { min: 0, max: 9.223372036854776e+18 },
   },
-  UploadSource: { filename: { maxLength: 200 } },
+  UploadSource: { filename: { maxLength: 200 }, sha256: { pattern: "^[0-9a-f]{64}$" } },
 });
