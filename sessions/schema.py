@@ -357,6 +357,9 @@ class UploadSource(_Strict):
 
     kind: Literal["upload"] = "upload"
     filename: str = Field(max_length=200)
+    sha256: str | None = Field(
+        default=None, pattern=r"^[0-9a-f]{64}$", description="the file's SHA-256 (null: uploaded before it was kept)"
+    )
 
 
 SourceSpec = Annotated[SimulatedSource | ReplaySource | DeviceSource | UploadSource, Field(discriminator="kind")]
@@ -1385,9 +1388,15 @@ class ReviewAnnotationCreate(_Strict):
 
 
 class ReviewAnnotation(ReviewAnnotationCreate):
+    """A note of a trial: added in review, or taken live during its recording (an ``annotation`` event of the
+    session logged while the trial recorded: its ``id`` is the event's, and it is not deleted from review)."""
+
     id: int
     trial_id: int
     created_utc: str
+    source: Literal["review", "live"] = Field(
+        default="review", description="review: added in review (its author may delete it); live: taken live"
+    )
 
 
 # --- live view: undo the last settings change (issue #12) --------------------------------------------------

@@ -592,9 +592,10 @@ class Store:
         duration_s: float,
         *,
         before_commit: Callable[[], None] | None = None,
+        sha256: str | None = None,
     ) -> schema.Trial:
-        """An imported upload in ONE transaction: a stopped session (source ``upload``, default settings)
-        and its one trial (status ``uploaded``, ``path`` relative to the data folder).
+        """An imported upload in ONE transaction: a stopped session (source ``upload`` with the file's
+        ``sha256``, default settings) and its one trial (status ``uploaded``, ``path`` relative to the data folder).
 
         ``before_commit`` runs once both rows are written and validated, just before the commit: the
         caller moves the trial's file into place there. If anything raises (``before_commit`` too),
@@ -603,7 +604,7 @@ class Store:
         with self._write() as session:
             self._get(session, _SubjectRow, subject_id)
             now = _stamp()
-            source = schema.UploadSource(filename=filename)
+            source = schema.UploadSource(filename=filename, sha256=sha256)
             session_row = _SessionRow(
                 subject_id=subject_id,
                 source=source.model_dump_json(),
@@ -631,6 +632,24 @@ class Store:
             if before_commit is not None:
                 before_commit()
             return trial
+
+    def find_upload(self, sha256: str) -> schema.Trial | None:
+        """The first trial uploaded from a file whose SHA-256 is ``sha256`` (None: none; uploads from before the
+        hash was kept are not found)."""
+        source = schema.UploadSource(filename="x", sha256=sha256).model_dump_json()
+        needle = source[source.index('"sha256"') :].rstrip("}")  # '"sha256":"<hex>"', as the column holds it
+        query = (
+            select(_TrialRow, _SessionRow.source)
+            .join(_SessionRow, _SessionRow.id == _TrialRow.session_id)
+            .where(_TrialRow.status == "uploaded", _SessionRow.source.contains(needle, autoescape=True))
+            .order_by(_TrialRow.id)
+        )
+        with self._read() as session:
+            for row, text in session.execute(query):
+                found = schema.UploadSource.model_validate_json(text)
+                if found.sha256 == sha256:
+                    return _trial(row)
+        return None
 
     def list_trials(self, session_id: int | None = None) -> list[schema.Trial]:
         """Trials in the order they were created; those of one session when ``session_id`` is given."""
@@ -890,6 +909,17 @@ class Store:
             q = q.order_by(_ReviewAnnotationRow.t, _ReviewAnnotationRow.id)
             return [_review_annotation(r) for r in session.scalars(q)]
 
+    def trial_notes(self, trial_id: int) -> list[schema.ReviewAnnotation]:
+        """A trial's notes by time: those added in review and those taken live while it recorded (the session's
+        ``annotation`` events logged with the trial, ``source`` ``live``, their ids the events')."""
+        with self._read() as session:
+            self._get(session, _TrialRow, trial_id)
+            q = select(_ReviewAnnotationRow).where(_ReviewAnnotationRow.trial_id == trial_id)
+            notes = [_review_annotation(r) for r in session.scalars(q)]
+            live = select(_EventRow).where(_EventRow.trial_id == trial_id, _EventRow.kind == "annotation")
+            notes += [_live_note(r, trial_id) for r in session.scalars(live) if r.text.strip() and r.actor.strip()]
+        return sorted(notes, key=lambda n: (n.t, n.source == "review", n.id))
+
     def delete_review_annotation(self, trial_id: int, annotation_id: int, actor: str) -> None:
         """Delete a trial's review note. Only whoever wrote it may (:class:`NotAllowed` for anyone else);
         :class:`NotFound` if the trial has no such note."""
@@ -921,3 +951,11 @@ class _ReviewAnnotationRow(_Base):
 
 def _review_annotation(row: _ReviewAnnotationRow) -> schema.ReviewAnnotation:
     return schema.ReviewAnnotation.model_validate(row, from_attributes=True)
+
+
+def _live_note(row: _EventRow, trial_id: int) -> schema.ReviewAnnotation:
+    """A note taken live (an ``annotation`` event of the trial) as one of the trial's notes."""
+    return schema.ReviewAnnotation(
+        id=row.id, trial_id=trial_id, t=max(0.0, row.t), text=row.text[:500], actor=row.actor, created_utc=row.wall_utc,
+        source="live",
+    )  # fmt: skip

@@ -10,6 +10,8 @@ export class ApiError extends Error {
     this.detail = detail;
     /** @type {boolean | undefined} an upload the server kept, that a retry can resume (upload.js) */
     this.recoverable = undefined;
+    /** @type {number | null | undefined} the trial a file uploaded before was stored as (upload.js) */
+    this.duplicateOf = undefined;
   }
 }
 

@@ -973,7 +973,8 @@ export function listAnnotationsUrl(trialId) {
 }
 
 /**
- * `GET /api/trials/{trial_id}/annotations`: The notes added to the trial in review, by time.
+ * `GET /api/trials/{trial_id}/annotations`: The trial's notes by time: added in review, and taken live
+ * while it recorded (``source`` ``live``).
  * @param {number} trialId
  * @returns {Promise<Array<ReviewAnnotation>>}
  */
@@ -1222,7 +1223,7 @@ export function cancelUpload(uploadId) {
 /**
  * The address of `POST /api/uploads/{upload_id}/finish`.
  * @param {string} uploadId
- * @param {{recover?: boolean}} [params]
+ * @param {{recover?: boolean, keep_copy?: boolean}} [params]
  * @returns {string}
  */
 export function finishUploadUrl(uploadId, params = {}) {
@@ -1231,9 +1232,10 @@ export function finishUploadUrl(uploadId, params = {}) {
 
 /**
  * `POST /api/uploads/{upload_id}/finish`: Import the upload; ``recover=true`` first recovers an MCAP
- * recording that was never finished.
+ * recording that was never finished; ``keep_copy=true`` stores a file uploaded before again (else 409,
+ * naming its trial).
  * @param {string} uploadId
- * @param {{recover?: boolean}} [params]
+ * @param {{recover?: boolean, keep_copy?: boolean}} [params]
  * @returns {Promise<Trial>}
  */
 export function finishUpload(uploadId, params = {}) {

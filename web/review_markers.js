@@ -42,9 +42,12 @@ export function eventMarkers(events) {
   }));
 }
 
-/** Markers of review notes: a labelled line at `t` (a span's start; `spanShading` shades it to `t_end`). */
+/**
+ * Markers of review notes: a labelled line at `t` (a span's start; `spanShading` shades it to `t_end`). Notes taken
+ * live are the trial's annotation events, drawn by `eventMarkers` already: not twice.
+ */
 export function noteMarkers(notes) {
-  return notes.map((n) => ({ t: n.t, kind: "annotation", label: `Note: ${n.text}` }));
+  return notes.filter((n) => n.source !== "live").map((n) => ({ t: n.t, kind: "annotation", label: `Note: ${n.text}` }));
 }
 
 /** A uPlot plugin shading the spans of review notes (`getNotes()` -> [{t, t_end}], those without t_end skipped). */

@@ -1,5 +1,6 @@
 // Review notes: a note at the cursor's time or over a span of the trial, saved with it
-// (`POST /api/trials/{id}/annotations`), listed by time, deletable by whoever wrote it, and drawn on the plots
+// (`POST /api/trials/{id}/annotations`), listed by time with the notes taken live while the trial recorded
+// (`source` "live": the session's log, not deleted here), deletable by whoever wrote it, and drawn on the plots
 // as labelled markers (review_markers.js).
 
 import * as api from "./api_client.js";
@@ -33,8 +34,8 @@ export function notesCard(trialId, hooks) {
   const list = h("ul", { class: "review-notes", "data-testid": "note-list", "aria-label": "Notes of the trial" });
   const el = h("section", { class: "card", "data-testid": "notes-card" },
     h("h2", { text: "Notes" }),
-    h("p", { class: "hint", text: "A note at a time, or over a span, saved with the trial and shown on the plots. "
-      + "Only whoever wrote a note may delete it." }),
+    h("p", { class: "hint", text: "A note at a time, or over a span, saved with the trial and shown on the plots, "
+      + "with the notes taken live during it. Only whoever wrote a note in review may delete it." }),
     h("label", { for: "note-text", class: "caption", text: "Note" }), text,
     h("div", { class: "inline note-times" },
       h("label", {}, "At ", from, " s"),
@@ -59,18 +60,25 @@ export function notesCard(trialId, hooks) {
       const go = h("button", { type: "button", class: "link", "data-testid": "note-go", text: when,
         title: "Move the cursor here" });
       go.addEventListener("click", () => hooks.onSelect(n.t));
+      const live = n.source === "live";
+      const who = h("span", { class: "hint", "data-testid": "note-row-by", text: live ? `by ${n.actor}, taken live` : `by ${n.actor}` });
+      if (live) {
+        // taken during the session: part of its log, listed here, never deleted from review
+        return h("li", { "data-testid": "note-row", "data-id": n.id, "data-source": "live",
+          title: "Taken live during the session (in its event log)" }, go, " ",
+          h("span", { class: "note-text", "data-testid": "note-row-text", text: n.text }), " ", who);
+      }
       const mine = n.actor === currentActor() && may("annotate");
       const del = h("button", { type: "button", class: "small", "data-testid": "note-delete", text: "Delete",
         disabled: !mine, title: mine ? "Delete this note" : `Only ${n.actor} may delete it` });
       const delError = errorBox("note-delete-error");
       del.addEventListener("click", () => runAction(del, delError, async () => {
         await api.deleteAnnotation(trialId, n.id);
-        st.notes = st.notes.filter((x) => x.id !== n.id);
+        st.notes = st.notes.filter((x) => x !== n);
         changed();
       }));
-      return h("li", { "data-testid": "note-row", "data-id": n.id }, go, " ",
-        h("span", { class: "note-text", "data-testid": "note-row-text", text: n.text }), " ",
-        h("span", { class: "hint", text: `by ${n.actor}` }), " ", del, delError);
+      return h("li", { "data-testid": "note-row", "data-id": n.id, "data-source": "review" }, go, " ",
+        h("span", { class: "note-text", "data-testid": "note-row-text", text: n.text }), " ", who, " ", del, delError);
     });
     list.replaceChildren(...(items.length ? items : [h("li", { class: "hint", text: "No notes yet." })]));
   }
@@ -95,7 +103,7 @@ export function notesCard(trialId, hooks) {
       body.t_end = tEnd;
     }
     const note = await api.addAnnotation(trialId, body);
-    st.notes = [...st.notes, note].sort((a, b) => a.t - b.t || a.id - b.id);
+    st.notes = [...st.notes, note].sort((a, b) => a.t - b.t);
     if (text.value.trim() === words) text.value = ""; // not what was typed meanwhile
     showError(error, null);
     changed();

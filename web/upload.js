@@ -1,6 +1,8 @@
 // Chunked upload of a recording (.mcap / .csv / .parquet): create, PUT chunks in order, finish -> Trial.
 // A refusal is shown in the user's terms (which file, row and column, what is wrong); a recording that was never
-// finished (cut off by a crash) is refused as recoverable, and a button sends it again to be recovered.
+// finished (cut off by a crash) is refused as recoverable, and a button sends it again to be recovered. A file
+// uploaded before (the same content) is refused naming its trial, with a link to it and a button that sends it
+// again to keep a second copy.
 
 import { ApiError, authFetch, describeDetail } from "./api.js";
 import * as api from "./api_client.js";
@@ -10,6 +12,7 @@ import { errorBox, field, h, runAction, showError, ValidationError } from "./ui.
 const NAME_RE = /^[^/\\]+\.(mcap|csv|parquet)$/i; // UploadCreate.filename: the extension in any case
 const RETRIES = 3; // per chunk, for network failures and 5xx only
 const RECOVERABLE_HEADER = "X-Gaitscope-Recoverable"; // server/routes/uploads.py
+const DUPLICATE_HEADER = "X-Gaitscope-Duplicate-Of"; // server/routes/uploads.py: the trial it was uploaded as
 
 const _sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
@@ -38,9 +41,13 @@ export function refusalText(detail) {
   return `${file}${where ? `, ${where}` : ""}: ${what}`;
 }
 
-/** `POST /api/uploads/{id}/finish`: the Trial, or an ApiError with `recoverable` set from the server's header. */
-async function _finish(id, recover) {
-  const resp = await authFetch(api.finishUploadUrl(id, recover ? { recover: true } : {}),
+/**
+ * `POST /api/uploads/{id}/finish`: the Trial, or an ApiError with `recoverable` and `duplicateOf` (the trial a file
+ * uploaded before is) set from the server's headers.
+ */
+async function _finish(id, recover, keepCopy) {
+  const params = { ...(recover ? { recover: true } : {}), ...(keepCopy ? { keep_copy: true } : {}) };
+  const resp = await authFetch(api.finishUploadUrl(id, params),
     { method: "POST", headers: { Accept: "application/json" } });
   if (resp.ok) return resp.json();
   let detail = resp.statusText;
@@ -49,9 +56,12 @@ async function _finish(id, recover) {
   } catch {
     // not JSON: the status text says enough
   }
-  const words = resp.status === 422 ? "The file was not accepted" : `The upload failed (error ${resp.status})`;
+  const duplicateOf = Number(resp.headers.get(DUPLICATE_HEADER)) || null;
+  const words = resp.status === 422 ? "The file was not accepted"
+    : duplicateOf ? "Not stored again" : `The upload failed (error ${resp.status})`;
   const err = new ApiError(resp.status, detail, `${words}: ${refusalText(detail)}`);
   err.recoverable = resp.headers.get(RECOVERABLE_HEADER) === "1";
+  err.duplicateOf = duplicateOf;
   throw err;
 }
 
@@ -60,6 +70,7 @@ export function mountUpload(subjectSelect) {
   let cancelled = false;
   let activeId = null;
   let pending = null; // the recoverable file refused last: {file, subjectId}
+  let duplicate = null; // the file refused last as uploaded before: {file, subjectId}
   const file = h("input", { type: "file", id: "upload-file", "data-testid": "upload-file", accept: ".mcap,.csv,.parquet" });
   const progress = h("progress", { id: "upload-progress", "data-testid": "upload-progress", max: 1, value: 0 });
   const progressText = h("span", { class: "hint", "data-testid": "upload-progress-text", "aria-live": "polite" });
@@ -70,19 +81,31 @@ export function mountUpload(subjectSelect) {
   const recoverBox = h("div", { class: "upload-recover", "data-testid": "upload-recover-box", hidden: true },
     h("p", { class: "hint", text: "Recovering keeps everything recorded up to where the file was cut off (the last second or so may be lost) and stores it as a new trial." }),
     recoverBtn);
+  const dupLink = h("a", { "data-testid": "upload-duplicate-link" });
+  const copyBtn = h("button", { type: "button", "data-testid": "upload-keep-copy", text: "Upload a second copy anyway" });
+  const dupBox = h("div", { class: "upload-recover", "data-testid": "upload-duplicate-box", hidden: true },
+    h("p", { class: "hint" }, "This file is already stored: ", dupLink, ". Nothing was stored again."), copyBtn);
   const form = h("form", { class: "card form", "data-testid": "upload-form", novalidate: true },
     h("h2", { text: "Upload a recording" }),
     field("File", file, ".mcap (a gaitscope recording), replay .csv or LocoHub .parquet"),
     field("Subject", subjectSelect),
     h("div", { class: "progress-row" }, progress, progressText),
-    h("div", { class: "buttons" }, submit, cancel), error, recoverBox);
+    h("div", { class: "buttons" }, submit, cancel), error, recoverBox, dupBox);
   fence(form, "upload");
 
   cancel.addEventListener("click", () => {
     cancelled = true;
   });
 
-  async function send(f, subjectId, recover) {
+  /** Hides the offers to recover a recording and to keep a second copy of a file. */
+  function hideOffers() {
+    pending = null;
+    duplicate = null;
+    recoverBox.hidden = true;
+    dupBox.hidden = true;
+  }
+
+  async function send(f, subjectId, recover, keepCopy = false) {
     progress.value = 0;
     progressText.textContent = recover ? "sending it again to recover it…" : "starting…";
     const up = await api.createUpload({ filename: f.name, size: f.size, subject_id: subjectId });
@@ -99,8 +122,8 @@ export function mountUpload(subjectSelect) {
       }
       progressText.textContent = recover ? "recovering the recording and checking it…" : "checking the file…";
       activeId = null; // from here the server owns it: a refused finish stores nothing and drops the upload
-      const trial = await _finish(up.id, recover);
-      progressText.textContent = `stored as trial ${trial.id}${recover ? " (recovered)" : ""}`;
+      const trial = await _finish(up.id, recover, keepCopy);
+      progressText.textContent = `stored as trial ${trial.id}${recover ? " (recovered)" : keepCopy ? " (a second copy)" : ""}`;
       location.hash = `#/trials/${trial.id}`;
     } catch (err) {
       progressText.textContent = "not stored";
@@ -111,6 +134,13 @@ export function mountUpload(subjectSelect) {
         pending = { file: f, subjectId };
         recoverBox.hidden = false;
       }
+      if (err.duplicateOf && !keepCopy) {
+        progressText.textContent = `already uploaded as trial ${err.duplicateOf}`;
+        duplicate = { file: f, subjectId, recover };
+        dupLink.href = `#/trials/${err.duplicateOf}`;
+        dupLink.textContent = `trial ${err.duplicateOf}`;
+        dupBox.hidden = false;
+      }
       throw err;
     }
   }
@@ -119,8 +149,7 @@ export function mountUpload(subjectSelect) {
     ev.preventDefault();
     cancelled = false;
     cancel.disabled = false;
-    pending = null;
-    recoverBox.hidden = true;
+    hideOffers();
     runAction(submit, error, async () => {
       const f = file.files && file.files[0];
       if (!f) throw new ValidationError("Choose a file to upload.");
@@ -152,10 +181,24 @@ export function mountUpload(subjectSelect) {
     });
   });
 
+  copyBtn.addEventListener("click", () => {
+    if (!duplicate) return;
+    const { file: f, subjectId, recover } = duplicate;
+    cancelled = false;
+    cancel.disabled = false;
+    submit.disabled = true;
+    runAction(copyBtn, error, async () => {
+      await send(f, subjectId, recover, true);
+      hideOffers();
+    }).finally(() => {
+      cancel.disabled = true;
+      submit.disabled = false;
+    });
+  });
+
   file.addEventListener("change", () => {
     showError(error, null);
-    pending = null;
-    recoverBox.hidden = true;
+    hideOffers();
     progress.value = 0;
     progressText.textContent = "";
   });

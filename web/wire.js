@@ -738,7 +738,7 @@
  * @property {number} id
  * @property {number} trial_id
  * @property {string} created_utc
- * @property {"review" | "live"} [source="review"] review: added in review (deletable by its author); live: taken during the session
+ * @property {"review" | "live"} [source="review"] review: added in review (its author may delete it); live: taken live
  */
 
 /**
@@ -1058,7 +1058,7 @@
  * @typedef {object} UploadSource
  * @property {"upload"} [kind="upload"]
  * @property {string} filename
- * @property {string | null} [sha256=null] the uploaded file's SHA-256 (null: uploaded before it was kept)
+ * @property {string | null} [sha256=null] the file's SHA-256 (null: uploaded before it was kept)
  */
 
 /**

@@ -192,8 +192,8 @@ _AnnotationId = Annotated[int, PathParam(ge=1, le=schema.INT64_MAX)]
 
 @router.get("/trials/{trial_id}/annotations", dependencies=[allow("read")])
 def list_annotations(trial_id: Id, c: Ctx) -> list[schema.ReviewAnnotation]:
-    """The notes added to the trial in review, by time."""
-    return c.store.list_review_annotations(trial_id)
+    """The trial's notes by time: added in review, and taken live while it recorded (``source`` ``live``)."""
+    return c.store.trial_notes(trial_id)
 
 
 @router.post("/trials/{trial_id}/annotations", status_code=201)

@@ -21,6 +21,9 @@ restart ends every upload (:meth:`Uploads.clear_leftovers`). The rules:
   is gone whatever the outcome (a later request is 404). An MCAP recording that was never finished is
   refused as recoverable (header ``X-Gaitscope-Recoverable``); sent again and finished with
   ``recover=true``, it is re-indexed first, as start-up recovery does for the server's own recordings.
+- **Once.** A file whose content (SHA-256, kept with its session's source) was uploaded before is refused
+  with 409, naming the trial it is (header ``X-Gaitscope-Duplicate-Of``: its id); sent again and finished
+  with ``keep_copy=true``, it is stored as another trial.
 - Every message names the user's file, never a server path.
 """
 
@@ -29,6 +32,7 @@ from __future__ import annotations
 import asyncio
 import errno
 import functools
+import hashlib
 import multiprocessing
 import os
 import re
@@ -52,7 +56,7 @@ from gaitscope.sessions.formats.imports import ImportJob, ImportRefused, ImportR
 if TYPE_CHECKING:
     from gaitscope.server.app import AppContext
 
-__all__ = ["RECOVERABLE", "RECOVERABLE_HEADER", "UploadState", "Uploads", "router"]
+__all__ = ["DUPLICATE_HEADER", "RECOVERABLE", "RECOVERABLE_HEADER", "UploadState", "Uploads", "router"]
 
 router = APIRouter(prefix="/api")
 
@@ -61,6 +65,8 @@ _MIB: Final = 1024 * 1024
 RECOVERABLE: Final = "gaitscope can recover it"
 #: Set (to "1") on the 422 refusing a recording that can be recovered: the browser offers the recovery.
 RECOVERABLE_HEADER: Final = "X-Gaitscope-Recoverable"
+#: Set (to the trial's id) on the 409 refusing a file uploaded before: the browser links that trial.
+DUPLICATE_HEADER: Final = "X-Gaitscope-Duplicate-Of"
 _DISK_FULL: Final = (errno.ENOSPC, errno.EDQUOT)
 
 
@@ -180,8 +186,11 @@ class Uploads:
             state.touched = time.monotonic()
             return state.info
 
-    async def finish(self, upload_id: str, c: AppContext, *, recover: bool = False) -> schema.Trial:
-        """Import a complete upload as a new session with one trial (422 for a bad file).
+    async def finish(
+        self, upload_id: str, c: AppContext, *, recover: bool = False, keep_copy: bool = False
+    ) -> schema.Trial:
+        """Import a complete upload as a new session with one trial (422 for a bad file; 409 for a file uploaded
+        before, unless ``keep_copy``: see :meth:`_once`).
 
         An MCAP recording that was never finished (cut off by a crash or a full disk) is refused with a
         422 that says it can be recovered and carries the header :data:`RECOVERABLE_HEADER`; sent again
@@ -198,6 +207,7 @@ class Uploads:
         self._importing[upload_id] = info.size
         recording = self.folder / f"{upload_id}.import.mcap"
         try:
+            digest = await self._once(state.path, info.filename, c, keep_copy)
             if info.filename.lower().endswith(".mcap"):
                 await _unfinished_mcap(state.path, info.filename, recover)
             subject = c.store.get_subject(state.subject_id)
@@ -214,6 +224,7 @@ class Uploads:
                     result.samples,
                     result.duration_s,
                     before_commit=functools.partial(os.replace, recording, final),
+                    sha256=digest,
                 )
             except BaseException:
                 final.unlink(missing_ok=True)  # moved, then the commit failed: no rows, so no file
@@ -222,6 +233,22 @@ class Uploads:
             del self._importing[upload_id]
             state.path.unlink(missing_ok=True)
             recording.unlink(missing_ok=True)
+
+    @staticmethod
+    async def _once(path: Path, filename: str, c: AppContext, keep_copy: bool) -> str:
+        """The file's SHA-256 (of the bytes as sent); 409 naming the trial it was uploaded as already, unless
+        ``keep_copy``. Two copies finished at the same moment may both pass: a second copy is harmless."""
+        digest = await asyncio.to_thread(_sha256, path)
+        earlier = None if keep_copy else await asyncio.to_thread(c.store.find_upload, digest)
+        if earlier is not None:
+            when = earlier.started_utc[:16].replace("T", " ")
+            raise HTTPException(
+                409,
+                f"{filename} was uploaded already, as trial {earlier.id} ({earlier.name}, {when} "
+                "UTC): nothing was stored; to keep a second copy anyway, send it again with keep_copy",
+                headers={DUPLICATE_HEADER: str(earlier.id)},
+            )
+        return digest
 
     def cancel(self, upload_id: str) -> None:
         """Drop an upload and its bytes (a chunk still arriving is thrown away)."""
@@ -331,6 +358,14 @@ def _disk_error(err: OSError, filename: str) -> Exception:
     return err
 
 
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        while block := f.read(1 << 20):
+            h.update(block)
+    return h.hexdigest()
+
+
 def _write_at(path: Path, offset: int, data: bytes) -> None:
     """Write ``data`` at ``offset`` and cut the file there: what an earlier failed write left goes."""
     with path.open("r+b") as f:
@@ -372,10 +407,15 @@ async def upload_chunk(
 
 
 @router.post("/uploads/{upload_id}/finish", status_code=201)
-async def finish_upload(upload_id: str, c: Ctx, who: Uploader, recover: bool = False) -> schema.Trial:
-    """Import the upload; ``recover=true`` first recovers an MCAP recording that was never finished."""
-    await audited(c, who, "upload.finish", f"upload {upload_id[:64]}", after={"recover": recover})
-    return await c.uploads.finish(upload_id, c, recover=recover)
+async def finish_upload(
+    upload_id: str, c: Ctx, who: Uploader, recover: bool = False, keep_copy: bool = False
+) -> schema.Trial:
+    """Import the upload; ``recover=true`` first recovers an MCAP recording that was never finished;
+    ``keep_copy=true`` stores a file uploaded before again (else 409, naming its trial)."""
+    await audited(
+        c, who, "upload.finish", f"upload {upload_id[:64]}", after={"recover": recover, "keep_copy": keep_copy}
+    )
+    return await c.uploads.finish(upload_id, c, recover=recover, keep_copy=keep_copy)
 
 
 @router.delete("/uploads/{upload_id}", status_code=204)
