@@ -1217,9 +1217,10 @@ class SettingChangeRow(BaseModel):
 
 
 class SessionSummary(BaseModel):
-    """What a stopped session gives: ``GET /api/sessions/{id}/summary``."""
+    """What a stopped session gives: ``GET /api/sessions/{id}/summary`` (the same of one trial: a trial's report)."""
 
     session_id: int
+    trial_id: int | None = Field(default=None, description="the one trial summarized; null: the whole session")
     subject_id: int
     subject_code: str
     state: SessionState

@@ -47,6 +47,7 @@ import { api, apiBytes, query } from "./api.js";
 /** @typedef {import("./wire.js").Subject} Subject */
 /** @typedef {import("./wire.js").SubjectCreate} SubjectCreate */
 /** @typedef {import("./wire.js").SubjectLimits} SubjectLimits */
+/** @typedef {import("./wire.js").SummaryProgress} SummaryProgress */
 /** @typedef {import("./wire.js").Trial} Trial */
 /** @typedef {import("./wire.js").Upload} Upload */
 /** @typedef {import("./wire.js").UploadCreate} UploadCreate */
@@ -101,9 +102,10 @@ export function loginUrl() {
 }
 
 /**
- * `POST /api/auth/login`: Check the name and password; 401 with one answer for an unknown name, a wrong
- * password and an attempt the throttle holds back; every failure audited and counted by the throttle. A
- * disabled account's right password is told so.
+ * `POST /api/auth/login`: Check the name and password; 401 with one answer for an unknown name and a wrong
+ * password (with the tries left as they run low, the wait once one starts), another for an attempt the
+ * throttle holds back; every failure audited and counted by the throttle. A disabled account's right
+ * password is told so.
  * @param {LoginRequest} body
  * @returns {Promise<Me>}
  */
@@ -593,7 +595,11 @@ export function changeSettingsUrl(sessionId) {
 }
 
 /**
- * `PATCH /api/sessions/{session_id}/settings`
+ * `PATCH /api/sessions/{session_id}/settings`: Change a running session's settings. A change that can raise
+ * the torque on the person (a raise of the torque gain, the maximum torque or the intent boost, a switch of
+ * the primary) needs ``confirm``: without it the answer is 409 with a ``TorqueRaiseRefused`` naming the
+ * peak torque before and after, to show and resend confirmed; at most one such change every
+ * ``TORQUE_RAISE_INTERVAL_S`` (``gaitscope.sessions.live.torque_rule``).
  * @param {number} sessionId
  * @param {SettingsChange} body
  * @returns {Promise<Session>}
@@ -1049,14 +1055,33 @@ export function summaryUrl(sessionId) {
 }
 
 /**
- * `GET /api/sessions/{session_id}/summary`: Duration, strides, speed and incline profile, settings history,
- * per-condition stride curves, data health and events of a session (its trials still recording are left
- * out).
+ * `GET /api/sessions/{session_id}/summary`: Duration (recorded, and the wall time), strides, speed and
+ * incline profile, settings history, per-condition stride curves, data health and events of a session (its
+ * trials still recording are left out).
  * @param {number} sessionId
  * @returns {Promise<SessionSummary>}
  */
 export function summary(sessionId) {
   return api("GET", summaryUrl(sessionId));
+}
+
+/**
+ * The address of `GET /api/sessions/{session_id}/summary/progress`.
+ * @param {number} sessionId
+ * @returns {string}
+ */
+export function summaryProgressUrl(sessionId) {
+  return `/api/sessions/${_p(sessionId)}/summary/progress`;
+}
+
+/**
+ * `GET /api/sessions/{session_id}/summary/progress`: How far the making of the session's summary has got
+ * (for the page waiting for it), or that it is ready.
+ * @param {number} sessionId
+ * @returns {Promise<SummaryProgress>}
+ */
+export function summaryProgress(sessionId) {
+  return api("GET", summaryProgressUrl(sessionId));
 }
 
 /**
@@ -1076,6 +1101,26 @@ export function startExportUrl(sessionId) {
  */
 export function startExport(sessionId, body) {
   return api("POST", startExportUrl(sessionId), body);
+}
+
+/**
+ * The address of `POST /api/trials/{trial_id}/exports`.
+ * @param {number} trialId
+ * @returns {string}
+ */
+export function startTrialExportUrl(trialId) {
+  return `/api/trials/${_p(trialId)}/exports`;
+}
+
+/**
+ * `POST /api/trials/{trial_id}/exports`: A PDF report or a CSV of the estimates of one trial (the review
+ * page links them).
+ * @param {number} trialId
+ * @param {ExportCreate} body
+ * @returns {Promise<ExportJob>}
+ */
+export function startTrialExport(trialId, body) {
+  return api("POST", startTrialExportUrl(trialId), body);
 }
 
 /**
@@ -1253,7 +1298,8 @@ export function undoSettingsUrl(sessionId) {
 
 /**
  * `POST /api/sessions/{session_id}/settings/undo`: Undo the session's last applied settings change (409
- * with the reason when it cannot be, now).
+ * with the reason when it cannot be, now; an undo that can raise the torque on the person needs
+ * ``confirm``, as a settings change does).
  * @param {number} sessionId
  * @param {SettingsUndo} body
  * @returns {Promise<Session>}

@@ -587,6 +587,18 @@
  */
 
 /**
+ * The estimation state at a trial's start (the MCAP ``/estimation_state`` payload, one per trial, at the
+ * session time of the last sample before its first frame): the whole frame estimator, which a review re-run
+ * restores to reproduce what ran from the first frame (:mod:`gaitscope.sessions.formats.stack_state`).
+ * @typedef {object} EstimationState
+ * @property {number} t session time (s) of the state: the last sample before the trial's first frame
+ * @property {string} encoding how data is encoded (stack_state.ENCODING)
+ * @property {Array<string>} estimators the stack it is the state of, in run order
+ * @property {string} sha256 SHA-256 of the decoded data
+ * @property {string} data the state, base64
+ */
+
+/**
  * A model version the GP-EKF keeps (one a rollback can reinstall).
  * @typedef {object} GPModelInfo
  * @property {number} version
@@ -646,9 +658,10 @@
  */
 
 /**
- * What a stopped session gives: ``GET /api/sessions/{id}/summary``.
+ * What a stopped session gives: ``GET /api/sessions/{id}/summary`` (the same of one trial: a trial's report).
  * @typedef {object} SessionSummary
  * @property {number} session_id
+ * @property {number | null} [trial_id=null] the one trial summarized; null: the whole session
  * @property {number} subject_id
  * @property {string} subject_code
  * @property {"created" | "running" | "stopped" | "failed"} state
@@ -1580,6 +1593,7 @@ export const FIELD_LIMITS = deepFreeze({
     reason: { maxLength: 2000 },
     actor: { maxLength: 64 },
   },
+  EstimationState: { encoding: { maxLength: 64 }, estimators: { maxItems: 64 }, sha256: { pattern: "^[0-9a-f]{64}$" } },
   GPModelInfo: { steps: { minItems: 2, maxItems: 2 }, span_s: { minItems: 2, maxItems: 2 } },
   GPPendingFit: { steps: { minItems: 2, maxItems: 2 }, span_s: { minItems: 2, maxItems: 2 } },
   GPLearningControl: {

@@ -1,7 +1,8 @@
 """A session's estimates as one CSV table: one row per gait state of every readable trial, in order.
 
-The first line names the columns (:data:`CSV_COLUMNS`); times are session times (s); flags are 0 or 1;
-a missing value is an empty cell.
+The first line names the columns (:data:`CSV_COLUMNS`); times are session times (s); phases are in % of the
+gait cycle (0 at heel strike, as the dashboard shows them: ``phase_percent``); flags are 0 or 1; a missing value
+is an empty cell.
 """
 
 from __future__ import annotations
@@ -20,7 +21,9 @@ _STATE: Final = (
     "t", "phase", "phase_rate", "stride_length_m", "incline_deg", "torque_Nm", "heel_strike", "fault",
     "backup_reset", "thigh_angle_deg", "shank_angle_deg", "foot_angle_deg", "tbe_phase",
 )  # fmt: skip
-CSV_COLUMNS: Final = ("trial_id", "trial_name", *_STATE)
+#: Gait-state fields written in % (of the cycle, 0-1 in the recording), and their columns' names.
+_PERCENT: Final = {"phase": "phase_percent", "tbe_phase": "tbe_phase_percent"}
+CSV_COLUMNS: Final = ("trial_id", "trial_name", *(_PERCENT.get(c, c) for c in _STATE))
 _BOOL: Final = frozenset(("heel_strike", "fault", "backup_reset"))
 _PROGRESS_EVERY: Final = 2000
 
@@ -30,6 +33,8 @@ def _cell(name: str, v: object) -> str:
         return ""
     if name in _BOOL:
         return "1" if v else "0"
+    if name in _PERCENT and isinstance(v, int | float):
+        return repr(round(100.0 * float(v), 9))  # no 12.300000000000001 from the scaling
     return repr(float(v)) if isinstance(v, int | float) else str(v)
 
 

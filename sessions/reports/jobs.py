@@ -1,5 +1,5 @@
-"""Export jobs: a session's PDF report or CSV of estimates, made in a worker thread while the browser polls
-their progress (``GET /api/exports/{id}``) and then downloads the file.
+"""Export jobs: a session's (or one trial's) PDF report or CSV of estimates, made in a worker thread while the
+browser polls their progress (``GET /api/exports/{id}``) and then downloads the file.
 
 One worker thread makes one export at a time (a report reads every recording of the session; two at
 once would only slow each other and the live sessions). A thread, as the review's own reads
@@ -61,18 +61,24 @@ class ExportJobs:
     def shutdown(self) -> None:
         self._pool.shutdown(wait=True, cancel_futures=True)
 
-    def start(self, session_id: int, kind: schema.ExportKind) -> schema.ExportJob:
-        """Queue an export of a session (it must exist: ``NotFound`` otherwise)."""
+    def start(self, session_id: int, kind: schema.ExportKind, trial_id: int | None = None) -> schema.ExportJob:
+        """Queue an export of a session, or of one trial of it (they must exist: ``NotFound`` otherwise)."""
+        from gaitscope.sessions.store import NotFound
+
         session = self.store.get_session(session_id)
         subject = self.store.get_subject(session.subject_id)
+        if trial_id is not None and all(t.id != trial_id for t in self.store.list_trials(session_id)):
+            raise NotFound(f"trial {trial_id} is not a trial of session {session_id}")
+        part = "" if trial_id is None else f"_trial{trial_id}"
         job = schema.ExportJob(
             id=uuid.uuid4().hex,
             session_id=session_id,
+            trial_id=trial_id,
             kind=kind,
             state="running",
             progress=0.0,
             step="waiting for the exports before it",
-            filename=f"gaitscope_{subject.code}_session{session_id}.{_EXT[kind]}",
+            filename=f"gaitscope_{subject.code}_session{session_id}{part}.{_EXT[kind]}",
         )
         with self._lock:
             self._jobs[job.id] = job
@@ -138,6 +144,7 @@ class ExportJobs:
             self.store,
             self.data_dir,
             job.session_id,
+            trial_id=job.trial_id,
             on_progress=self._progress(job.id, 0.0, 0.7, "reading the recordings"),
         )
         self._update(job.id, progress=0.75, step="typesetting the report")
@@ -149,7 +156,7 @@ class ExportJobs:
         trials = [
             (t, self.data_dir / t.path)
             for t in self.store.list_trials(job.session_id)
-            if t.status not in ("recording", "damaged")
+            if t.status not in ("recording", "damaged") and job.trial_id in (None, t.id)
         ]
 
         def on(fraction: float) -> None:

@@ -24,7 +24,7 @@ from gaitscope.sessions import schema
 from gaitscope.sessions.reports.summary import OVERLAY_SIGNALS
 from gaitscope.sessions.reports.svg import PALETTE, Line, line_chart
 
-__all__ = ["FIGURE_TITLES", "render_pdf"]
+__all__ = ["FIGURE_TITLES", "conditions_text", "duration_text", "profile_line", "render_pdf", "wall_text"]
 
 #: The report's figures, in order, by caption.
 FIGURE_TITLES: Final = {
@@ -104,15 +104,28 @@ def _utc(stamp: str | None, missing: str) -> str:
     return missing if not stamp else stamp.replace("T", " ").split(".")[0].split("+")[0].removesuffix("Z") + " UTC"
 
 
+def profile_line(profile: list[schema.StrideProfilePoint], value: str) -> tuple[list[float], list[float | None]]:
+    """``(t, y)`` of a profile's ``value`` (``speed_m_s``, ``incline_deg``), with a gap (None) before each stride
+    that follows time not recorded or not usable (``after_gap``): the line never bridges it."""
+    t: list[float] = []
+    y: list[float | None] = []
+    for k, p in enumerate(profile):
+        if p.after_gap and k:
+            t.append(p.t)
+            y.append(None)
+        t.append(p.t)
+        y.append(getattr(p, value))
+    return t, y
+
+
 def _figures(summary: schema.SessionSummary) -> dict[str, str]:
     """SVG text of each figure that has data, by :data:`FIGURE_TITLES` key."""
     out: dict[str, str] = {}
     prof = summary.profile
     if prof:
-        t = [p.t for p in prof]
-        out["speed"] = line_chart([Line(t, [p.speed_m_s for p in prof])], x_label="session time (s)",
+        out["speed"] = line_chart([Line(*profile_line(prof, "speed_m_s"))], x_label="session time (s)",
                                   y_label="speed (m/s)", legend=False)  # fmt: skip
-        out["incline"] = line_chart([Line(t, [p.incline_deg for p in prof], color=PALETTE[1])],
+        out["incline"] = line_chart([Line(*profile_line(prof, "incline_deg"), color=PALETTE[1])],
                                     x_label="session time (s)", y_label="incline (deg)", legend=False)  # fmt: skip
     for signal in ("torque_Nm", "thigh_angle_deg"):
         lines = [
@@ -126,11 +139,41 @@ def _figures(summary: schema.SessionSummary) -> dict[str, str]:
     return out
 
 
+def duration_text(summary: schema.SessionSummary) -> str:
+    """The recorded time, with the trials it is the sum of: ``8 min 26 s (506.0 s) recorded in 3 trials``."""
+    n = len(summary.trials)
+    return f"{_duration(summary.duration_s)} recorded in {n} trial{'' if n == 1 else 's'}"
+
+
+def wall_text(summary: schema.SessionSummary) -> str:
+    """The wall time from start to stop, or why there is none."""
+    return "not stopped yet" if summary.wall_s is None else f"{_duration(summary.wall_s)} from start to stop"
+
+
+def conditions_text(summary: schema.SessionSummary) -> str:
+    """The conditions held, and the strides walked while the condition changed."""
+    held = ", ".join(f"{c.label}: {c.strides} strides" for c in summary.conditions) or "none held"
+    if summary.transition_strides:
+        held += f"; {summary.transition_strides} strides while the speed or incline changed (in no condition)"
+    return held
+
+
+def _estimator_label(name: str) -> str:
+    from gaitscope.sessions.registry import descriptors
+
+    d = descriptors().get(name)
+    return d.label if d is not None else name
+
+
 def _document(summary: schema.SessionSummary, version: str, generated_utc: str, figures: dict[str, str]) -> dict:
     h = summary.health
     settings = summary.settings_start or summary.settings_end
+    title = f"Session {summary.session_id} of {summary.subject_code}"
+    if summary.trial_id is not None:
+        name = summary.trials[0].name if summary.trials else str(summary.trial_id)
+        title = f"Trial {name} of session {summary.session_id}, {summary.subject_code}"
     return {
-        "title": f"Session {summary.session_id} of {summary.subject_code}",
+        "title": title,
         "subject": summary.subject_code,
         "session": summary.session_id,
         "generated": generated_utc,
@@ -141,14 +184,15 @@ def _document(summary: schema.SessionSummary, version: str, generated_utc: str, 
             ["State", summary.state],
             ["Started", _utc(summary.started_utc, "not started")],
             ["Stopped", _utc(summary.stopped_utc, "not stopped")],
-            ["Duration", _duration(summary.duration_s)],
+            ["Duration", duration_text(summary)],
+            ["Wall time" if summary.trial_id is None else "Trial's wall time", wall_text(summary)],
         ],
         "walking_rows": [
             ["Strides", str(summary.strides)],
             ["Mean speed", _num(summary.mean_speed_m_s, 2, " m/s")],
             ["Mean stride length", _num(summary.mean_stride_length_m, 2, " m")],
             ["Cadence", _num(summary.mean_cadence_spm, 1, " strides per minute")],
-            ["Conditions", ", ".join(f"{c.label}: {c.strides} strides" for c in summary.conditions) or "none"],
+            ["Conditions", conditions_text(summary)],
         ],
         "health_rows": [
             ["Samples", f"{h.samples} over {h.recorded_s:.1f} s recorded"],
@@ -172,10 +216,10 @@ def _document(summary: schema.SessionSummary, version: str, generated_utc: str, 
         ],
         "settings_rows": [
             ["Torque gain at the start", f"{settings.torque_gain:.2f}"],
-            ["Torque limit at the start", f"{settings.max_torque_Nm:.1f} N·m"],
+            [f"{schema.SETTING_NAMES['max_torque_Nm'][0]} at the start", f"{settings.max_torque_Nm:.1f} N·m"],
             ["Torque gain at the end", f"{summary.settings_end.torque_gain:.2f}"],
-            ["Torque limit at the end", f"{summary.settings_end.max_torque_Nm:.1f} N·m"],
-            ["Estimator driving the torque", summary.settings_end.primary],
+            [f"{schema.SETTING_NAMES['max_torque_Nm'][0]} at the end", f"{summary.settings_end.max_torque_Nm:.1f} N·m"],
+            [schema.SETTING_NAMES["primary"][0], _estimator_label(summary.settings_end.primary)],
         ],
         "history": [{"t": f"{r.t:.1f}", "text": r.text} for r in summary.settings_history],
         "figures": [{"file": f"fig_{k}.svg", "caption": FIGURE_TITLES[k]} for k in FIGURE_TITLES if k in figures],

@@ -14,6 +14,7 @@ from pypdf import PdfReader
 
 from gaitscope.sessions.reports.estimates_csv import CSV_COLUMNS
 from gaitscope.sessions.reports.pdf import FIGURE_TITLES
+from gaitscope.sessions.reports.summary import MIN_CONDITION_STRIDES, SPEED_BIN, _bin
 from tests.waiting import wait_until
 
 TWO_SPEEDS = {
@@ -47,7 +48,8 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Any:
         sid = client.post("/api/subjects", json={"code": "RPT01", "leg_length_m": 0.9, "mass_kg": 70.0}).json()["id"]
         s = client.post("/api/sessions", json={"subject_id": sid, "source": TWO_SPEEDS}).json()
         _wait(client, s["id"], 4.0)
-        r = client.patch(f"/api/sessions/{s['id']}/settings", json={"torque_gain": 1.4, "actor": "local"})
+        raised = {"torque_gain": 1.4, "actor": "local", "confirm": True}
+        r = client.patch(f"/api/sessions/{s['id']}/settings", json=raised)
         assert r.status_code == 200, r.text
         client.post(f"/api/sessions/{s['id']}/annotations", json={"text": "subject comfortable"})
         _wait(client, s["id"], 11.0)
@@ -55,8 +57,11 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Any:
         yield client, s["id"]
 
 
-def _export(client: TestClient, session_id: int, kind: str) -> tuple[dict[str, Any], bytes, list[float]]:
-    r = client.post(f"/api/sessions/{session_id}/exports", json={"kind": kind})
+def _export(
+    client: TestClient, session_id: int, kind: str, trial_id: int | None = None
+) -> tuple[dict[str, Any], bytes, list[float]]:
+    url = f"/api/sessions/{session_id}/exports" if trial_id is None else f"/api/trials/{trial_id}/exports"
+    r = client.post(url, json={"kind": kind})
     assert r.status_code == 202, r.text
     job = r.json()
     seen = [job["progress"]]
@@ -80,10 +85,19 @@ def test_summary_numbers(recorded: Any) -> None:
     s = client.get(f"/api/sessions/{sid}/summary").json()
     trials = client.get(f"/api/trials?session_id={sid}").json()
     assert s["subject_code"] == "RPT01" and s["state"] == "stopped" and s["source"] == "simulated walker"
-    assert 11.0 <= s["duration_s"] <= 25.0
+    # recorded time: the sum of the trials' recorded durations; the wall time from start to stop beside it
+    assert 11.0 <= s["duration_s"] <= 25.0 and s["duration_s"] == pytest.approx(sum(t["duration_s"] for t in trials))
+    assert s["wall_s"] is not None and s["wall_s"] >= s["duration_s"] - 0.5
     # strides: ~0.9-1.4 s each over ~11 s of walking, the first one or two lost to the filters' start
     assert 6 <= s["strides"] <= 13 and len(s["profile"]) == s["strides"]
-    assert sum(c["strides"] for c in s["conditions"]) == s["strides"]
+    # every stride is in a condition held, or walked while the protocol changed (1.2 m/s for ~3 strides: none)
+    assert sum(c["strides"] for c in s["conditions"]) + s["transition_strides"] == s["strides"]
+    assert all(c["strides"] >= MIN_CONDITION_STRIDES for c in s["conditions"])
+    # the protocol's speeds only: the stride straddling the change (~1.0 m/s) makes no condition
+    assert {c["speed_m_s"] for c in s["conditions"]} <= {1.2, 0.8} and s["conditions"]
+    straddling = [p for p in s["profile"] if _bin(p["speed_m_s"], SPEED_BIN) not in (1.2, 0.8)]
+    assert straddling and s["transition_strides"] >= len(straddling)
+    assert s["profile"][0]["after_gap"] and not any(p["after_gap"] for p in s["profile"][1:])
     fast = [p["speed_m_s"] for p in s["profile"] if p["t"] < 4.0]
     slow = [p["speed_m_s"] for p in s["profile"] if p["t"] > 8.0]
     assert fast and slow and sum(fast) / len(fast) > sum(slow) / len(slow) + 0.15  # the walker slowed down
@@ -95,7 +109,7 @@ def test_summary_numbers(recorded: Any) -> None:
     h = s["health"]
     assert h["samples"] == sum(t["samples"] for t in trials) and h["rate_hz"] == pytest.approx(200, rel=0.02)
     assert h["gaps"] == 0 and h["missing_percent"] == 0.0
-    assert [r["text"] for r in s["settings_history"]] == ["Torque gain 1.00 -> 1.40, by local"]
+    assert [r["text"] for r in s["settings_history"]] == ["Torque gain 1.00 → 1.40, by local"]
     assert s["settings_start"]["torque_gain"] == 1.0 and s["settings_end"]["torque_gain"] == 1.4
     assert any(e["text"] == "subject comfortable" for e in s["events"])
     cond = s["conditions"][0]
@@ -111,9 +125,11 @@ def test_pdf_report_reads_back(recorded: Any) -> None:
     text = " ".join((page.extract_text() or "") for page in PdfReader(io.BytesIO(data)).pages)
     text = " ".join(text.split())
     assert f"Session {sid} of RPT01" in text
-    assert f"Duration {s['duration_s']:.1f} s" in text  # under a minute
+    assert f"Duration {s['duration_s']:.1f} s recorded in 1 trial" in text  # under a minute
+    assert "Wall time" in text and "from start to stop" in text
     assert f"Strides {s['strides']}" in text
-    assert "Torque gain 1.00 -> 1.40, by local" in text
+    assert "Torque gain 1.00 → 1.40, by local" in text
+    assert "Torque follows Phase EKF (seed 000)" in text and "phase_ekf" not in text
     for caption in FIGURE_TITLES.values():
         assert caption in text  # every figure is there
 
@@ -129,7 +145,8 @@ def test_csv_of_estimates_parses(recorded: Any) -> None:
     assert all(b > a for a, b in itertools.pairwise(t))
     strikes = sum(r["heel_strike"] == "1" for r in rows)
     assert strikes >= client.get(f"/api/sessions/{sid}/summary").json()["strides"]
-    assert all(0.0 <= float(r["phase"]) < 1.0 for r in rows)
+    phases = [float(r["phase_percent"]) for r in rows if r["phase_percent"]]
+    assert all(0.0 <= p < 100.0 for p in phases) and max(phases) > 90.0  # in %, as the dashboard shows it
     assert seen == sorted(seen)  # progress only goes up
 
 
@@ -142,13 +159,57 @@ def test_export_errors(recorded: Any) -> None:
     assert client.get("/api/sessions/999/summary").status_code == 404
 
 
-def test_summary_is_kept_until_the_session_changes(recorded: Any) -> None:
+def test_summary_is_kept_until_the_sessions_trials_change(recorded: Any) -> None:
+    """Issue #23: the summary is made once and kept; new events are brought in without reading the recordings
+    again; a change of the trials makes it again."""
     client, sid = recorded
     first = client.get(f"/api/sessions/{sid}/summary").json()
-    cache = client.app.state.summaries
-    kept = cache[sid][1]
-    assert client.get(f"/api/sessions/{sid}/summary").json() == first and cache[sid][1] is kept
+    summaries = client.app.state.summaries
+    kept = summaries.kept[sid][1]
+    assert client.get(f"/api/sessions/{sid}/summary/progress").json() == {
+        "running": False, "cached": True, "progress": 1.0, "step": "ready"
+    }  # fmt: skip
+    assert client.get(f"/api/sessions/{sid}/summary").json() == first and summaries.kept[sid][1] is kept
     client.post(f"/api/sessions/{sid}/annotations", json={"text": "note added after the stop"})
     again = client.get(f"/api/sessions/{sid}/summary").json()
-    assert cache[sid][1] is not kept and any(e["text"] == "note added after the stop" for e in again["events"])
+    assert summaries.kept[sid][1] is kept  # not made again
+    assert any(e["text"] == "note added after the stop" for e in again["events"])
     assert again["strides"] == first["strides"]
+    store = client.app.state.ctx.store
+    trial = store.list_trials(sid)[0]
+    store.finish_trial(trial.id, "recovered", trial.samples, trial.duration_s)
+    try:
+        assert client.get(f"/api/sessions/{sid}/summary/progress").json()["cached"] is False
+        changed = client.get(f"/api/sessions/{sid}/summary").json()
+        assert summaries.kept[sid][1] is not kept and changed["health"]["trials_recovered"] == 1
+    finally:
+        store.finish_trial(trial.id, trial.status, trial.samples, trial.duration_s)
+    assert client.get(f"/api/sessions/999/summary/progress").status_code == 404
+
+
+def test_summary_progress_while_it_is_made(recorded: Any) -> None:
+    """The progress the waiting page shows: what the making reports, in gait states read."""
+    from gaitscope.server.routes.reports import Summaries
+
+    client, sid = recorded
+    summaries = Summaries()
+    summaries.making[sid] = (("x",), None)  # type: ignore[assignment]
+    summaries.progress[sid] = (500, 2000)
+    ctx = client.app.state.ctx
+    state = summaries.state(ctx, sid)
+    assert state.running and not state.cached and state.progress == 0.25
+    assert state.step == "reading the recordings: 500 of 2000 gait states"
+
+
+def test_one_trial_exports(recorded: Any) -> None:
+    """Issue #23: a trial's PDF and CSV, as well as the session's."""
+    client, sid = recorded
+    trial = client.get(f"/api/trials?session_id={sid}").json()[0]
+    job, data, _ = _export(client, sid, "pdf", trial["id"])
+    assert job["trial_id"] == trial["id"] and job["filename"] == f"gaitscope_RPT01_session{sid}_trial{trial['id']}.pdf"
+    text = " ".join(" ".join((page.extract_text() or "") for page in PdfReader(io.BytesIO(data)).pages).split())
+    assert f"Trial {trial['name']} of session {sid}, RPT01" in text
+    job, data, _ = _export(client, sid, "csv", trial["id"])
+    rows = list(csv.DictReader(io.StringIO(data.decode("utf-8"))))
+    assert len(rows) == trial["samples"] and {r["trial_id"] for r in rows} == {str(trial["id"])}
+    assert client.post("/api/trials/999/exports", json={"kind": "pdf"}).status_code == 404

@@ -48,9 +48,48 @@ def test_bins_and_setting_words() -> None:
     assert sm._bin(1.13, sm.SPEED_BIN) == 1.2 and sm._bin(4.9, sm.INCLINE_BIN) == 5.0 and sm._bin(-0.4, 2.5) == 0.0
     ev = schema.Event(id=1, session_id=1, t=3.0, wall_utc="x", kind="setting", text="torque_gain 1 -> 1.3",
                       field="torque_gain", before=1.0, after=1.3, actor="dr-k")  # fmt: skip
-    assert sm.setting_text(ev) == "Torque gain 1.00 -> 1.30, by dr-k"
-    ev = ev.model_copy(update={"field": "primary", "before": "phase_ekf", "after": "tbe"})
-    assert sm.setting_text(ev) == "Estimator driving the torque phase_ekf -> tbe, by dr-k"
+    assert sm.setting_text(ev) == "Torque gain 1.00 → 1.30, by dr-k"
+    ev = ev.model_copy(update={"field": "max_torque_Nm", "before": 40.0, "after": 50.0})
+    assert sm.setting_text(ev) == "Maximum torque 40.00 N·m → 50.00 N·m, by dr-k"
+
+
+def test_setting_words_name_estimators_and_models_as_their_descriptors_do() -> None:
+    """Issue #23: never ``phase_ekf -> tbe`` in a report: the estimators' labels, a learned model's versions."""
+    from gaitscope.sessions.registry import descriptors
+
+    ev = schema.Event(id=1, session_id=1, t=3.0, wall_utc="x", kind="setting", text="primary phase_ekf -> tbe",
+                      field="primary", before="phase_ekf", after="tbe", actor="dr-k")  # fmt: skip
+    labels = {n: d.label for n, d in descriptors().items()}
+    assert sm.setting_text(ev) == f"Torque follows {labels['phase_ekf']} → {labels['tbe']}, by dr-k"
+    assert "phase_ekf" not in sm.setting_text(ev) and "tbe" not in sm.setting_text(ev)
+    learner = next(n for n, d in descriptors().items() if d.learned_model)
+    ev = ev.model_copy(update={"field": learner, "before": 1.0, "after": 2.0})
+    assert sm.setting_text(ev) == f"{descriptors()[learner].learned_model} version 1 → version 2, by dr-k"
+
+
+def _walk(keys: list[tuple[float, float]], d: sm.TrialData | None = None, gap_after: int | None = None) -> list:
+    """Strides one after the other (each ends where the next starts), of these conditions; a gap after one."""
+    d = d or _data([0.0, 1.0])
+    out, i = [], 0
+    for k, key in enumerate(keys):
+        out.append(sm._Stride(d, i, i + 100, key))
+        i += 100 + (50 if k == gap_after else 0)
+    return out
+
+
+def test_a_condition_is_one_the_walker_held() -> None:
+    """Issue #23: a stride straddling a protocol change, or the strides of a ramp, make no condition."""
+    a, b, ramp1, ramp2, straddle = (1.2, 0.0), (0.8, 0.0), (1.0, 2.5), (1.0, 5.0), (1.2, -7.5)
+    keys = [a] * 6 + [straddle] + [b] * 5 + [ramp1, ramp2, ramp1] + [b] * 2
+    held, transitions = sm._held(_walk(keys))
+    assert set(held) == {a, b} and len(held[a]) == 6 and len(held[b]) == 5  # the last 2 of b: a run too short
+    assert transitions == len(keys) - 11
+    # a run broken by a gap (time not recorded) is two runs: 2 + 4 strides, only the 4 count, too few
+    held, transitions = sm._held(_walk([a] * 6, gap_after=1))
+    assert held == {} and transitions == 6
+    # runs of MIN_RUN in one condition add up to it
+    held, _ = sm._held(_walk([a] * sm.MIN_RUN + [b] + [a] * sm.MIN_RUN))
+    assert len(held[a]) == 2 * sm.MIN_RUN and b not in held
 
 
 def test_health_counts_gaps_and_missing_angles() -> None:
