@@ -328,6 +328,18 @@ class FrameEstimator:
             recv_ns=recv_ns,
         )
 
+    def replaying(self, time_origin: float | None) -> None:
+        """Go on with a recording's frames, restored from the state recorded at its start
+        (:mod:`~gaitscope.sessions.formats.stack_state`): the frames carry session time ``frame.t - time_origin``
+        (as the constructor's; None: 0 once a frame was stepped), are never resynchronised again (they were
+        live), and have no receive time."""
+        self._t_offset = 0.0 if time_origin is None and self._prev is not None else time_origin
+        self.max_jump_s = math.inf
+        self._min_next_t = -math.inf
+        self._last_recv_ns = 0
+        self.notes.clear()
+        self.events.clear()
+
     def _lost_reason(self, name: str | None) -> str:
         """Why estimator ``name`` lost track (its ``lost_reason``, :mod:`gaitscope.estimators.lock`)."""
         if name is None or name not in self.stack.names:

@@ -685,6 +685,18 @@ class GPModelRecord(_Strict):
     arrays: dict[str, GPArray] | None = Field(default=None, description="trained, refused, kept: the model set")
 
 
+class EstimationState(_Strict):
+    """The estimation state at a trial's start (the MCAP ``/estimation_state`` payload, one per trial, at the
+    session time of the last sample before its first frame): the whole frame estimator, which a review re-run
+    restores to reproduce what ran from the first frame (:mod:`gaitscope.sessions.formats.stack_state`)."""
+
+    t: float = Field(description="session time (s) of the state: the last sample before the trial's first frame")
+    encoding: str = Field(max_length=64, description="how data is encoded (stack_state.ENCODING)")
+    estimators: list[str] = Field(max_length=64, description="the stack it is the state of, in run order")
+    sha256: str = Field(pattern="^[0-9a-f]{64}$", description="SHA-256 of the decoded data")
+    data: str = Field(description="the state, base64")
+
+
 class GPModelInfo(BaseModel):
     """A model version the GP-EKF keeps (one a rollback can reinstall)."""
 
@@ -1145,6 +1157,7 @@ MCAP_CHANNELS: Final[dict[str, tuple[str, type[BaseModel]]]] = {
     "/events": ("foxglove.Event", FoxgloveEvent),
     "/imu_calibration": ("gaitscope.ImuCalibration", ImuCalibration),
     "/gp_models": ("gaitscope.GPModelRecord", GPModelRecord),
+    "/estimation_state": ("gaitscope.EstimationState", EstimationState),
 }
 #: Each estimator of a session's stack records its outputs on ``/estimators/<name>`` with this schema:
 #: channels registered per stack (:func:`estimator_channels`), beside the fixed ones above.
@@ -1629,7 +1642,7 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     ViewerShow, SensorFrame, GaitState, TorqueCommand, StreamBatch, Health, EventMessage, SettingsMessage, Hello,
     FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs, CalibrationRequest, PersonalizationChange,
     Personalization, CohortPoint, Fingerprints, PersonalizationExport, IntentSeries, ImuCalibrationRequest,
-    ImuCalibration, ImuCalibrationStatus, GPArray, GPModelRecord, GPModelInfo, GPBand, GPPendingFit,
+    ImuCalibration, ImuCalibrationStatus, GPArray, GPModelRecord, EstimationState, GPModelInfo, GPBand, GPPendingFit,
     GPLearningState, GPLearningControl, SessionSummary, SummaryProgress, ExportCreate, ExportJob, CompareRequest,
     Comparison, ReviewAnnotationCreate, ReviewAnnotation, SettingsUndo, User, UserCreate, UserChange, LoginRequest,
     PasswordChange, Me, DeviceToken, AssistanceLimits, SubjectLimits, AuditEntry, AuditQuery, AuditVerification,

@@ -26,12 +26,19 @@ is applied to the IMU front ends from where it was recorded, as it was live; and
 not retrain: it installs the model versions the recording holds (``/gp_models``) at the heel strikes where
 they were installed live (:class:`~gaitscope.sessions.gp_models.GPReplay`), so its outputs are those that ran.
 
+Where the estimators start. A recording keeps the whole estimation state at its trial's start (its
+``/estimation_state`` message, :mod:`~gaitscope.sessions.formats.stack_state`: every filter, the stack's primary,
+blend and ramps, the torque gain's ramps, the IMU front ends, the GP-EKF's models, the fingerprint). A re-run as
+recorded of the recorded stack restores it and steps the trial's frames from there, so every trial, the first of
+its session or a later one, is reproduced bit for bit from its first frame (``==``, torque and gait state). A
+what-if, or a re-run of other estimators, starts from fresh filters at the trial's first frame; so does a
+recording without the state (made before gaitscope kept it, or by another tool) or with one that is damaged or
+refused: then a trial that began mid-session can differ from what ran over its first strides, until the filters
+converge. The answer says which (its ``start`` entry, :func:`rerun_series`).
+
 Frames are read lazily and the result is decimated on the fly (:class:`~sessions.formats.mcap_io.SeriesBuilder`),
-so a re-run of an hour-long trial needs memory for ``max_points`` rows, not for the hour. The estimator
-always starts from the trial's first frame (the filter must converge as it did live); only the states
-inside ``[t0, t1]`` are returned. A trial that began with its session's first frame (the first trial of
-a live session, every import) is therefore reproduced exactly; a later trial of a session began with a
-filter that had been running, so its first strides can differ from what ran until the filter converges.
+so a re-run of an hour-long trial needs memory for ``max_points`` rows, not for the hour. The estimators always
+start at the trial's first frame; only the states inside ``[t0, t1]`` are returned.
 """
 
 from __future__ import annotations
@@ -49,6 +56,7 @@ from mcap.reader import make_reader
 from gaitscope.estimators.pipeline import TrainedModel
 from gaitscope.sessions.errors import DataFormatError
 from gaitscope.sessions.estimation import DEFAULT_PERIOD, FrameEstimator
+from gaitscope.sessions.formats import stack_state
 from gaitscope.sessions.formats.mcap_io import (
     SeriesBuilder,
     count_messages,
@@ -63,13 +71,45 @@ from gaitscope.sessions.live.runtime import safe_torque
 from gaitscope.sessions.registry import OPT_IN, channels_of, feeds, redundant
 from gaitscope.sessions.schema import GPModelRecord, ImuCalibration, RerunChoices, SensorFrame, SessionSettings
 
-__all__ = ["recorded_settings", "recorded_stack", "rerun_choices", "rerun_series", "trial_channels"]
+__all__ = [
+    "FRESH",
+    "NOT_RECORDED",
+    "REFUSED",
+    "RESUMED",
+    "START_KEY",
+    "TORQUE_DIFF_KEY",
+    "recorded_settings",
+    "recorded_stack",
+    "rerun_choices",
+    "rerun_series",
+    "trial_channels",
+]
 
 #: What ran before the stack was recorded: the phase EKF (with its detector) and the timing-based estimate.
 _BEFORE_STACKS: Final = ("phase_ekf", "tbe")
 
 #: Frames read to learn a trial's channels.
 _PROBE: Final = 200
+#: The ``start`` of a re-run's answer: how its estimators began (see the module docstring).
+RESUMED: Final = (
+    "Resumed from the estimation state recorded at the trial's start: the re-run reproduces what ran from the "
+    "first frame."
+)
+FRESH: Final = (
+    "Started from fresh filters at the trial's first frame (a what-if, or other estimators than those that ran): "
+    "where the trial began mid-session, its first strides differ from what ran until the filters converge."
+)
+NOT_RECORDED: Final = (
+    "This recording holds no estimation state from the trial's start (made before gaitscope kept one, or by "
+    "another tool): the re-run starts from fresh filters, so its first strides may differ from what ran."
+)
+REFUSED: Final = (
+    "The estimation state recorded at the trial's start could not be restored ({why}): the re-run starts from "
+    "fresh filters, so its first strides may differ from what ran."
+)
+#: Keys of a re-run's answer that are not series: how it started, and how far its torque is from the recording's.
+START_KEY: Final = "start"
+TORQUE_DIFF_KEY: Final = "recorded_torque_diff_Nm"
 _NO_SETTINGS: Final = (
     "the settings in force at the trial's first frame are not recorded (no /settings message before it), "
     "so what ran cannot be reproduced; re-run it with chosen settings ('what if')"
@@ -100,7 +140,11 @@ def rerun_series(
     fingerprint: Sequence[float] | None = None,
 ) -> dict[str, list[Any]]:
     """Series (as :func:`~gaitscope.sessions.formats.mcap_io.read_series`) of the trial re-estimated, and the
-    outputs of each estimator as ``<name>.<output>`` columns (None where it had failed).
+    outputs of each estimator as ``<name>.<output>`` columns (None where it had failed); and two entries that
+    are not series: ``start`` (:data:`START_KEY`), one sentence saying how the estimators began (:data:`RESUMED`,
+    :data:`FRESH`, :data:`NOT_RECORDED`, :data:`REFUSED`), and ``recorded_torque_diff_Nm``
+    (:data:`TORQUE_DIFF_KEY`), the largest ``|torque - recorded torque|`` (N m) over the samples returned, each
+    against the recorded gait state of the same frame, before decimation (None: the trial records none).
 
     Args:
         path: the trial's MCAP file.
@@ -120,7 +164,7 @@ def rerun_series(
     """
     window = series_window(path, t0, t1)
     if window is None:
-        return SeriesBuilder(0, max_points).result()
+        return _answer(SeriesBuilder(0, max_points), FRESH, None)
     lo, hi = window
     n = count_messages(path, "/sensor", lo, hi)
     builder: SeriesBuilder | None = None
@@ -130,17 +174,30 @@ def rerun_series(
     ran = names is None and (names := recorded_stack(path)) is not None
     # the channels are checked unless the stack is the recorded one (it ran: on a device, whatever came)
     channels = None if ran else trial_channels(path)
+    resumable = settings is None and names is not None and _ran_as_recorded(path, tuple(names), fingerprint)
+    start = FRESH
     current = settings
     estimator: FrameEstimator | None = None
-    topics = ["/sensor", "/imu_calibration", "/settings"] if settings is None else ["/sensor", "/imu_calibration"]
+    topics = ["/sensor", "/imu_calibration", "/gait_state"]
+    topics += ["/settings"] if settings is None else []
     imu: ImuCalibration | None = None  # the IMU calibration the recording holds, applied as it was live
+    # the estimation state at the trial's start (written when its encoding was back: read first)
+    recorded_state = next((m for _, _, m in read_messages(path, [stack_state.TOPIC])), None) if resumable else None
     gp = _gp_replay(path)  # the GP-EKF's installs, each recorded after its heel strike: all read first
     gp_ekf = None
+    stepped: tuple[int, float] | None = None  # the last frame re-run (log time) and its torque, while returned
+    worst: float | None = None  # the largest |torque - recorded torque| so far
     # Log-time order, equal times in file order: the order they were written in, so a /settings
     # message applies to the frames written after it, exactly as the change applied live.
     for topic, log_time, msg in read_messages(path, topics):
         if hi is not None and log_time > hi:
             break
+        if topic == "/gait_state":  # recorded after its frame, at its log time
+            if stepped is not None and stepped[0] == log_time:
+                diff = abs(stepped[1] - _recorded_torque(path, log_time, msg))
+                worst = diff if worst is None or not diff <= worst else worst
+            stepped = None
+            continue
         if topic == "/settings":
             recorded = _settings(path, log_time, msg)
             if current is not None and recorded.model != current.model:
@@ -149,10 +206,7 @@ def rerun_series(
                     file=str(path),
                 )
             if estimator is not None and recorded != current:
-                try:
-                    estimator.retune(recorded)
-                except ValueError:
-                    pass  # a switch to a primary this re-run does not have: the others apply
+                _retune(estimator, recorded)
             current = recorded
             continue
         if topic == "/imu_calibration":
@@ -164,28 +218,36 @@ def rerun_series(
         if current is None:
             raise DataFormatError(_NO_SETTINGS, file=str(path))
         if estimator is None:
-            period = _sample_period(path, frame)
             origin = _time_origin(path, frame)
-            # The frames are on the session clock already (resynchronised live if need be): never again.
             model = models(current.model)
-            try:
-                estimator = FrameEstimator(
-                    model,
-                    leg_length,
-                    mass_kg,
-                    current,
-                    period,
-                    origin,
-                    max_jump_s=math.inf,
-                    estimators=names,
-                    channels=channels,
-                    fingerprint=fingerprint,
-                )
-            except ValueError as exc:  # unknown estimators, missing channels, no fingerprint
-                raise DataFormatError(str(exc), file=str(path)) from exc
+            if resumable:
+                assert names is not None
+                estimator, start = _resumed(recorded_state, model, tuple(names), origin)
+            if estimator is not None:  # the state holds the settings, IMU calibration and GP models of the start
+                if estimator.settings != current:
+                    _retune(estimator, current)
+                gp.installs = [i for i in gp.installs if i[0] > -math.inf]
+            else:
+                # The frames are on the session clock already (resynchronised live if need be): never again.
+                period = _sample_period(path, frame)
+                try:
+                    estimator = FrameEstimator(
+                        model,
+                        leg_length,
+                        mass_kg,
+                        current,
+                        period,
+                        origin,
+                        max_jump_s=math.inf,
+                        estimators=names,
+                        channels=channels,
+                        fingerprint=fingerprint,
+                    )
+                except ValueError as exc:  # unknown estimators, missing channels, no fingerprint
+                    raise DataFormatError(str(exc), file=str(path)) from exc
+                if imu is not None:
+                    apply_calibration(estimator.stack, imu)
             stack = estimator.stack
-            if imu is not None:
-                apply_calibration(stack, imu)
             gp_ekf = gp_ekf_of(stack) if gp.active else None
             columns = [f"{name}.{o}" for name, outs in zip(stack.names, stack.outputs, strict=True) for o in outs]
             builder = SeriesBuilder(n, max_points, columns)
@@ -200,6 +262,7 @@ def rerun_series(
             state = state.model_copy(update={"torque_Nm": torque, "fault": True})
         if lo is None or log_time >= lo:
             assert builder is not None
+            stepped = (log_time, state.torque_Nm)
             row = state.model_dump()
             last = estimator.last
             if last is not None:
@@ -207,7 +270,51 @@ def rerun_series(
                     for i, o in enumerate(outs):
                         row[f"{name}.{o}"] = None if y is None else float(y[i])
             builder.add(row)
-    return (builder or SeriesBuilder(0, max_points)).result()
+    if estimator is None:  # no frame: nothing ran, nothing to say about how it began
+        start = FRESH
+    return _answer(builder or SeriesBuilder(0, max_points), start, worst)
+
+
+def _answer(builder: SeriesBuilder, start: str, worst: float | None) -> dict[str, list[Any]]:
+    """The series, with how the estimators began and the largest torque difference (:func:`rerun_series`)."""
+    return {**builder.result(), START_KEY: [start], TORQUE_DIFF_KEY: [worst]}
+
+
+def _ran_as_recorded(path: Path, names: tuple[str, ...], fingerprint: Sequence[float] | None) -> bool:
+    """Whether a re-run as recorded of ``names`` with ``fingerprint`` runs what ran: the recorded stack, and
+    (when its personalized filter ran) the recorded fingerprint."""
+    if names != recorded_stack(path):
+        return False
+    recorded = recorded_fingerprint(path)
+    return fingerprint is None or recorded is None or [float(x) for x in fingerprint] == recorded
+
+
+def _resumed(
+    recorded: object, model: TrainedModel, names: tuple[str, ...], origin: float | None
+) -> tuple[FrameEstimator | None, str]:
+    """The estimator restored from the recorded state (None: none, or refused) and what the answer says of it."""
+    if recorded is None:
+        return None, NOT_RECORDED
+    try:
+        estimator = stack_state.restore(recorded, model, names)
+    except stack_state.StateRefused as exc:
+        return None, REFUSED.format(why=str(exc))
+    estimator.replaying(origin)
+    return estimator, RESUMED
+
+
+def _retune(estimator: FrameEstimator, settings: SessionSettings) -> None:
+    try:
+        estimator.retune(settings)
+    except ValueError:
+        pass  # a switch to a primary this re-run does not have: the others apply
+
+
+def _recorded_torque(path: Path, log_time: int, msg: object) -> float:
+    torque = msg.get("torque_Nm") if isinstance(msg, dict) else None
+    if not isinstance(torque, int | float) or isinstance(torque, bool):
+        raise DataFormatError(f"/gait_state message without torque_Nm at {log_time} ns", file=str(path))
+    return float(torque)
 
 
 def rerun_choices(path: Path, fingerprint: Sequence[float] | None = None) -> RerunChoices:

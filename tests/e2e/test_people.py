@@ -118,7 +118,7 @@ def test_summary_and_exports(server: str, watched: Watched, people: dict[str, An
     expect(page.get_by_test_id("report-duration")).to_have_text(f"{summary['duration_s']:.1f} s")  # under a minute
     expect(page.get_by_test_id("report-strides")).to_have_text(str(summary["strides"]))
     assert summary["strides"] >= 4
-    expect(page.get_by_test_id("settings-change")).to_have_text("Torque gain 1.00 -> 1.30, by clinician")
+    expect(page.get_by_test_id("settings-change")).to_have_text("Torque gain 1.00 → 1.30, by clinician")
     expect(page.get_by_test_id("health-rate")).to_contain_text("Hz")
     expect(page.get_by_test_id("profile-speed").locator("canvas")).to_be_visible()
     expect(page.get_by_test_id("overlay-plot").locator("canvas")).to_be_visible()
@@ -134,7 +134,7 @@ def test_summary_and_exports(server: str, watched: Watched, people: dict[str, An
     assert dl.value.suggested_filename == f"gaitscope_PPL-A_session{sid}.pdf"
     text = " ".join(" ".join(p.extract_text() or "" for p in PdfReader(pdf).pages).split())
     assert f"Session {sid} of PPL-A" in text and f"Duration {summary['duration_s']:.1f} s" in text
-    assert "Torque gain 1.00 -> 1.30, by clinician" in text and "Speed profile" in text
+    assert "Torque gain 1.00 → 1.30, by clinician" in text and "Speed profile" in text
     expect(page.get_by_test_id("export-done")).to_contain_text("Ready")
 
     # An export of a long session takes seconds: here its status answers "running" (the server's own answer,
