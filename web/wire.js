@@ -658,9 +658,10 @@
  */
 
 /**
- * What a stopped session gives: ``GET /api/sessions/{id}/summary``.
+ * What a stopped session gives: ``GET /api/sessions/{id}/summary`` (the same of one trial: a trial's report).
  * @typedef {object} SessionSummary
  * @property {number} session_id
+ * @property {number | null} [trial_id=null] the one trial summarized; null: the whole session
  * @property {number} subject_id
  * @property {string} subject_code
  * @property {"created" | "running" | "stopped" | "failed"} state
