@@ -21,6 +21,7 @@ import { abCard } from "./review_ab.js";
 import { eventMarkers, markerLabels, noteMarkers, spanShading } from "./review_markers.js";
 import { notesCard } from "./review_notes.js";
 import { derive, MAX_POINTS, reviewPlots, rerunOverlay } from "./review_plots.js";
+import { exportCard } from "./report_export.js";
 import { rerunCard } from "./review_rerun.js";
 import { timelineCard } from "./review_timeline.js";
 import { errorBox, fmt, fmtUtc, h, showError, ValidationError } from "./ui.js";
@@ -69,12 +70,13 @@ export function mountReview(root, trialId) {
     } });
   const ab = abCard(trialId, { baseSettings: () => st.baseSettings, range: () => st.range, zoomed: () => st.view !== st.full,
     group: abGroup, plugins: timePlugins });
+  const exports = exportCard(null, { trialId }); // this trial's PDF and CSV (issue #23)
   const recording = h("section", { class: "card still-recording", "data-testid": "review-recording", hidden: true });
   const body = h("div", { class: "review-body" }, nav.el,
     h("div", { class: "live-grid" },
       h("div", { class: "main-col" }, view.plotsBox, view.overlayCard, view.intentCard),
       h("aside", { class: "side-col" }, legView(null), notes.el, rerun.el,
-        h("section", { class: "card" }, h("h2", { text: "Events of the trial" }), events.el))),
+        h("section", { class: "card" }, h("h2", { text: "Events of the trial" }), events.el), exports.el)),
     ab.el);
   root.append(h("div", { class: "page review-page" },
     h("div", { class: "page-head" }, title, download, h("a", { class: "button", href: "#/", text: "← Sessions" })),
@@ -199,6 +201,7 @@ export function mountReview(root, trialId) {
   return {
     unmount() {
       st.alive = false;
+      exports.stop();
       clearInterval(st.poll);
       nav.destroy();
       ab.destroy();
