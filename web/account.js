@@ -1,7 +1,8 @@
 // The login page (`#/login?next=…`) and the password page (`#/account/password`).
 //
 // Login: name and password, the server's refusal shown in its own words (a wrong password and an unknown name
-// get the same answer; a lockout says until when), then back to the page the user came from. Password: the
+// get the same answer; as the tries before a lockout run low it says how many are left, and a lockout says for
+// how long), then back to the page the user came from. Password: the
 // current one, the new one twice (at least PASSWORD_MIN characters, the server's rule from wire.js); the server
 // ends every login of the account after a change, so the page sends the user to log in again with the new one.
 

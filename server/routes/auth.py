@@ -6,7 +6,9 @@ length) and answers with :class:`~gaitscope.sessions.schema.Me`, whose ``csrf_to
 ``GET /api/auth/me`` answers ``local``, and ``POST /api/auth/login`` says so (409).
 
 Failed logins are throttled per client address and per name (:mod:`gaitscope.sessions.accounts.throttle`); every
-refusal is the same 401 (:data:`~gaitscope.sessions.accounts.REFUSED`) after the same work. The client's address is the
+refusal is the same 401 (:data:`~gaitscope.sessions.accounts.REFUSED`) after the same work, whether the name exists
+or not: as the tries before a wait run low it says how many are left, and once the address must wait it says so
+and for how long (also as ``Retry-After``, in seconds). The client's address is the
 connection's, or behind a TLS proxy (``Settings.behind_tls_proxy``) the one uvicorn takes from the proxy's
 ``X-Forwarded-For``. Password hashing runs off the event loop, outside any database transaction, in a pool
 of its own (:meth:`~gaitscope.sessions.accounts.Accounts.login_async`).
@@ -15,6 +17,7 @@ of its own (:meth:`~gaitscope.sessions.accounts.Accounts.login_async`).
 from __future__ import annotations
 
 import functools
+import math
 
 import anyio.to_thread
 from fastapi import APIRouter, HTTPException, Request, Response
@@ -35,9 +38,9 @@ def _me(c: Ctx, who: Who) -> schema.Me:
 
 @router.post("/login", dependencies=[public()])
 async def login(body: schema.LoginRequest, request: Request, response: Response, c: Ctx) -> schema.Me:
-    """Check the name and password; 401 with one answer for an unknown name, a wrong password and an attempt
-    the throttle holds back; every failure audited and counted by the throttle. A disabled account's right
-    password is told so."""
+    """Check the name and password; 401 with one answer for an unknown name and a wrong password (with the
+    tries left as they run low, the wait once one starts), another for an attempt the throttle holds back; every
+    failure audited and counted by the throttle. A disabled account's right password is told so."""
     if not c.settings.auth:
         raise HTTPException(409, "accounts are off on this server: there is nothing to log in to")
     client = request.client.host if request.client else "unknown"
@@ -50,7 +53,8 @@ async def login(body: schema.LoginRequest, request: Request, response: Response,
         )  # fmt: skip
         await anyio.to_thread.run_sync(record)
         request.scope["gaitscope.audited"] = True  # recorded here: the audit middleware need not
-        raise HTTPException(401, str(e)) from None
+        wait = {"Retry-After": str(math.ceil(e.retry_after_s))} if e.retry_after_s > 0 else None
+        raise HTTPException(401, str(e), headers=wait) from None
     who = Who(done.user.name, done.user.role, done.login_id, done.csrf_token)
     await anyio.to_thread.run_sync(audit, c, who, "login", client)
     assert done.token is not None

@@ -12,8 +12,10 @@ Choices:
 - Failed logins are throttled, not locked out (:mod:`gaitscope.sessions.accounts.throttle`): per (address, name),
   per address and per name, with exponential waits up to ``lockout_minutes``; a stranger's failures never
   stop the owner logging in from an address that has not failed. Every refusal is the same answer
-  (:data:`REFUSED`) after the same work, one argon2 verification, whether the name exists or not, the
-  password is wrong or the attempt had to wait (an unknown name is verified against a fixed dummy hash).
+  (:data:`REFUSED`) after the same work, one argon2 verification, whether the name exists or not or the
+  password is wrong (an unknown name is verified against a fixed dummy hash); as the tries before a wait run
+  low it says how many are left, and a failure that starts a wait, and an attempt held back by one, say so
+  and for how long (:func:`_refusal`: from the throttle's counts, which never look at whether the name exists).
   The database keeps the account's failed logins in a row and until when failing addresses wait (what the
   admins see); an admin's unlock clears both.
 - Hashing never runs inside a database transaction: a login reads the account, verifies outside any
@@ -34,6 +36,7 @@ import datetime as dt
 import functools
 import hashlib
 import hmac
+import math
 import secrets
 import threading
 from collections.abc import Iterable
@@ -67,9 +70,10 @@ class LoginFailed(PermissionError):
     :data:`REFUSED`, except a disabled account's with the right password), ``detail`` what happened, for the
     audit trail."""
 
-    def __init__(self, message: str, detail: str | None = None) -> None:
+    def __init__(self, message: str, detail: str | None = None, retry_after_s: float = 0.0) -> None:
         super().__init__(message)
         self.detail = detail or message
+        self.retry_after_s = retry_after_s  # > 0: the throttle holds this address's next attempt back so long
 
 
 @dataclass(frozen=True)
@@ -99,6 +103,32 @@ def _now() -> dt.datetime:
 
 def _stamp(t: dt.datetime) -> str:
     return t.isoformat(timespec="seconds")
+
+
+def _seconds(wait: float) -> str:
+    """A wait in words, rounded up: "1 s", "64 s", "4 min 16 s"."""
+    s = math.ceil(wait)
+    return f"{s} s" if s < 120 else f"{s // 60} min" + (f" {s % 60} s" if s % 60 else "")
+
+
+def _refusal(wait: float, left: int, free: int) -> str:
+    """A wrong name or password in words: :data:`REFUSED`, with the tries left before this address waits once
+    they run low (at most 2, and fewer than ``free`` - 1: a first typo is not warned of), or the wait the
+    failure started. The counts are the throttle's, the same for a name that does not exist."""
+    if wait > 0:
+        return (
+            f"{REFUSED}. Too many failed logins: logins with this name from this computer are locked for "
+            f"{_seconds(wait)} (each further failure doubles the wait)"
+        )
+    if left <= min(2, free - 2):
+        return f"{REFUSED} ({left} {'try' if left == 1 else 'tries'} left before logins with this name are locked)"
+    return REFUSED
+
+
+def _held_back(wait: float) -> str:
+    """An attempt the throttle held back (not checked) in words."""
+    again = _seconds(max(wait, 0.5))
+    return f"locked after too many failed logins: try again in {again} (this attempt was not checked)"
 
 
 def _sha256(token: str) -> str:
@@ -295,9 +325,14 @@ class Accounts:
         ok, rehash = checked
         if not ok:
             if attempt.waits:  # an attempt held back was not checked: it is no further failure
-                raise LoginFailed(REFUSED, "held back by the failed-login throttle (not checked)")
+                wait = self.throttle.wait(attempt.address, attempt.name)
+                raise LoginFailed(
+                    _held_back(wait), "held back by the failed-login throttle (not checked)", retry_after_s=wait
+                )
             self._failed(attempt.name, attempt.address, now)
-            raise LoginFailed(REFUSED, "wrong name or password")
+            wait = self.throttle.wait(attempt.address, attempt.name)
+            left = self.throttle.tries_left(attempt.address, attempt.name)
+            raise LoginFailed(_refusal(wait, left, self.throttle.free), "wrong name or password", retry_after_s=wait)
         with self._store.writing() as s:
             row = s.get(UserRow, attempt.user_id)
             if row is None or row.password_hash != attempt.password_hash:

@@ -43,6 +43,10 @@ class _Count:
     last: float = 0.0  # clock time of the last failure
 
 
+def _failures(count: _Count | None) -> int:
+    return 0 if count is None else count.failures
+
+
 class _Table:
     """Failure counts by key, oldest-touched first, at most ``max_entries``."""
 
@@ -127,6 +131,19 @@ class LoginThrottle:
             if pair is not None:  # only an address that has failed at this name waits for the name's count
                 until = max(until, self._until(self._names.get(name), self.free_account))
             return max(0.0, until - now)
+
+    def tries_left(self, address: str, name: str) -> int:
+        """Failed logins ``address`` may still make at ``name`` before its attempts wait (0: the next one waits
+        or would), the least of the three counts' (the name's once this address has failed at it). It never
+        looks at whether the name exists, so telling it tells nothing of that."""
+        with self._lock:
+            now = self._clock()
+            self._prune(now)
+            pair = self._pairs.get((address, name))
+            left = [self.free - _failures(pair), self.free_address - _failures(self._addresses.get(address))]
+            if pair is not None:
+                left.append(self.free_account - _failures(self._names.get(name)))
+            return max(0, min(left))
 
     def name_wait(self, name: str) -> float:
         """Seconds the addresses that have failed at ``name`` still wait for the name's count (0: none)."""

@@ -4,10 +4,18 @@ still recording shown with its length so far."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
+from gaitscope.server.app import create_app
 from gaitscope.server.routes.uploads import DUPLICATE_HEADER
-from tests.server.apps import session, subject, wait_samples
+from gaitscope.sessions import schema
+from gaitscope.sessions.accounts import LoginThrottle
+from tests.server.apps import PASSWORD, auth_settings, session, subject, wait_samples
 from tests.uploads import send
 from tests.walks import replay_csv
 
@@ -60,3 +68,59 @@ def test_a_file_uploaded_twice_is_refused_naming_its_trial_unless_a_copy_is_aske
     sessions = {x["id"]: x for x in client.get("/api/sessions").json()}
     digests = [sessions[t["session_id"]]["source"]["sha256"] for t in (trial, copy.json(), other.json())]
     assert digests[0] == digests[1] != digests[2] and len(digests[0]) == 64
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+@pytest.fixture
+def accounts_app(tmp_path: Path) -> Iterator[tuple[TestClient, _Clock]]:
+    """The app with accounts on (lockout after 5, the default) and its throttle on an injected clock."""
+    with TestClient(create_app(auth_settings(tmp_path))) as c:
+        accounts = c.app.state.ctx.accounts  # type: ignore[attr-defined]
+        clock = _Clock()
+        accounts.throttle = LoginThrottle(free=5, free_address=20, free_account=20, cap_s=900.0, clock=clock)
+        accounts.add_user(schema.UserCreate(name="cleo", role="clinician", password=PASSWORD), by="test")
+        yield c, clock
+
+
+def test_the_login_says_the_tries_left_and_the_lock_the_same_for_a_name_that_does_not_exist(
+    accounts_app: tuple[TestClient, _Clock],
+) -> None:
+    app, clock = accounts_app
+    assert isinstance(app.app, FastAPI)
+
+    def tries(name: str) -> list[tuple[int, str, str | None]]:
+        guesser = TestClient(app.app, client=(f"10.0.0.{len(name)}", 40000))  # one address per name
+        answers = []
+        for password in ["wrong 1", "wrong 2", "wrong 3", "wrong 4", "wrong 5", PASSWORD]:
+            r = guesser.post("/api/auth/login", json={"name": name, "password": password})
+            answers.append((r.status_code, r.json()["detail"], r.headers.get("retry-after")))
+        return answers
+
+    known, unknown = tries("cleo"), tries("nobodyy")
+    assert known == unknown  # nothing tells a real name from an invented one
+    refused = "wrong name or password"
+    assert known == [
+        (401, refused, None),
+        (401, refused, None),
+        (401, f"{refused} (2 tries left before logins with this name are locked)", None),
+        (401, f"{refused} (1 try left before logins with this name are locked)", None),
+        (
+            401,
+            f"{refused}. Too many failed logins: logins with this name from this computer are locked for 1 s "
+            "(each further failure doubles the wait)",
+            "1",
+        ),
+        (401, "locked after too many failed logins: try again in 1 s (this attempt was not checked)", "1"),
+    ]
+    clock.t = 1.5  # the wait is over: the right password logs in
+    r = TestClient(app.app, client=("10.0.0.4", 40000)).post(
+        "/api/auth/login", json={"name": "cleo", "password": PASSWORD}
+    )
+    assert r.status_code == 200, r.text

@@ -122,7 +122,14 @@ def test_every_refusal_is_the_same_answer_after_one_verification(parts: tuple[Ac
         before = len(hasher.calls)
         answers.append(_refusal(accounts, name, password, "guesser"))
         assert [k for k, _, _ in hasher.calls[before:]] == ["verify"]  # held back or not, known or not
-    assert set(answers) == {REFUSED}  # the last two were held back: the right password too, after 4 failures
+    # a known and an unknown name get the same answer at every step: the tries left as they run low, the lock
+    # their third failure starts (free=3), then held back, the right password too
+    assert answers[0::2][:4] == answers[1::2][:4] and answers[8] == answers[9]
+    locked = f"{REFUSED}. Too many failed logins: logins with this name from this computer are locked for 1 s"
+    held = "locked after too many failed logins: try again in 1 s (this attempt was not checked)"
+    assert [a.split(" (each")[0] for a in answers[::2]] == [
+        REFUSED, f"{REFUSED} (1 try left before logins with this name are locked)", locked, held, held
+    ]
 
 
 def test_a_strangers_failures_never_stop_the_owner_from_another_address(
