@@ -1,5 +1,6 @@
 // The estimators of a review's re-run: the picker (which of them to run on this trial) and how each one's
-// outputs are overlaid on the review plots (its own colour and dash, a legend entry naming it).
+// outputs are overlaid on the review plots (its own colour and dash, a legend entry naming it). An estimator is
+// shown by its descriptor's label, never by its machine name (issue #23: one vocabulary).
 // What is registered comes from the generated wire.js (sessions/registry.py); what can run on a trial
 // from `GET /api/trials/{id}/estimators` (RerunChoices). The server stays the judge (422 with a reason).
 
@@ -138,9 +139,9 @@ function swatch(name, dot) {
 
 /** The legend of an overlay: one entry per estimator, what it draws, in its colour. */
 export function overlayLegend(el, names, drawn) {
-  el.replaceChildren(...names.map((n) => h("li", { "data-testid": "rerun-legend-entry", "data-estimator": n, title: n },
+  el.replaceChildren(...names.map((n) => h("li", { "data-testid": "rerun-legend-entry", "data-estimator": n },
     swatch(n, !hasPhase(n)), h("span", { class: "estimator-text" }, h("span", { class: "label", text: estimatorLabel(n) }),
-      h("span", { class: "hint" }, h("code", { text: n }), ` · ${drawn[n] && drawn[n].length ? drawn[n].join(", ") : "nothing to plot"}`)))));
+      h("span", { class: "hint", text: drawn[n] && drawn[n].length ? drawn[n].join(", ") : "nothing to plot" })))));
   el.hidden = !names.length;
 }
 
@@ -178,10 +179,10 @@ export class EstimatorPicker {
         "data-testid": `rerun-estimator-${n}`, checked: checked.has(n), disabled: why !== undefined });
       if (why === undefined) this.boxes.set(n, box);
       const note = why !== undefined ? `cannot run: ${why}` : recorded.has(n) ? "recorded" : "";
-      return h("label", { class: `choice estimator${why !== undefined ? " refused" : ""}`, for: box.id, title: n },
+      return h("label", { class: `choice estimator${why !== undefined ? " refused" : ""}`, for: box.id },
         box, h("span", { class: "estimator-text" },
           h("span", { class: "estimator-name" }, swatch(n, !hasPhase(n)), h("span", { text: estimatorLabel(n) })),
-          h("span", { class: "hint" }, h("code", { text: n }), note ? ` · ${note}` : "")));
+          note ? h("span", { class: "hint", text: note }) : null));
     }));
     this.hint.textContent = !this.boxes.size
       ? "No estimator can run on this trial: it holds no usable sensor frames."

@@ -1,40 +1,61 @@
 // The events list (setting changes, annotations, system and recording events, detected speed-change intents),
 // newest first, each in plain words ("Torque gain 1.00 → 1.30, by clinician"), never a raw field name;
-// `describeEvent` gives the same words to the live plots' markers.
+// `describeEvent` gives the same words to the live plots' markers, and the review's markers (review_markers.js).
+// Names and units come from the one table of each (wire.js: `SETTING_NAMES` for the settings and the primary,
+// `QUANTITY_NAMES` for an estimator's output such as the intent's desired speed, an estimator's `label`).
 
-import { learnedModel } from "./estimators.js";
+import { estimatorLabel, learnedModel } from "./estimators.js";
 import { SETTING_LIMITS } from "./settings.js";
 import { fmt, h } from "./ui.js";
-import { ESTIMATORS } from "./wire.js";
+import { ESTIMATORS, QUANTITY_NAMES, SETTING_NAMES } from "./wire.js";
 
 /** Marker colours on timelines, per event kind. */
 export const EVENT_COLORS = { setting: "#c2410c", annotation: "#0b5cad", recording: "#1d7a3a", system: "#4b5563",
   intent: "#a21caf" };
 
-function _value(field, v) {
-  if (v === null || v === undefined) return "–";
-  if (learnedModel(field) && typeof v === "number") return `v${Math.round(v)}`; // a learned model's versions
-  if (typeof v === "number") return fmt(v, (SETTING_LIMITS[field] && SETTING_LIMITS[field].digits) || 3);
-  return String(v);
+/** Units written after a value (a scale, "×", or a fraction are not). */
+const SHOWN_UNITS = new Set(["N·m", "m/s", "m", "deg", "1/s", "%"]);
+
+/** The gait-state quantity (`QUANTITY_NAMES` entry) an event field names when it is an estimator's output (the
+ * intent's `desired_speed_m_s`), or null. */
+function outputQuantity(field) {
+  for (const info of Object.values(ESTIMATORS)) {
+    const q = info.quantities[field];
+    if (q && QUANTITY_NAMES[q]) return QUANTITY_NAMES[q];
+  }
+  return null;
 }
 
-/** Event fields shown by another name than their machine name (the settings' names come from SETTING_LIMITS, a
- * learned model's from its estimator's descriptor). */
-const FIELD_NAMES = { primary: "Torque follows", imu_calibration: "IMU calibration" };
+/** A field's unit as people write it, when a value is written with one ("" otherwise). */
+export function fieldUnit(field) {
+  const unit = SETTING_NAMES[field] ? SETTING_NAMES[field].unit : (outputQuantity(field) || { unit: "" }).unit;
+  return SHOWN_UNITS.has(unit) ? unit : "";
+}
+
+/** A value of a field in words: an estimator by its label, a learned model's version, a number with its unit. */
+export function valueText(field, v) {
+  if (v === null || v === undefined) return "–";
+  if (field === "primary" && typeof v === "string") return estimatorLabel(v);
+  if (learnedModel(field) && typeof v === "number") return `v${Math.round(v)}`; // a learned model's versions
+  if (typeof v === "number") {
+    const unit = fieldUnit(field);
+    return `${fmt(v, (SETTING_LIMITS[field] && SETTING_LIMITS[field].digits) || 3)}${unit ? ` ${unit}` : ""}`;
+  }
+  return String(v);
+}
 
 /** What each kind of event is called on screen. */
 export const KIND_NAMES = { setting: "Setting", annotation: "Note", system: "System", recording: "Recording", intent: "Intent" };
 
-/** A field's name on screen. */
+/** A field's name on screen: a setting's, an estimator's output's quantity's, a learned model's. */
 export function fieldName(field) {
-  if (SETTING_LIMITS[field]) return SETTING_LIMITS[field].label.split(":")[0]; // no explanation after a colon
-  return FIELD_NAMES[field] || learnedModel(field) || field.replace(/_/g, " ").replace(/^./, (c) => c.toUpperCase());
+  if (SETTING_NAMES[field]) return SETTING_NAMES[field].name;
+  const q = outputQuantity(field);
+  if (q) return q.name;
+  return learnedModel(field) || field.replace(/_/g, " ").replace(/^./, (c) => c.toUpperCase());
 }
 
-function _shown(field, v) {
-  if (field === "primary" && typeof v === "string") return (ESTIMATORS[v] && ESTIMATORS[v].label) || v;
-  return _value(field, v);
-}
+const _shown = valueText;
 
 /** A change of a clinician's setting (or of the primary estimator): one line, its author in it. */
 export const isSettingChange = (ev) => ev.kind === "setting" && (!!SETTING_LIMITS[ev.field] || ev.field === "primary");

@@ -6,7 +6,7 @@
 
 import { COLORS, Plot, Ring } from "./plots.js";
 import { h } from "./ui.js";
-import { ESTIMATORS } from "./wire.js";
+import { ESTIMATORS, QUANTITY_NAMES } from "./wire.js";
 
 const LINE_COLORS = [COLORS.blue, COLORS.orange, COLORS.green, COLORS.purple, COLORS.teal, COLORS.grey];
 const CAPACITY = 2048; // > 10 s at the 60 Hz the stream is asked for, as the view's own ring
@@ -54,7 +54,10 @@ export class EstimatorPlots {
   _add(key, name, p) {
     const div = h("div", { class: "plot", "data-testid": `plot-${p.key}` });
     this.box.append(div);
-    const series = p.outputs.map((o, i) => ({ label: `${o} (${ESTIMATORS[name].label})`, color: LINE_COLORS[i % LINE_COLORS.length] }));
+    // each line by what it is on screen (its quantity's name, else its output's in words) and its estimator's label
+    const info = ESTIMATORS[name];
+    const what = (o) => (QUANTITY_NAMES[info.quantities[o]] || { name: o.replace(/_(deg|dps|m_s|m|Nm|spm)$/, "").replace(/_/g, " ") }).name;
+    const series = p.outputs.map((o, i) => ({ label: `${what(o)} (${info.label})`, color: LINE_COLORS[i % LINE_COLORS.length] }));
     const plot = new Plot(div, { key: p.key, title: p.title, yLabel: p.y_label, cols: p.outputs, series, ...this.opts });
     const entry = { name, outputs: [...p.outputs], div, plot, ring: new Ring(CAPACITY, ["t", ...p.outputs]), lastT: -Infinity };
     this.shown.set(key, entry);

@@ -4,7 +4,7 @@
 // stream; the phase plot overlays the phase of every estimator of the stack. The gait-state plots' specs and
 // the intent's are the review's too (review_plots.js).
 
-import { INTENT, STANCE_PHASE } from "./estimators.js";
+import { estimatorLabel, INTENT, STANCE_PHASE } from "./estimators.js";
 import { describeEvent, EVENT_COLORS, isSettingChange } from "./events.js";
 import { EstimatorPlots } from "./live_estimator_plots.js";
 import { COLORS, Plot, Ring } from "./plots.js";
@@ -37,7 +37,7 @@ export const PLOT_SPECS = [
 ];
 
 /** The SDRE estimator's (`sdre_knee`, seed 002) knee on the joints plot, when the stack runs it. */
-export const SDRE_KNEE = { col: "knee_sdre_deg", series: { label: "knee, SDRE (sdre_knee)", color: COLORS.orange, dash: [6, 4] } };
+export const SDRE_KNEE = { col: "knee_sdre_deg", series: { label: "knee, SDRE from IMUs", color: COLORS.orange, dash: [6, 4] } };
 
 /**
  * Knee flexion (deg, flexion positive) from the thigh and shank angles: null when either is missing.
@@ -83,10 +83,11 @@ const SDRE = Object.keys(ESTIMATORS).find((n) => Object.values(ESTIMATORS[n].qua
  * @param {string[]} names @param {string | null} primary @param {Set<string>} failed
  */
 export function phaseSpec(names, primary, failed) {
-  const label = (n) => `${n}${n === primary ? " (primary: drives the torque)" : ""}${failed.has(n) ? " (failed)" : ""}`;
+  // names on screen: the descriptors' labels (issue #23), never the machine names
+  const label = (n) => `${estimatorLabel(n)}${n === primary ? " (primary: drives the torque)" : ""}${failed.has(n) ? " (failed)" : ""}`;
   const title = !primary ? "Phase of every estimator; no primary: torque 0"
-    : STANCE_PHASE.has(primary) ? `Gait phase of every estimator; the torque follows ${primary}'s stance phase (its card)`
-      : `Phase of every estimator; the torque follows ${primary}`;
+    : STANCE_PHASE.has(primary) ? `Gait phase of every estimator; the torque follows ${estimatorLabel(primary)}'s stance phase (its card)`
+      : `Phase of every estimator; the torque follows ${estimatorLabel(primary)}`;
   return {
     key: "phase", yLabel: "% of cycle", yRange: [0, 100], title,
     cols: names.map(estColumn),

@@ -5,7 +5,7 @@
 
 import * as api from "./api_client.js";
 import { fence } from "./auth.js";
-import { STANCE_PHASE } from "./estimators.js";
+import { estimatorLabel, STANCE_PHASE } from "./estimators.js";
 import { errorBox, h, runAction } from "./ui.js";
 
 export class LiveStack {
@@ -45,9 +45,9 @@ export class LiveStack {
   show() {
     const health = this._health;
     const failed = new Set(this.failed.keys());
-    health.primary.textContent = this.primary || "none: the torque is 0";
+    health.primary.textContent = this.primary ? estimatorLabel(this.primary) : "none: the torque is 0";
     health.primary.classList.toggle("warn", !this.primary);
-    health.failedEstimators.textContent = failed.size ? [...this.failed].map(([n, why]) => `${n}: ${why}`).join("; ") : "none";
+    health.failedEstimators.textContent = failed.size ? [...this.failed].map(([n, why]) => `${estimatorLabel(n)}: ${why}`).join("; ") : "none";
     health.failedEstimators.classList.toggle("warn", failed.size > 0);
     this._hooks.primary(this.primary);
     const key = JSON.stringify([this.names, this.phased, this.primary, [...failed]]);
@@ -56,7 +56,7 @@ export class LiveStack {
     this._hooks.stack(this.names, this.primary, failed);
     const options = this.phased.filter((n) => !failed.has(n));
     if (JSON.stringify(options) !== JSON.stringify([...this.select.options].map((o) => o.value))) {
-      this.select.replaceChildren(...options.map((n) => h("option", { value: n, text: n })));
+      this.select.replaceChildren(...options.map((n) => h("option", { value: n, text: estimatorLabel(n) })));
     }
     if (this.primary && options.includes(this.primary)) this.select.value = this.primary;
   }

@@ -2,33 +2,15 @@
 // in words ("Torque gain 1.00 → 1.30, by dr-k", also the re-run form's list), notes (their spans shaded) and
 // the other events.
 
-import { estimatorLabel, learnedModel } from "./estimators.js";
-import { SETTING_LIMITS } from "./settings.js";
-import { fmt } from "./ui.js";
+import { fieldName, valueText } from "./events.js";
 
-/** Names a clinician reads for the fields a setting event may change (a learned model's: its estimator's descriptor). */
-const FIELD_LABELS = { primary: "Estimator driving the torque" };
-
-/** A setting's plain name: its label up to any explanation after a colon ("Intent gain boost"). */
-export function settingLabel(field) {
-  if (FIELD_LABELS[field]) return FIELD_LABELS[field];
-  if (learnedModel(field)) return learnedModel(field);
-  const lim = SETTING_LIMITS[field];
-  return lim ? lim.label.split(":")[0] : String(field).replaceAll("_", " ");
-}
-
-function _value(field, v) {
-  if (v === null || v === undefined) return "–";
-  if (field === "primary") return estimatorLabel(String(v));
-  if (learnedModel(field) && typeof v === "number") return `version ${Math.round(v)}`;
-  if (typeof v === "number") return fmt(v, (SETTING_LIMITS[field] && SETTING_LIMITS[field].digits) || 2);
-  return String(v);
-}
+/** A setting's plain name (wire.js `SETTING_NAMES`, the one table; events.js `fieldName`). */
+export const settingLabel = fieldName;
 
 /** "Torque gain 1.00 → 1.30, by dr-k" for a setting `Event` with a field; its own text otherwise. */
 export function changeText(ev) {
   if (!ev.field) return `${ev.text}, by ${ev.actor}`;
-  return `${settingLabel(ev.field)} ${_value(ev.field, ev.before)} → ${_value(ev.field, ev.after)}, by ${ev.actor}`;
+  return `${fieldName(ev.field)} ${valueText(ev.field, ev.before)} → ${valueText(ev.field, ev.after)}, by ${ev.actor}`;
 }
 
 /**

@@ -141,7 +141,7 @@ def setting_text(event: schema.Event) -> str:
         if field == "primary" and isinstance(v, str):
             return _estimator_label(v)
         if model is not None and isinstance(v, float | int):
-            return f"version {round(v)}"
+            return f"v{round(v)}"
         if isinstance(v, float | int) and not isinstance(v, bool):
             return f"{v:.2f}" + (f" {unit}" if unit and unit != "×" else "")
         return str(v)

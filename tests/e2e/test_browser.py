@@ -149,17 +149,19 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(page.get_by_test_id("setting-max_torque_Nm")).to_have_value("35")
     expect(page.get_by_test_id("setting-max_torque_Nm-note")).to_have_text("changed elsewhere to 35.0")
     expect(setting_row).to_have_count(2)
-    expect(setting_row.first.get_by_test_id("event-text")).to_have_text("Maximum torque 30.0 → 35.0, by experimenter")
+    expect(setting_row.first.get_by_test_id("event-text")).to_have_text(
+        "Maximum torque 30.0 N·m → 35.0 N·m, by experimenter"
+    )
 
     # --- every estimator's phase overlaid, the primary named; switching it is a logged setting -----------
-    expect(page.get_by_test_id("health-primary")).to_have_text("phase_ekf")
+    expect(page.get_by_test_id("health-primary")).to_have_text("Phase EKF (seed 000)")  # its label (issue #23)
     expect(page.get_by_test_id("health-failed-estimators")).to_have_text("none")
-    for label in ("phase_ekf (primary: drives the torque)", "tbe"):
+    for label in ("Phase EKF (seed 000) (primary: drives the torque)", "Timing-based estimate"):
         expect(page.get_by_test_id("plot-phase")).to_contain_text(label)
     page.get_by_test_id("primary-select").select_option("tbe")
     page.get_by_test_id("primary-apply").click()
-    expect(page.get_by_test_id("health-primary")).to_have_text("tbe", timeout=5_000)
-    expect(page.get_by_test_id("plot-phase")).to_contain_text("tbe (primary: drives the torque)")
+    expect(page.get_by_test_id("health-primary")).to_have_text("Timing-based estimate", timeout=5_000)
+    expect(page.get_by_test_id("plot-phase")).to_contain_text("Timing-based estimate (primary: drives the torque)")
     expect(setting_row).to_have_count(3)
     expect(setting_row.first.get_by_test_id("event-text")).to_have_text(
         re.compile(r"^Torque follows .+ → .+, by clinician$")

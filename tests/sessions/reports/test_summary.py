@@ -64,7 +64,7 @@ def test_setting_words_name_estimators_and_models_as_their_descriptors_do() -> N
     assert "phase_ekf" not in sm.setting_text(ev) and "tbe" not in sm.setting_text(ev)
     learner = next(n for n, d in descriptors().items() if d.learned_model)
     ev = ev.model_copy(update={"field": learner, "before": 1.0, "after": 2.0})
-    assert sm.setting_text(ev) == f"{descriptors()[learner].learned_model} version 1 → version 2, by dr-k"
+    assert sm.setting_text(ev) == f"{descriptors()[learner].learned_model} v1 → v2, by dr-k"
 
 
 def _walk(keys: list[tuple[float, float]], d: sm.TrialData | None = None, gap_after: int | None = None) -> list:
