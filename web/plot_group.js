@@ -144,8 +144,29 @@ const _LABEL_FONT = "12px system-ui, sans-serif";
 const _ROWS = 3;
 
 /**
+ * Where a marker's label goes (canvas pixels): right of its line at `x`, or left of it near the right edge, and
+ * always inside the plot area (`bbox`): moved in from an edge, and cut with "…" when wider than the plot. The
+ * label's `text` as drawn, its box's `left` and width `w` (issue #23: labels cut at the plot's edge).
+ */
+export function markerLabelBox(ctx, label, x, bbox, pr) {
+  const pad = 8 * pr;
+  let text = label;
+  let w = ctx.measureText(text).width + pad;
+  if (w > bbox.width) {
+    let n = text.length;
+    while (n > 1 && ctx.measureText(`${text.slice(0, n)}…`).width + pad > bbox.width) n--;
+    text = `${text.slice(0, n)}…`;
+    w = Math.min(ctx.measureText(text).width + pad, bbox.width);
+  }
+  const right = bbox.left + bbox.width;
+  const left = x + w > right ? x - w : x;
+  return { text, w, left: Math.min(Math.max(left, bbox.left), right - w) };
+}
+
+/**
  * Draws labelled markers on a uPlot (`getMarkers()` -> [{t, label, kind, color}]) and records what it drew
- * in `drawn` ([{t, label, kind, x (CSS px in the plot area), row (null: label left to the hover text)}]);
+ * in `drawn` ([{t, label, kind, x (CSS px in the plot area), row (null: label left to the hover text), text (as
+ * drawn: cut with "…" when wider than the plot), box ([left, right] of its label, CSS px in the plot area)}]);
  * `pr`: uPlot's pixel ratio (canvas pixels per CSS pixel).
  */
 export function drawMarkers(u, markers, drawn, pr) {
@@ -174,9 +195,7 @@ export function drawMarkers(u, markers, drawn, pr) {
     ctx.lineTo(x, bbox.top + bbox.height);
     ctx.stroke();
     ctx.setLineDash([]);
-    const w = ctx.measureText(m.label).width + 8 * pr;
-    // the label right of its line, or left of it near the right edge
-    const left = x + w > bbox.left + bbox.width ? x - w : x;
+    const { text, left, w } = markerLabelBox(ctx, m.label, x, bbox, pr);
     let row = null;
     for (let r = 0; r < _ROWS; r++) {
       if (left > rowEnd[r] + 4 * pr) {
@@ -193,9 +212,10 @@ export function drawMarkers(u, markers, drawn, pr) {
       ctx.lineWidth = 1 * pr;
       ctx.strokeRect(left, y, w, rowH - 2 * pr);
       ctx.fillStyle = "#111";
-      ctx.fillText(m.label, left + 4 * pr, y + (rowH - 2 * pr) / 2);
+      ctx.fillText(text, left + 4 * pr, y + (rowH - 2 * pr) / 2);
     }
-    drawn.push({ t: m.t, label: m.label, kind: m.kind || null, x: (x - bbox.left) / pr, row });
+    drawn.push({ t: m.t, label: m.label, kind: m.kind || null, x: (x - bbox.left) / pr, row, text,
+      box: [(left - bbox.left) / pr, (left + w - bbox.left) / pr] });
   }
   ctx.restore();
 }

@@ -55,16 +55,22 @@ export function spanShading(getNotes) {
 
 /**
  * A uPlot plugin that writes the labels a `Plot` drew (its `drawnMarkers`) on `el` as `data-marker-labels`
- * (JSON), after each draw: what a test, or a screen reader's description, can read of the canvas.
+ * (JSON), and where those written on it sit as `data-marker-boxes`, after each draw: what a test, or a screen
+ * reader's description, can read of the canvas.
  * @param {HTMLElement} el the plot's container
  * @param {() => object} plot the `Plot` (created after its plugins)
  */
 export function markerLabels(el, plot) {
   return {
     hooks: {
-      draw: [() => {
+      draw: [(u) => {
         const p = plot();
-        if (p) el.dataset.markerLabels = JSON.stringify(p.drawnMarkers.filter((m) => m.label).map((m) => m.label));
+        if (!p) return;
+        const shown = p.drawnMarkers.filter((m) => m.label);
+        el.dataset.markerLabels = JSON.stringify(shown.map((m) => m.label));
+        // where each label written on the plot sits ([left, right], CSS px), and the plot area's width: a test
+        // checks that none is cut at an edge
+        el.dataset.markerBoxes = JSON.stringify({ width: u.over.clientWidth, boxes: shown.filter((m) => m.row !== null).map((m) => m.box) });
       }],
     },
   };
