@@ -1,9 +1,13 @@
 // Session summary (`#/sessions/{id}/summary`): what a session gave once it stopped (or so far, while it runs):
 // duration, strides, speed and incline profile, per-condition stride curves, settings history, data health and
-// events, from `GET /api/sessions/{id}/summary`; and the exports (report_export.js).
+// events, from `GET /api/sessions/{id}/summary`; and the exports (report_export.js). Issue #23: the duration is the
+// time recorded, beside the session's wall time; the conditions are those held (summary.py says the rule); the
+// profile's line breaks at gaps; the page shows how far the server has got while it reads the recordings (a long
+// session takes seconds), and the server keeps the summary until the session's trials change.
 
 import { ApiError } from "./api.js";
 import * as api from "./api_client.js";
+import { estimatorLabel } from "./estimators.js";
 import { EventList } from "./events.js";
 import { fmtDuration, plural, STATE_WORDS } from "./people_format.js";
 import { COLORS, Plot } from "./plots.js";
@@ -17,6 +21,25 @@ const SIGNALS = {
   foot_angle_deg: { label: "Foot angle", unit: "deg" },
 };
 const STRIDE_GREY = "#9ca3af";
+
+const PROGRESS_MS = 300;
+
+/** `[t, y]` of a profile's value with a gap (null) before each stride after time not recorded (`after_gap`). */
+export function profileLine(profile, value) {
+  const t = [];
+  const y = [];
+  profile.forEach((p, k) => {
+    if (k && p.after_gap) {
+      t.push((profile[k - 1].t + p.t) / 2);
+      y.push(null);
+    }
+    t.push(p.t);
+    y.push(p[value]);
+  });
+  return [t, y];
+}
+
+const duration = (s) => (s < 60 ? `${fmt(s, 1)} s` : `${fmtDuration(s)} (${fmt(s, 1)} s)`);
 
 const dl = (rows) => h("dl", { class: "people-figures" },
   ...rows.flatMap(([dt, dd, testid]) => [h("dt", { text: dt }), h("dd", { "data-testid": testid, text: dd })]));
@@ -38,7 +61,8 @@ export function mountReport(root, sessionId) {
 
   function walking(s) {
     return h("section", { class: "card", "data-testid": "report-walking" }, h("h2", { text: "Walking" }), dl([
-      ["Duration", s.duration_s < 60 ? `${fmt(s.duration_s, 1)} s` : `${fmtDuration(s.duration_s)} (${fmt(s.duration_s, 1)} s)`, "report-duration"],
+      [`Recorded time (${plural(s.trials.length, "trial")})`, duration(s.duration_s), "report-duration"],
+      ["Wall time, start to stop", s.wall_s === null ? "still running" : duration(s.wall_s), "report-wall"],
       ["Strides", String(s.strides), "report-strides"],
       ["Mean speed", s.mean_speed_m_s === null ? "–" : `${fmt(s.mean_speed_m_s, 2)} m/s`, "report-speed"],
       ["Mean stride length", s.mean_stride_length_m === null ? "–" : `${fmt(s.mean_stride_length_m, 2)} m`, "report-stride-length"],
@@ -74,7 +98,7 @@ export function mountReport(root, sessionId) {
       dl([
         ["Torque gain", start ? `${fmt(start.torque_gain, 2)} at the start, ${fmt(end.torque_gain, 2)} at the end` : fmt(end.torque_gain, 2), "settings-gain"],
         ["Torque limit", start ? `${fmt(start.max_torque_Nm, 1)} N·m at the start, ${fmt(end.max_torque_Nm, 1)} N·m at the end` : `${fmt(end.max_torque_Nm, 1)} N·m`, "settings-limit"],
-        ["Estimator driving the torque", end.primary, "settings-primary"],
+        ["Torque follows", estimatorLabel(end.primary), "settings-primary"],
       ]), h("h3", { text: "Changes" }), list);
   }
 
@@ -85,11 +109,11 @@ export function mountReport(root, sessionId) {
       s.profile.length ? null : h("p", { class: "hint", text: "No complete stride was recorded." }), speedBox, inclineBox);
     if (s.profile.length) {
       queueMicrotask(() => {
-        const t = s.profile.map((p) => p.t);
+        // the line breaks where time was not recorded (between trials, a gap, strides left out): never bridged
         plot(speedBox, { title: "Speed", yLabel: "m/s", xLabel: "session time (s)", height: 180,
-          series: [{ label: "speed", color: COLORS.blue, points: true }] }).setData([t, s.profile.map((p) => p.speed_m_s)]);
+          series: [{ label: "speed", color: COLORS.blue, points: true }] }).setData(profileLine(s.profile, "speed_m_s"));
         plot(inclineBox, { title: "Incline", yLabel: "deg", xLabel: "session time (s)", height: 180,
-          series: [{ label: "incline", color: COLORS.orange, points: true }] }).setData([t, s.profile.map((p) => p.incline_deg)]);
+          series: [{ label: "incline", color: COLORS.orange, points: true }] }).setData(profileLine(s.profile, "incline_deg"));
       });
     }
     return card;
@@ -109,7 +133,10 @@ export function mountReport(root, sessionId) {
     const box = h("div", { class: "plot", "data-testid": "overlay-plot" });
     const caption = h("p", { class: "hint", "data-testid": "overlay-caption" });
     card.append(h("div", { class: "inline" }, field("Condition", cond), field("Signal", sig)), box, caption,
-      h("p", { class: "hint", text: "A condition is a speed (to 0.2 m/s) and an incline (to 2.5°). Grey: single strides; blue: their mean." }));
+      h("p", { class: "hint", "data-testid": "conditions-rule", text: "A condition is a speed (to 0.2 m/s) and an incline (to 2.5°) the "
+        + "walker held: at least 5 strides, in runs of 3 or more one after the other. "
+        + (s.transition_strides ? `${plural(s.transition_strides, "stride")} walked while the speed or incline changed belong to none. ` : "")
+        + "Grey: single strides; blue: their mean." }));
     let p = null;
     function draw() {
       const c = s.conditions[Number(cond.value)];
@@ -139,9 +166,35 @@ export function mountReport(root, sessionId) {
     return h("section", { class: "card", "data-testid": "report-events-card" }, h("h2", { text: `Events (${s.events.length})` }), list.el);
   }
 
+  /** While the server makes the summary: how far it has got, polled (a bar and the gait states read). */
+  const fill = h("div", { class: "meter-fill" });
+  const bar = h("div", { class: "meter", role: "progressbar", "aria-label": "Summary progress", "aria-valuemin": 0,
+    "aria-valuemax": 100, "data-testid": "report-progress", hidden: true }, fill);
+  note.after(bar);
+  async function watchProgress(done) {
+    while (!done.value && st.alive) {
+      await new Promise((r) => setTimeout(r, PROGRESS_MS));
+      if (done.value || !st.alive) break;
+      try {
+        const p = await api.summaryProgress(sessionId);
+        if (done.value || !p.running) continue;
+        const pct = Math.round(100 * p.progress);
+        bar.hidden = false;
+        fill.style.width = `${pct}%`;
+        bar.setAttribute("aria-valuenow", String(pct));
+        note.textContent = `Reading the session's recordings: ${pct} % (${p.step}).`;
+      } catch {
+        break; // the summary's own answer says what went wrong
+      }
+    }
+    bar.hidden = true;
+  }
+
   async function load() {
+    const done = { value: false };
+    watchProgress(done);
     try {
-      const s = await api.summary(sessionId);
+      const s = await api.summary(sessionId).finally(() => { done.value = true; });
       if (!st.alive) return;
       st.summary = s;
       title.textContent = `Session ${s.session_id} of ${s.subject_code}: summary`;
