@@ -208,6 +208,11 @@ EstimatorName = Annotated[str, Field(pattern=r"^[a-z][a-z0-9_]{0,31}$")]
 #: torque command blends from the old primary's to the new one's (so that a switch never steps it).
 PRIMARY_SWITCH_INTERVAL_S: Final = 2.0
 PRIMARY_BLEND_S: Final = 0.5
+#: Least time (s) between two settings changes that can raise the torque on the person (a raise of the torque
+#: gain, the maximum torque or the intent boost, or a switch of the primary), each confirmed by the user
+#: (``SettingsChange.confirm``; ``gaitscope.sessions.live.torque_rule``). Lowering is never held back.
+TORQUE_RAISE_INTERVAL_S: Final = 3.0
+
 
 
 def _setting(name: str, default: float | None, description: str | None = None) -> Any:
@@ -264,6 +269,28 @@ class SettingsChange(_Strict):
     )
     actor: str = _ACTOR
     reason: str = Field(default="", max_length=500)
+    confirm: bool = Field(
+        default=False,
+        description="the user confirmed a change that can raise the torque on the person (a raise of the torque "
+        "gain, the maximum torque or the intent boost, or a switch of the primary), having been shown its peak "
+        "torque before and after; without it such a change is refused (409, a TorqueRaiseRefused), and at most "
+        f"one is made every {TORQUE_RAISE_INTERVAL_S:g} s. Lowering needs no confirmation and is never held back",
+    )
+
+
+class TorqueRaiseRefused(_Strict):
+    """The ``detail`` of the 409 to a settings change or undo that can raise the torque on the person and was not
+    confirmed (``reason="confirm"``: resend it with ``confirm: true`` once the user agreed to the peaks shown) or
+    came too soon after the last such change (``reason="too_soon"``: it may be made ``retry_after_s`` later).
+    The peaks are the torque the settings command over a stride at the session's gait state
+    (``gaitscope.sessions.peak_torque``), intent boost at its largest."""
+
+    message: str = Field(max_length=1000)
+    reason: Literal["confirm", "too_soon"]
+    fields: list[str] = Field(description="the settings of the change that can raise the torque")
+    peak_before_Nm: float = Field(ge=0.0, description="peak torque over a stride with the settings now")
+    peak_after_Nm: float = Field(ge=0.0, description="peak torque over a stride with the change made")
+    retry_after_s: float = Field(ge=0.0, description="how long until it may be made (0: now, with confirm)")
 
 
 class ProtocolStep(_Strict):
@@ -1421,6 +1448,10 @@ class SettingsUndo(_Strict):
     back to their values before it, within the same bounds and rate limits as any change, logged as a change."""
 
     actor: str = _ACTOR
+    confirm: bool = Field(
+        default=False,
+        description="as SettingsChange.confirm: an undo that can raise the torque on the person needs it",
+    )
 
 
 # --- accounts, roles, device credentials (issue #13) ---------------------------------------------------
@@ -1646,4 +1677,5 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     GPLearningState, GPLearningControl, SessionSummary, SummaryProgress, ExportCreate, ExportJob, CompareRequest,
     Comparison, ReviewAnnotationCreate, ReviewAnnotation, SettingsUndo, User, UserCreate, UserChange, LoginRequest,
     PasswordChange, Me, DeviceToken, AssistanceLimits, SubjectLimits, AuditEntry, AuditQuery, AuditVerification,
+    TorqueRaiseRefused,
 )  # fmt: skip

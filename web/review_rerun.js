@@ -36,6 +36,8 @@ export function rerunCard(trialId, hooks) {
   const rerunClear = h("button", { type: "button", "data-testid": "rerun-clear", text: "Remove overlay", disabled: true });
   const rerunError = errorBox("rerun-error");
   const rerunOk = h("p", { class: "ok", role: "status", "data-testid": "rerun-ok" });
+  // how the re-run's estimators began, and how far its torque is from the recorded one (rerun_series' answer)
+  const rerunFidelity = h("p", { class: "hint", "data-testid": "rerun-fidelity", hidden: true });
   const rerunLegend = h("ul", { class: "overlay-legend", "data-testid": "rerun-legend", "aria-label": "Estimators overlaid", hidden: true });
   const rerunStart = h("p", { class: "rerun-start", "data-testid": "rerun-start", text: "A re-run starts from the settings "
     + "that ran: those recorded when the trial began, then each recorded change at the moment it happened (listed below "
@@ -47,7 +49,7 @@ export function rerunCard(trialId, hooks) {
       + "(the phase the torque follows, the torque, the incline) is overlaid in purple; each estimator's own outputs in its colour." }),
     picker.el,
     h("fieldset", { class: "choices" }, h("legend", { text: "Settings" }), modeRecorded, modeWhatIf), modeNote,
-    editor.el, h("div", { class: "buttons" }, rerunBtn, rerunClear), rerunError, rerunOk, rerunLegend);
+    editor.el, h("div", { class: "buttons" }, rerunBtn, rerunClear), rerunError, rerunOk, rerunFidelity, rerunLegend);
   fence(el, "run");
   const radio = (label) => label.querySelector("input");
   const whatIf = () => radio(modeWhatIf).checked;
@@ -85,6 +87,7 @@ export function rerunCard(trialId, hooks) {
       const settings = asWhatIf ? editor.values() : null;
       const estimators = picker.request(); // null: the recorded stack, as recorded
       rerunOk.textContent = "re-running…";
+      showFidelity(null);
       // The model and anything the editor does not show come from the recorded settings.
       const body = { ...(asWhatIf ? { settings: { ...hooks.baseSettings(), ...settings } } : {}), ...(estimators ? { estimators } : {}) };
       const res = await api.rerun(trialId, body, { max_points: RERUN_POINTS });
@@ -98,6 +101,7 @@ export function rerunCard(trialId, hooks) {
         ? `Overlaid: ${whatIfText(settings)} (what if, over the whole trial). ${ran}`
         : `Overlaid: the recorded settings, ${changes} recorded change${changes === 1 ? "" : "s"} replayed`
           + `${estimators ? "" : " (what ran)"}. ${ran}`;
+      showFidelity(res);
     }).then(() => {
       rerunning = false;
       refresh();
@@ -111,9 +115,22 @@ export function rerunCard(trialId, hooks) {
     if (!changed.length) return "the settings the trial began with, held without its changes";
     return changed.map(([k, v]) => `${settingLabel(k)} ${fmt(v, (SETTING_LIMITS[k] && SETTING_LIMITS[k].digits) || 2)}`).join(", ");
   }
+  /** The re-run's largest torque difference from the recording, and how its estimators began (null: none shown). */
+  function showFidelity(res) {
+    const diff = res && Array.isArray(res.recorded_torque_diff_Nm) ? res.recorded_torque_diff_Nm[0] : null;
+    const start = res && Array.isArray(res.start) ? res.start[0] : "";
+    rerunFidelity.hidden = res === null || (diff == null && !start);
+    if (rerunFidelity.hidden) return rerunFidelity.replaceChildren();
+    const figure = diff == null ? "no recorded torque to compare with"
+      : diff === 0 ? "0 N·m (identical to what ran)" : `${fmt(diff, 3)} N·m`;
+    rerunFidelity.replaceChildren(h("span", { text: "Largest |torque difference| from the recording: " }),
+      h("span", { class: "num", "data-testid": "rerun-torque-diff", "data-value": diff == null ? "" : String(diff), text: figure }),
+      h("span", { text: `. ${start}` }));
+  }
   rerunClear.addEventListener("click", () => {
     rerunClear.disabled = true;
     rerunOk.textContent = "";
+    showFidelity(null);
     overlayLegend(rerunLegend, [], {});
     hooks.clear();
   });
