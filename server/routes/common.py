@@ -21,6 +21,7 @@ from gaitscope.sessions.errors import FREE_SPACE_HINT, DataFormatError, DiskFull
 from gaitscope.sessions.live.gp_learning import LearningRefused
 from gaitscope.sessions.live.manager import SessionStateError
 from gaitscope.sessions.live.runtime import ChangeNotSaved, SettingRejected
+from gaitscope.sessions.live.settings_change import TorqueRaiseRejected
 from gaitscope.sessions.store import Conflict, NotFound
 
 if TYPE_CHECKING:
@@ -67,7 +68,8 @@ ERROR_STATUS: dict[type[Exception], int] = {
 
 
 def install_error_handlers(app: FastAPI) -> None:
-    """Routes raise domain errors; these handlers turn them into ``{"detail": message}`` responses.
+    """Routes raise domain errors; these handlers turn them into ``{"detail": message}`` responses (a settings
+    change refused by the torque rule: ``{"detail": TorqueRaiseRefused}``, its peaks before and after).
 
     A full disk is 507 wherever it is met: :class:`~gaitscope.sessions.errors.DiskFull`, a domain error raised
     from one (a change not saved), and the database's or the file system's own error (SQLite's
@@ -77,6 +79,8 @@ def install_error_handlers(app: FastAPI) -> None:
         async def handle(_: Request, exc: Exception) -> JSONResponse:
             if code != status.HTTP_507_INSUFFICIENT_STORAGE and is_disk_full(exc):
                 return _disk_full(f"{exc}: the server's disk is full; {FREE_SPACE_HINT}")
+            if isinstance(exc, TorqueRaiseRejected):  # the peaks before and after, for the client to show
+                return JSONResponse({"detail": exc.detail.model_dump(mode="json")}, status_code=code)
             return JSONResponse({"detail": str(exc)}, status_code=code)
 
         return handle

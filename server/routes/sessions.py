@@ -84,17 +84,20 @@ async def stop_session(session_id: Id, c: Ctx, who: Runner) -> schema.Session:
 
 @router.patch("/sessions/{session_id}/settings")
 async def change_settings(session_id: Id, body: schema.SettingsChange, c: Ctx, who: Assistant) -> schema.Session:
+    """Change a running session's settings. A change that can raise the torque on the person (a raise of the torque
+    gain, the maximum torque or the intent boost, a switch of the primary) needs ``confirm``: without it the answer is
+    409 with a ``TorqueRaiseRefused`` naming the peak torque before and after, to show and resend confirmed; at most
+    one such change every ``TORQUE_RAISE_INTERVAL_S`` (``gaitscope.sessions.live.torque_rule``)."""
     runtime = c.manager.get(session_id)
     if runtime is None:
         c.store.get_session(session_id)
         raise SessionStateError(not_running_here(c, session_id, "; settings change only while it runs"))
-    requested = body.model_dump(exclude={"actor", "reason"}, exclude_none=True)
+    requested = body.model_dump(exclude={"actor", "reason", "confirm"}, exclude_none=True)
     check_assistance(c, who, runtime.session.subject_id, requested)
     current = runtime.session.settings.model_dump()
     before = {k: current[k] for k in requested}
-    await audited(
-        c, who, "settings.change", f"session {session_id}", before=before, after=requested, detail=body.reason
-    )
+    after = {**requested, "confirm": True} if body.confirm else requested  # a confirmed change says so
+    await audited(c, who, "settings.change", f"session {session_id}", before=before, after=after, detail=body.reason)
     return await runtime.change_settings_async(by(body, who))  # stored (off the loop) before it is applied
 
 

@@ -224,7 +224,8 @@ async def _pump(ws: WebSocket, runtime: SessionRuntime, sub: Subscriber, batch_s
 
 @router.post("/api/sessions/{session_id}/settings/undo")
 async def undo_settings(session_id: Id, body: schema.SettingsUndo, c: Ctx, who: Assistant) -> schema.Session:
-    """Undo the session's last applied settings change (409 with the reason when it cannot be, now)."""
+    """Undo the session's last applied settings change (409 with the reason when it cannot be, now; an undo that can
+    raise the torque on the person needs ``confirm``, as a settings change does)."""
     runtime = c.manager.get(session_id)
     if runtime is None:
         c.store.get_session(session_id)  # 404 for an unknown session
@@ -232,14 +233,16 @@ async def undo_settings(session_id: Id, body: schema.SettingsUndo, c: Ctx, who: 
     subject_id = runtime.session.subject_id
 
     def check(change: schema.SettingsChange) -> None:
-        requested = change.model_dump(exclude={"actor", "reason"}, exclude_none=True)
+        requested = change.model_dump(exclude={"actor", "reason", "confirm"}, exclude_none=True)
         check_assistance(c, who, subject_id, requested)
         current = runtime.session.settings.model_dump()
         before = {k: current[k] for k in requested}
-        audit(c, who, "settings.undo", f"session {session_id}", before=before, after=requested, detail=change.reason)
+        after = {**requested, "confirm": True} if change.confirm else requested
+        audit(c, who, "settings.undo", f"session {session_id}", before=before, after=after, detail=change.reason)
 
     events = await asyncio.to_thread(c.store.list_events, session_id)  # a read off the loop, as the write is
-    return await undo_last_change(runtime, events, who.name, check=check)
+    # an undo that can raise the torque is held to the torque rule as any change: confirmed (body.confirm), rate-limited
+    return await undo_last_change(runtime, events, who.name, check=check, confirm=body.confirm)
 
 
 @router.websocket("/ws/devices/{session_id}")

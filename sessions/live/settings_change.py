@@ -2,7 +2,10 @@
 
 A change is checked against the settings in effect (bounds by the schema, rates of change by
 :data:`~gaitscope.sessions.schema.SETTING_LIMITS`, a switch of the primary at most once per
-:data:`~gaitscope.sessions.schema.PRIMARY_SWITCH_INTERVAL_S`), stored with its events in one transaction by the
+:data:`~gaitscope.sessions.schema.PRIMARY_SWITCH_INTERVAL_S`, and the rule for changes that can raise the torque
+on the person, :mod:`gaitscope.sessions.live.torque_rule`: confirmed, with the peak torque before and after, at
+most one every :data:`~gaitscope.sessions.schema.TORQUE_RAISE_INTERVAL_S`; lowering the torque gain, the maximum
+torque or the intent boost is never held back by a rate), stored with its events in one transaction by the
 database writer, and applied only then (the estimator retuned, the settings and events recorded and sent), so
 that what runs is always what the database and the rate limits say. While it is being stored the session's
 samples wait for it (:meth:`SettingsChanges.applied`), so that it applies at the sample its events name.
@@ -14,18 +17,21 @@ from __future__ import annotations
 import asyncio
 import functools
 import logging
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from gaitscope.sessions import schema
 from gaitscope.sessions.live.extensions import describe
+from gaitscope.sessions.live.torque_rule import RAISING, GaitState, TorqueRaise, assess, raising_fields, refusal
 from gaitscope.sessions.schema import SessionSettings, SettingsChange
+from gaitscope.sessions.stack import OWN_TORQUE
 from gaitscope.sessions.store_writer import Write
 
 if TYPE_CHECKING:
     from gaitscope.sessions.live.runtime import SessionRuntime
 
-__all__ = ["ChangeNotSaved", "SettingRejected", "SettingsChanges"]
+__all__ = ["ChangeNotSaved", "SettingRejected", "SettingsChanges", "TorqueRaiseRejected"]
 
 log = logging.getLogger("gaitscope")
 
@@ -34,6 +40,15 @@ _Stored = tuple[schema.Session, list[schema.Event]]
 
 class SettingRejected(ValueError):
     """A settings change that breaks a rate-of-change limit; the message says which and why."""
+
+
+class TorqueRaiseRejected(SettingRejected):
+    """A change that can raise the torque, refused by :mod:`~gaitscope.sessions.live.torque_rule` (not confirmed,
+    or too soon after the last): :attr:`detail` names the peak torque before and after (the 409's body)."""
+
+    def __init__(self, detail: schema.TorqueRaiseRefused):
+        super().__init__(detail.message)
+        self.detail = detail
 
 
 class ChangeNotSaved(RuntimeError):
@@ -50,6 +65,7 @@ class _Plan:
     events: list[dict[str, Any]]
     t: float
     now: float
+    raises: TorqueRaise | None = None
 
 
 class SettingsChanges:
@@ -63,6 +79,7 @@ class SettingsChanges:
         self.rt = runtime
         self.saving = False
         self._last_change: dict[str, float] = {}
+        self._last_raise: float | None = None  # the clock's time of the last change that could raise the torque
         self._applied = asyncio.Event()
 
     def change(self, change: SettingsChange) -> schema.Session:
@@ -165,6 +182,8 @@ class SettingsChanges:
         rt.estimator.retune(plan.new)
         for name in plan.fields:
             self._last_change[name] = plan.now
+        if plan.raises is not None:
+            self._last_raise = plan.now
 
         def write(recorder: Any) -> None:
             recorder.write("/settings", plan.t, plan.new)
@@ -181,14 +200,14 @@ class SettingsChanges:
         """The new settings and their events, checked against the limits (None: nothing changes).
 
         Raises:
-            SettingRejected: why not; nothing changed.
+            SettingRejected: why not; nothing changed (:class:`TorqueRaiseRejected`: the torque rule's refusal).
         """
         if self.saving:
             raise SettingRejected("another settings change is being saved; try again in a moment")
         current = self.rt.session.settings
         updates = {
             k: v
-            for k, v in change.model_dump(exclude={"actor", "reason"}).items()
+            for k, v in change.model_dump(exclude={"actor", "reason", "confirm"}).items()
             if v is not None and v != getattr(current, k)
         }
         now = self.rt.clock()
@@ -196,6 +215,8 @@ class SettingsChanges:
             if name == "primary":
                 self._check_primary(value, now)
                 continue
+            if name in RAISING and value < getattr(current, name):
+                continue  # lowering the torque is never held back (safety: it must always be possible)
             _, _, per_second = schema.SETTING_LIMITS[name]
             step = abs(value - getattr(current, name))
             if step > per_second + 1e-12:
@@ -213,6 +234,7 @@ class SettingsChanges:
         if not updates:
             return None
         new = current.model_copy(update=updates)
+        raises = self._torque_rule(change, current, new, updates, now)
         t, reason = self.rt.estimator.last_t, change.reason
         events = [
             {
@@ -228,7 +250,50 @@ class SettingsChanges:
             }
             for name, value in updates.items()
         ]
-        return _Plan(new, list(updates), events, t, now)
+        return _Plan(new, list(updates), events, t, now, raises)
+
+    def _torque_rule(
+        self,
+        change: SettingsChange,
+        current: SessionSettings,
+        new: SessionSettings,
+        updates: dict[str, Any],
+        now: float,
+    ) -> TorqueRaise | None:
+        """The torque rule (:mod:`~gaitscope.sessions.live.torque_rule`) for a change: None if it cannot raise
+        the torque, else its peaks, when it may be made.
+
+        Raises:
+            TorqueRaiseRejected: not confirmed, or too soon after the last change that could raise the torque.
+        """
+        fields = raising_fields(current, updates)
+        if not fields:
+            return None
+        stack = self.rt.estimator.stack
+        before = self._gait_state(stack.primary)
+        after = self._gait_state(new.primary) if "primary" in fields else before
+        raises = assess(current, new, fields, before, after, stack.mass_kg)
+        refused = refusal(raises, change.confirm, now, self._last_raise, schema.TORQUE_RAISE_INTERVAL_S)
+        if refused is not None:
+            raise TorqueRaiseRejected(refused)
+        return raises
+
+    def _gait_state(self, primary: str | None) -> GaitState:
+        """The gait state the peak torque of ``primary`` is computed at: its last stride length and incline, the
+        nominal ones where it has none (:mod:`gaitscope.sessions.peak_torque`)."""
+        stack = self.rt.estimator.stack
+        if primary is None or primary not in stack.names:
+            return GaitState(None, math.nan, math.nan, commands=False)  # nothing drives the torque: 0
+        k = stack.names.index(primary)
+        outputs = stack.outputs[k]
+        profile = None if OWN_TORQUE in outputs else stack.torque
+        last = self.rt.estimator.last
+        y = None if last is None else last.outputs[k]
+
+        def value(name: str) -> float:
+            return math.nan if y is None or name not in outputs else float(y[outputs.index(name)])
+
+        return GaitState(profile, value("stride_length_m") / stack.leg_length, value("incline_deg"))
 
     def _check_primary(self, name: str, now: float) -> None:
         """A switch of the primary: to an estimator of the stack that estimates a phase and has not failed,

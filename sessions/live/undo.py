@@ -30,11 +30,15 @@ def last_change(events: list[schema.Event]) -> list[schema.Event]:
     return group
 
 
-def undo_change(runtime: SessionRuntime, events: list[schema.Event], actor: str) -> schema.SettingsChange:
+def undo_change(
+    runtime: SessionRuntime, events: list[schema.Event], actor: str, confirm: bool = False
+) -> schema.SettingsChange:
     """The settings change that sets the fields of the newest change back to their values before it.
 
     The undo is a settings change like any other (``SessionRuntime.change_settings`` or its async twin): the
-    same bounds and rate limits, and one setting event per field, its text saying which change it undid.
+    same bounds and rate limits, the same rule for a change that can raise the torque (``confirm``, the user's
+    confirmation of it; :mod:`gaitscope.sessions.live.torque_rule`), and one setting event per field, its text
+    saying which change it undid.
 
     Raises:
         SettingRejected: nothing to undo, or a field has changed since by other means (the primary after a
@@ -58,6 +62,7 @@ def undo_change(runtime: SessionRuntime, events: list[schema.Event], actor: str)
             **{e.field: e.before for e in group if e.field},
             "actor": actor,
             "reason": f"undo of {undone} by {group[0].actor}"[:500],
+            "confirm": confirm,
         }
     )
 
@@ -67,16 +72,18 @@ async def undo_last_change(
     events: list[schema.Event],
     actor: str,
     check: Callable[[schema.SettingsChange], None] | None = None,
+    confirm: bool = False,
 ) -> schema.Session:
     """Undo the newest settings change (:func:`undo_change`), stored while the event loop runs on
     (``SessionRuntime.change_settings_async``). ``check``, when given, sees the change first and may refuse it
-    by raising (the caller's rights, its audit entry).
+    by raising (the caller's rights, its audit entry). ``confirm``: the user confirmed an undo that can raise the
+    torque (without it such an undo is refused with the peaks before and after, ``TorqueRaiseRejected``).
 
     Raises:
-        SettingRejected: as :func:`undo_change`, or a rate limit (the message says how long to wait);
-            nothing changed.
+        SettingRejected: as :func:`undo_change`, or a rate limit (the message says how long to wait), or the
+            torque rule; nothing changed.
     """
-    change = undo_change(runtime, events, actor)
+    change = undo_change(runtime, events, actor, confirm)
     if check is not None:
         check(change)
     return await runtime.change_settings_async(change)

@@ -145,7 +145,7 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     # set): the controls and the events follow ------------------------------------------------------------------
     limits = {"torque_gain": 2.0, "max_torque_Nm": 40.0, "intent_gain_boost": 0.3}
     client(server, "clinician").call("PUT", f"/api/subjects/{subject_id}/assistance-limits", limits)
-    _patch(server, f"/api/sessions/{session_id}/settings", {"max_torque_Nm": 35.0})
+    _patch(server, f"/api/sessions/{session_id}/settings", {"max_torque_Nm": 35.0, "confirm": True})
     expect(page.get_by_test_id("setting-max_torque_Nm")).to_have_value("35")
     expect(page.get_by_test_id("setting-max_torque_Nm-note")).to_have_text("changed elsewhere to 35.0")
     expect(setting_row).to_have_count(2)

@@ -403,7 +403,7 @@ def test_after_a_restart_the_page_says_what_happened_and_starts_a_new_session(
 ) -> None:
     base = live_server.base
     sid = _sim_session(base, "RST1")
-    call(base, "PATCH", f"/api/sessions/{sid}/settings", {"torque_gain": 1.2})
+    call(base, "PATCH", f"/api/sessions/{sid}/settings", {"torque_gain": 1.2, "confirm": True})
     page = _open(wide, base, sid)
     expect(page.get_by_test_id("live-indicator")).to_have_text("LIVE", timeout=20_000)
     old = live_server.server

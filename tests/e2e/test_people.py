@@ -57,7 +57,7 @@ def people(server: str) -> dict[str, Any]:
         ids[code] = _call(server, "POST", "/api/subjects", {"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})["id"]
     s = _call(server, "POST", "/api/sessions", {"subject_id": ids["PPL-A"], "source": WALK})
     session_time(server, s["id"], 4.0)
-    _call(server, "PATCH", f"/api/sessions/{s['id']}/settings", {"torque_gain": 1.3})
+    _call(server, "PATCH", f"/api/sessions/{s['id']}/settings", {"torque_gain": 1.3, "confirm": True})
     session_time(server, s["id"], 9.0)
     _call(server, "POST", f"/api/sessions/{s['id']}/stop")
     trials = _call(server, "GET", f"/api/trials?session_id={s['id']}")

@@ -88,7 +88,9 @@ def test_review(server: str, watched: Watched, recording: dict[str, Any]) -> Non
     # another clinician raises the gain during the trial; then the recording stops
     t0 = session_time(server, session["id"])
     session_time(server, session["id"], t0 + 2.5)
-    call(server, "PATCH", f"/api/sessions/{session['id']}/settings", {"torque_gain": 1.3}, user="admin")
+    call(
+        server, "PATCH", f"/api/sessions/{session['id']}/settings", {"torque_gain": 1.3, "confirm": True}, user="admin"
+    )
     session_time(server, session["id"], t0 + 6.5)
     stopped = call(server, "POST", f"/api/sessions/{session['id']}/recording", {"action": "stop"})
     assert stopped["status"] == "finished" and stopped["id"] == tid

@@ -109,7 +109,7 @@ def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Live]:
         ("GET", "/", None),  # the UI itself
         ("GET", "/docs", None),
         ("POST", "/api/sessions/{sid}/stop", None),
-        ("PATCH", "/api/sessions/{sid}/settings", {"torque_gain": 1.5}),
+        ("PATCH", "/api/sessions/{sid}/settings", {"torque_gain": 1.5, "confirm": True}),
     ],
 )
 def test_rebound_host_is_refused_on_every_route(live: Live, method: str, path: str, body: Any) -> None:

@@ -206,7 +206,7 @@ def test_the_setting_is_validated_and_rate_limited_like_every_other(client: Test
     assert runtime.settings.intent_gain_boost == 0.0  # off by default
     with pytest.raises(SettingRejected, match=r"intent_gain_boost may change by at most 0\.1"):
         runtime.change_settings(schema.SettingsChange(intent_gain_boost=0.3))
-    runtime.change_settings(schema.SettingsChange(intent_gain_boost=0.1, reason="try it"))
+    runtime.change_settings(schema.SettingsChange(intent_gain_boost=0.1, reason="try it", confirm=True))
     with pytest.raises(SettingRejected, match="intent_gain_boost changed"):
         runtime.change_settings(schema.SettingsChange(intent_gain_boost=0.2))
     ctx = client.app.state.ctx  # type: ignore[attr-defined]

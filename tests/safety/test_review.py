@@ -30,7 +30,7 @@ RATE_HZ = 100.0  # the device's rate; the live estimator, not told it, runs with
 ALL = 20000  # max_points above every trial's length: no decimation
 #: (frame index before which the change is made, change); steps within SETTING_LIMITS' rates.
 CHANGES = (
-    (550, schema.SettingsChange(torque_gain=1.5, reason="more push-off")),
+    (550, schema.SettingsChange(torque_gain=1.5, reason="more push-off", confirm=True)),
     (800, schema.SettingsChange(max_torque_Nm=20.0)),
     (950, schema.SettingsChange(measurement_noise_scale=3.0)),
 )

@@ -52,11 +52,11 @@ def test_session_runs_records_and_reviews(client: TestClient, tmp_path: Path) ->
 def test_settings_change_is_validated_rate_limited_and_recorded(client: TestClient) -> None:
     s = session(client)
     url = f"/api/sessions/{s['id']}/settings"
-    r = client.patch(url, json={"torque_gain": 1.4, "actor": "local", "reason": "more push-off"})
+    r = client.patch(url, json={"torque_gain": 1.4, "actor": "local", "reason": "more push-off", "confirm": True})
     assert r.status_code == 200 and r.json()["settings"]["torque_gain"] == 1.4
-    r = client.patch(url, json={"torque_gain": 1.8})  # a second step right away breaks the rate limit
+    r = client.patch(url, json={"torque_gain": 1.8, "confirm": True})  # a second step right away breaks the rate limit
     assert r.status_code == 409 and "torque_gain" in r.json()["detail"]
-    r = client.patch(url, json={"torque_gain": 2.5})  # a step of 1.1 is never allowed at once
+    r = client.patch(url, json={"torque_gain": 2.5, "confirm": True})  # a step of 1.1 is never allowed at once
     assert r.status_code == 409 and "at most 0.5" in r.json()["detail"]
     r = client.patch(url, json={"max_torque_Nm": 500})
     assert r.status_code == 422

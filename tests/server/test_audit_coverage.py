@@ -146,7 +146,7 @@ def test_each_audited_route_writes_its_entry_when_it_succeeds(client: TestClient
     ids["session_id"] = d.call("POST", "/api/sessions", {}, json=body)["id"]
     d.call("POST", "/api/sessions/{session_id}/start", ids)
     d.call("PATCH", "/api/sessions/{session_id}/settings", ids, json={"torque_gain": 0.9})
-    d.call("POST", "/api/sessions/{session_id}/settings/undo", ids, json={})
+    d.call("POST", "/api/sessions/{session_id}/settings/undo", ids, json={"confirm": True})  # it raises
     d.call("POST", "/api/sessions/{session_id}/annotations", ids, json={"text": "stumbled"})
     d.call("POST", "/api/sessions/{session_id}/recording", ids, json={"action": "start"})
     d.call("POST", "/api/sessions/{session_id}/gp-learning", ids, json={"action": "freeze"})

@@ -102,32 +102,37 @@ def test_who_is_the_login_never_the_body(app: TestClient) -> None:
     _, sid = _subject_and_session(app, cleo, {"kind": "simulated"})
     r = app.post(f"/api/sessions/{sid}/annotations", json={"text": "step", "actor": "mallory"}, headers=cleo)
     assert r.status_code == 201 and r.json()["actor"] == "cleo"
-    r = app.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.1, "actor": "mallory"}, headers=cleo)
+    r = app.patch(
+        f"/api/sessions/{sid}/settings", json={"torque_gain": 1.1, "actor": "mallory", "confirm": True}, headers=cleo
+    )
     assert r.status_code == 200
     events = app.get(f"/api/sessions/{sid}/events", headers=cleo).json()
     assert {e["actor"] for e in events if e["kind"] in ("annotation", "setting")} == {"cleo"}
     audit = app.get("/api/audit", params={"action": "settings.change"}, headers=login(app, "ada")).json()
     assert [(e["user"], e["role"], json.loads(e["before"]), json.loads(e["after"])) for e in audit] == [
-        ("cleo", "clinician", {"torque_gain": 1.0}, {"torque_gain": 1.1})
+        ("cleo", "clinician", {"torque_gain": 1.0}, {"torque_gain": 1.1, "confirm": True})  # a confirmed raise
     ]
 
 
 def test_an_experimenter_changes_assistance_only_within_the_clinicians_limits(app: TestClient) -> None:
     cleo, eve = login(app, "cleo"), login(app, "eve")
     subject, sid = _subject_and_session(app, cleo, {"kind": "simulated"})
-    r = app.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.1}, headers=eve)
+    r = app.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.1, "confirm": True}, headers=eve)
     assert r.status_code == 403 and "no assistance limits" in r.json()["detail"]
     noise = app.patch(f"/api/sessions/{sid}/settings", json={"measurement_noise_scale": 2.0}, headers=eve)
     assert noise.status_code == 200  # estimator tuning is the experimenter's
     limits = {"torque_gain": 1.2, "max_torque_Nm": 25.0, "intent_gain_boost": 0.1}
     assert app.put(f"/api/subjects/{subject}/assistance-limits", json=limits, headers=eve).status_code == 403
     assert app.put(f"/api/subjects/{subject}/assistance-limits", json=limits, headers=cleo).status_code == 200
-    over = app.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.3}, headers=eve)
+    over = app.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.3, "confirm": True}, headers=eve)
     assert over.status_code == 403 and "torque_gain 1.3 over the limit of 1.2" in over.json()["detail"]
     assert app.get(f"/api/sessions/{sid}", headers=eve).json()["settings"]["torque_gain"] == 1.0  # unchanged
-    r = app.patch(f"/api/sessions/{sid}/settings", json={"primary": "tbe"}, headers=eve)
+    r = app.patch(f"/api/sessions/{sid}/settings", json={"primary": "tbe", "confirm": True}, headers=eve)
     assert r.status_code == 403 and "estimator driving the torque" in r.json()["detail"]
-    assert app.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.15}, headers=eve).status_code == 200
+    assert (
+        app.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.15, "confirm": True}, headers=eve).status_code
+        == 200
+    )
     refused = app.get("/api/audit", params={"outcome": "refused"}, headers=login(app, "ada")).json()
     assert any(e["user"] == "eve" and "403" in e["detail"] for e in refused)
 

@@ -78,14 +78,12 @@ def test_undo_sets_back_the_last_change_and_is_logged(client: TestClient) -> Non
     r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})
     assert r.status_code == 409 and r.json()["detail"] == "nothing to undo: no setting has been changed in this session"
     r = client.patch(
-        f"/api/sessions/{sid}/settings", json={"torque_gain": 1.3, "max_torque_Nm": 35, "actor": "experimenter"}
+        f"/api/sessions/{sid}/settings",
+        json={"torque_gain": 1.3, "max_torque_Nm": 35, "actor": "experimenter", "confirm": True},
     )
     assert r.status_code == 200, r.text
     r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})
-    assert r.status_code == 409 and "try again in" in r.json()["detail"]  # the rate limit holds for an undo too
-    clock.advance(0.6)  # a step of 0.3 in gain needs 0.6 s
-    r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})
-    assert r.status_code == 200, r.text
+    assert r.status_code == 200, r.text  # an undo that lowers the torque is never held back
     assert r.json()["settings"]["torque_gain"] == 1.0 and r.json()["settings"]["max_torque_Nm"] == 30.0
     events = _event_texts(client, sid)
     assert [(e["field"], e["before"], e["after"], e["actor"]) for e in events[-2:]] == [
@@ -93,10 +91,16 @@ def test_undo_sets_back_the_last_change_and_is_logged(client: TestClient) -> Non
         ("max_torque_Nm", 35.0, 30.0, "local"),
     ]
     assert "(undo of torque_gain 1.0 -> 1.3, max_torque_Nm 30.0 -> 35.0 by local)" in events[-2]["text"]
+    r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician", "confirm": True})
+    assert r.status_code == 409  # undoing the undo raises the torque: the undo was a change too, its own 0.6 s
+    assert "torque_gain changed" in r.json()["detail"]
+    clock.advance(1.5)
+    r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician", "confirm": True})
+    assert r.status_code == 409 and r.json()["detail"]["reason"] == "too_soon"  # 3 s after the last raise
+    clock.advance(1.5)
     r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})
-    assert r.status_code == 409  # the undo was a change too: its own 0.6 s
-    clock.advance(0.6)
-    r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician"})  # undoing the undo
+    assert r.status_code == 409 and r.json()["detail"]["reason"] == "confirm"  # it raises the torque: it asks
+    r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician", "confirm": True})
     assert r.status_code == 200 and r.json()["settings"]["torque_gain"] == 1.3
 
 

@@ -51,7 +51,12 @@ def test_cross_origin_websockets_are_refused(client: TestClient) -> None:
 def test_same_origin_and_devices_pass(client: TestClient) -> None:
     sid = _session(client)
     same = {"origin": "http://testserver"}
-    assert client.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.2}, headers=same).status_code == 200
+    assert (
+        client.patch(
+            f"/api/sessions/{sid}/settings", json={"torque_gain": 1.2, "confirm": True}, headers=same
+        ).status_code
+        == 200
+    )
     with client.websocket_connect(device_path(client, sid)) as ws:  # a device sends no Origin
         ws.send_json({"type": "frame", "seq": 0, "t": 0.0, "foot_angle_deg": 5.0})
         assert ws.receive_json()["type"] == "torque"
@@ -68,7 +73,7 @@ def test_rebound_host_is_refused_for_reads_writes_and_websockets(client: TestCli
     sid = _session(client)
     r = client.get("/api/sessions", headers=REBOUND)
     assert r.status_code == 400 and r.json() == {"detail": NOT_ALLOWED}
-    r = client.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.2}, headers=REBOUND)
+    r = client.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.2, "confirm": True}, headers=REBOUND)
     assert r.status_code == 400 and r.json() == {"detail": NOT_ALLOWED}
     assert client.get(f"/api/sessions/{sid}").json()["settings"]["torque_gain"] == 1.0
     for path in (f"/ws/devices/{sid}", f"/ws/sessions/{sid}"):

@@ -16,7 +16,7 @@ def trial(client: TestClient) -> tuple[int, int]:
     """(session id, trial id) of a finished 3-second recording of a simulated walk, with a gain change."""
     s = session(client)
     wait_samples(client, s["id"], 1.0)
-    r = client.patch(f"/api/sessions/{s['id']}/settings", json={"torque_gain": 1.3, "actor": "dr-k"})
+    r = client.patch(f"/api/sessions/{s['id']}/settings", json={"torque_gain": 1.3, "actor": "dr-k", "confirm": True})
     assert r.status_code == 200, r.text
     wait_samples(client, s["id"], 3.0)
     client.post(f"/api/sessions/{s['id']}/stop")

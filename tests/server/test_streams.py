@@ -71,7 +71,9 @@ def test_health_and_settings_reach_every_client(client: TestClient) -> None:
         client.websocket_connect(f"/ws/sessions/{sid}?max_rate_hz=20") as b,
     ):
         json.loads(a.receive_text()), json.loads(b.receive_text())
-        assert client.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.3}).status_code == 200
+        assert (
+            client.patch(f"/api/sessions/{sid}/settings", json={"torque_gain": 1.3, "confirm": True}).status_code == 200
+        )
         for ws in (a, b):
             other: list[dict] = []
             deadline = time.monotonic() + 10

@@ -361,7 +361,7 @@ def test_a_running_session_records_streams_and_reports_every_estimator(
     frames = frames_from_table(sensors)
     for i, frame in enumerate(frames):
         if i == 300:
-            runtime.change_settings(schema.SettingsChange(primary="tbe", reason="compare"))
+            runtime.change_settings(schema.SettingsChange(primary="tbe", reason="compare", confirm=True))
             with pytest.raises(SettingRejected, match="switches are at least 2 s apart"):
                 runtime.change_settings(schema.SettingsChange(primary="phase_ekf"))
             for name, why in (("broken", "has failed"), ("nope", "not in the session's stack")):

@@ -199,5 +199,5 @@ def test_a_restart_leaves_another_nodes_running_session_alone(tmp_path: Path) ->
         assert [t["status"] for t in client.get("/api/trials").json()] == ["recording"]  # theirs, still recording
         r = client.post(f"/api/sessions/{theirs.id}/stop")
         assert r.status_code == 409 and "runs on other-host:8000: stop it there" in r.json()["detail"]
-        r = client.patch(f"/api/sessions/{theirs.id}/settings", json={"torque_gain": 1.2})
+        r = client.patch(f"/api/sessions/{theirs.id}/settings", json={"torque_gain": 1.2, "confirm": True})
         assert r.status_code == 409 and "runs on other-host:8000, not on this server" in r.json()["detail"]

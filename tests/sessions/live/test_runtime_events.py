@@ -40,19 +40,20 @@ def _runtime(
 
 
 def test_the_rate_limits_of_settings_changes_read_the_injected_clock(client: TestClient) -> None:
-    """A step of 0.1 in the gain (0.5/s) needs 0.2 s before the next: the session's clock says when, not the
-    machine's."""
+    """A step of 1 in the measurement-noise scale (5/s) needs 0.2 s before the next: the session's clock says when,
+    not the machine's. (Lowering the torque is never held back: the torque settings' rates hold back raises.)"""
     now = [100.0]
     writer = StoreWriter()
     try:
         runtime = _runtime(client, writer, "RE04", clock=lambda: now[0])
-        runtime.change_settings(schema.SettingsChange(torque_gain=0.9, actor="ann"))
+        runtime.change_settings(schema.SettingsChange(measurement_noise_scale=2.0, actor="ann"))
         now[0] += 0.19
-        with pytest.raises(SettingRejected, match=r"torque_gain changed 0\.19 s ago.*try again in 0\.01 s"):
-            runtime.change_settings(schema.SettingsChange(torque_gain=0.8, actor="ann"))
-        assert runtime.settings.torque_gain == 0.9
+        with pytest.raises(SettingRejected, match=r"measurement_noise_scale changed 0\.19 s ago.*try again in 0\.01 s"):
+            runtime.change_settings(schema.SettingsChange(measurement_noise_scale=3.0, actor="ann"))
+        assert runtime.settings.measurement_noise_scale == 2.0
         now[0] += 0.02
-        assert runtime.change_settings(schema.SettingsChange(torque_gain=0.8, actor="ann")).settings.torque_gain == 0.8
+        changed = runtime.change_settings(schema.SettingsChange(measurement_noise_scale=3.0, actor="ann"))
+        assert changed.settings.measurement_noise_scale == 3.0
     finally:
         writer.close()
 
@@ -119,7 +120,7 @@ def test_a_settings_change_is_stored_before_it_is_applied_and_after_the_events_b
     writer.close()
     now[0] += 0.2  # past the rate limit of a 0.1 step
     try:
-        runtime.change_settings(schema.SettingsChange(torque_gain=1.0, actor="ann"))
+        runtime.change_settings(schema.SettingsChange(torque_gain=1.0, actor="ann", confirm=True))
     except ChangeNotSaved as e:
         assert "could not be saved" in str(e)
     else:
