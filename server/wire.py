@@ -23,6 +23,7 @@ from typing import Any, Final
 
 from gaitscope.estimators.descriptor import QUANTITY_NAMES, Descriptor
 from gaitscope.sessions import registry, schema
+from gaitscope.sessions.live.torque_rule import RAISING
 
 __all__ = ["COMMAND", "render", "write"]
 
@@ -77,6 +78,16 @@ def render() -> str:
             "Bounds of every clinician-adjustable setting (`SETTING_LIMITS`): minimum, maximum, and the largest\n"
             "change per second (the server also spaces two changes of a field by `step / rate` seconds).",
             "Readonly<Record<string, {min: number, max: number, rate: number}>>",
+        )
+    )
+    parts.append(
+        _const(
+            "TORQUE_RULE",
+            {"interval_s": schema.TORQUE_RAISE_INTERVAL_S, "raising": [*RAISING, "primary"]},
+            "The rule for a settings change that can raise the torque (`gaitscope.sessions.live.torque_rule`): the\n"
+            "settings whose rise (or, the primary, whose switch) asks for a confirmation, and the least time between\n"
+            "two such changes (`TORQUE_RAISE_INTERVAL_S`). Lowering never asks and is never held back.",
+            "Readonly<{interval_s: number, raising: Array<string>}>",
         )
     )
     sensors = {k: {"min": lo, "max": hi} for k, (lo, hi) in schema.SENSOR_LIMITS.items()}

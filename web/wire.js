@@ -1099,6 +1099,14 @@ export const SETTING_LIMITS = deepFreeze({
 });
 
 /**
+ * The rule for a settings change that can raise the torque (`gaitscope.sessions.live.torque_rule`): the
+ * settings whose rise (or, the primary, whose switch) asks for a confirmation, and the least time between
+ * two such changes (`TORQUE_RAISE_INTERVAL_S`). Lowering never asks and is never held back.
+ * @type {Readonly<{interval_s: number, raising: Array<string>}>}
+ */
+export const TORQUE_RULE = deepFreeze({ interval_s: 3.0, raising: ["torque_gain", "max_torque_Nm", "intent_gain_boost", "primary"] });
+
+/**
  * Physically plausible range of each sensor channel (`SENSOR_LIMITS`); a value outside it is treated
  * as missing for that sample.
  * @type {Readonly<Record<string, {min: number, max: number}>>}
