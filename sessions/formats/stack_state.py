@@ -9,8 +9,8 @@ Foxglove opens the file and lists it like any other message). :func:`restore` gi
 re-run stepping the trial's frames through it reproduces what ran bit for bit
 (:mod:`gaitscope.sessions.review.rerun`).
 
-The gait model (:class:`~gaitscope.estimators.pipeline.TrainedModel`, most of the bytes) is not stored: it is a
-reference that :func:`restore` resolves to the model the recorded settings name, as a re-run builds one.
+The gait model (:class:`~gaitscope.estimators.pipeline.TrainedModel`) is not stored: it and its arrays are
+references that :func:`restore` resolves in the model the recorded settings name, as a re-run builds one.
 
 A recording is a file a user can upload, so the pickle is loaded as hostile data ("Restricting Globals" in the
 :mod:`pickle` documentation): :class:`_Unpickler` resolves only classes defined in the modules of
@@ -108,20 +108,15 @@ class _View:
 
 
 class _Pickler(pickle.Pickler):
-    """Pickles an estimator with its gait model as a reference (the first :class:`TrainedModel` met), and
+    """Pickles an estimator with its gait model and the model's parts (:func:`_model_parts`) as references, and
     arrays that are views of another as views of it (:class:`_View`)."""
 
-    def __init__(self, file: io.BytesIO):
+    def __init__(self, file: io.BytesIO, model: TrainedModel):
         super().__init__(file, protocol=5)
-        self.model: TrainedModel | None = None
+        self.parts = {id(obj): path for path, obj in _model_parts(model).items()}
 
     def persistent_id(self, obj: Any) -> str | None:
-        if isinstance(obj, TrainedModel):
-            if self.model is None:
-                self.model = obj
-            if obj is self.model:
-                return _MODEL
-        return None
+        return self.parts.get(id(obj))
 
     def reducer_override(self, obj: Any) -> Any:
         if type(obj) is np.ndarray:
@@ -137,7 +132,7 @@ class _Unpickler(pickle.Unpickler):
 
     def __init__(self, file: io.BytesIO, model: TrainedModel):
         super().__init__(file)
-        self.model = model
+        self.parts = _model_parts(model)
 
     def find_class(self, module: str, name: str) -> Any:
         if (module, name) in _OTHERS:
@@ -152,16 +147,31 @@ class _Unpickler(pickle.Unpickler):
         raise StateRefused(f"the recorded estimation state names {module}.{name}, which is not allowed")
 
     def persistent_load(self, pid: Any) -> Any:
-        if pid == _MODEL:
-            return self.model
+        if isinstance(pid, str) and pid in self.parts:
+            return self.parts[pid]
         raise StateRefused(f"the recorded estimation state refers to {str(pid)[:40]!r}, which is not allowed")
 
 
-def capture(estimator: FrameEstimator) -> bytes:
-    """The whole state of ``estimator`` between two samples, as a pickle without its gait model."""
+def capture(estimator: FrameEstimator, model: TrainedModel) -> bytes:
+    """The whole state of ``estimator`` between two samples, as a pickle without its gait model ``model``."""
     buf = io.BytesIO()
-    _Pickler(buf).dump(estimator)
+    _Pickler(buf, model).dump(estimator)
     return buf.getvalue()
+
+
+def _model_parts(model: TrainedModel) -> dict[str, object]:
+    """The gait model and the data it is made of (its fields, their arrays and fields), by a path that names
+    them (``model``, ``model.noise``, ``model.noise.residual_cov``): what a state refers to rather than holds.
+    Data only (arrays, dataclasses): nothing a pickle could call."""
+    parts: dict[str, object] = {_MODEL: model}
+    for name, value in vars(model).items():
+        if isinstance(value, np.ndarray) or (hasattr(value, "__dict__") and not callable(value)):
+            parts[f"{_MODEL}.{name}"] = value
+            if not isinstance(value, np.ndarray):
+                for inner, x in vars(value).items():
+                    if isinstance(x, np.ndarray):
+                        parts[f"{_MODEL}.{name}.{inner}"] = x
+    return parts
 
 
 def message(t: float, estimators: Sequence[str], data: bytes) -> schema.EstimationState:

@@ -101,7 +101,7 @@ class Trials:
         assert recorder is not None
         t = rt.estimator.last_t
         try:
-            data = stack_state.capture(rt.estimator)
+            data = stack_state.capture(rt.estimator, rt.model)
         except Exception as e:  # whatever pickling an estimator raises
             log.warning("session %d: the estimation state cannot be recorded: %s", rt.session.id, describe(e))
             return

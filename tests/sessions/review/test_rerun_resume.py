@@ -160,7 +160,7 @@ def test_the_recorded_state_is_small_and_quick_to_take(client: TestClient) -> No
     took = []
     for _ in range(5):
         t = time.perf_counter()
-        data = stack_state.capture(s.runtime.estimator)
+        data = stack_state.capture(s.runtime.estimator, s.runtime.model)
         took.append(time.perf_counter() - t)
     assert len(data) < 400_000  # the default stack's filters; the gait model is a reference
     assert min(took) < 0.02  # about 1 ms; bounded loosely here (a shared CI machine), measured in docs/results.md
