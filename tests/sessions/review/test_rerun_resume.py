@@ -132,6 +132,14 @@ def test_every_trial_reruns_bit_identically_across_switches_and_gain_changes(cli
     for tid in (first, second):
         rerun = _rerun(client, tid)
         _assert_identical(client, s.path(tid), tid, rerun)
+    # the A/B comparison's baseline (a run as recorded) is what ran: its torque is the recorded one, row for row
+    r = client.post(f"/api/trials/{second}/compare?max_points=2000", json={"runs": [{"name": "A"}, {"name": "B"}]})
+    assert r.status_code == 200, r.text
+    c = r.json()
+    recorded = client.get(f"/api/trials/{second}/series?max_points={ALL}").json()
+    torque = dict(zip(recorded["t"], recorded["torque_Nm"], strict=True))
+    assert len(c["t"]) > 300 and [torque[t] for t in c["t"]] == c["runs"][0]["torque_Nm"]
+    assert set(c["runs"][1]["torque_diff_Nm"]) == {0.0}
     # the recorded changes took effect in the second trial: both switches and the gains are on its timeline
     settings = [m for _, _, m in read_messages(s.path(second), ["/settings"])]
     assert [(m["primary"], m["torque_gain"]) for m in settings] == [
