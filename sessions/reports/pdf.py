@@ -21,7 +21,7 @@ from typing import Final
 import typst
 
 from gaitscope.sessions import schema
-from gaitscope.sessions.reports.summary import OVERLAY_SIGNALS
+from gaitscope.sessions.reports.summary import OVERLAY_SIGNALS, event_text
 from gaitscope.sessions.reports.svg import PALETTE, Line, line_chart
 
 __all__ = ["FIGURE_TITLES", "conditions_text", "duration_text", "profile_line", "render_pdf", "wall_text"]
@@ -224,7 +224,7 @@ def _document(summary: schema.SessionSummary, version: str, generated_utc: str, 
         "history": [{"t": f"{r.t:.1f}", "text": r.text} for r in summary.settings_history],
         "figures": [{"file": f"fig_{k}.svg", "caption": FIGURE_TITLES[k]} for k in FIGURE_TITLES if k in figures],
         "events": [
-            {"t": f"{e.t:.1f}", "kind": _KINDS.get(e.kind, e.kind), "text": e.text, "actor": e.actor}
+            {"t": f"{e.t:.1f}", "kind": _KINDS.get(e.kind, e.kind), "text": event_text(e), "actor": e.actor}
             for e in summary.events
         ],
     }

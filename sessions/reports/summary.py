@@ -49,6 +49,8 @@ __all__ = [
     "SETTING_NAMES",
     "SPEED_BIN",
     "TrialData",
+    "change_text",
+    "event_text",
     "history_rows",
     "read_trial",
     "session_summary",
@@ -128,9 +130,9 @@ def _learned_model(field: str) -> str | None:
     return d.learned_model if d is not None else None
 
 
-def setting_text(event: schema.Event) -> str:
-    """A setting change in words: ``"Torque gain 1.00 → 1.30, by clinician"`` (numbers with two decimals, the
-    setting's unit after them), ``"Torque follows Phase EKF (seed 000) → Timing-based estimate, by dr-k"``."""
+def change_text(event: schema.Event) -> str:
+    """A setting change in words: ``"Torque gain 1.00 → 1.30"`` (numbers with two decimals, the setting's unit
+    after them), ``"Torque follows Phase EKF (seed 000) → Timing-based estimate"``."""
     field = event.field or ""
     model = _learned_model(field)
     name, unit = schema.SETTING_NAMES.get(field, (model or field.replace("_", " ").capitalize() or "Setting", ""))
@@ -146,7 +148,18 @@ def setting_text(event: schema.Event) -> str:
             return f"{v:.2f}" + (f" {unit}" if unit and unit != "×" else "")
         return str(v)
 
-    return f"{name} {shown(event.before)} → {shown(event.after)}, by {event.actor}"
+    return f"{name} {shown(event.before)} → {shown(event.after)}"
+
+
+def setting_text(event: schema.Event) -> str:
+    """A setting change in words with its author: ``"Torque gain 1.00 → 1.30, by clinician"`` (:func:`change_text`)."""
+    return f"{change_text(event)}, by {event.actor}"
+
+
+def event_text(event: schema.Event) -> str:
+    """An event's text as a report shows it: a setting change in words (:func:`change_text`), never the stored
+    text with machine names (``primary phase_ekf -> tbe``); any other event's own text."""
+    return change_text(event) if event.kind == "setting" and event.field else event.text
 
 
 def history_rows(events: list[schema.Event]) -> list[schema.SettingChangeRow]:

@@ -103,3 +103,11 @@ def test_health_counts_gaps_and_missing_angles() -> None:
     h = sm._health([d2], [TRIAL])
     assert h.samples == d2.n and h.gaps == 1 and abs(h.longest_gap_s - 0.11) < 1e-9
     assert h.rate_hz == 100.0 and h.missing_percent == round(100 * 10 / d2.n, 2)
+
+
+def test_a_reports_event_text_is_in_words_not_the_stored_text() -> None:
+    ev = schema.Event(id=1, session_id=1, t=3.0, wall_utc="x", kind="setting", text="primary phase_ekf -> tbe",
+                      field="primary", before="phase_ekf", after="tbe", actor="dr-k")  # fmt: skip
+    assert sm.event_text(ev) == "Torque follows Phase EKF (seed 000) → Timing-based estimate"
+    note = ev.model_copy(update={"kind": "annotation", "text": "strap loose", "field": None})
+    assert sm.event_text(note) == "strap loose"
