@@ -10,6 +10,7 @@ clock injected), on the real app's database and data folder, and re-run through 
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -26,7 +27,14 @@ from gaitscope.sessions.formats.mcap_io import read_messages
 from gaitscope.sessions.live.runtime import SessionRuntime
 from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
 from gaitscope.sessions.review.rerun import NOT_RECORDED, REFUSED, RESUMED, START_KEY, TORQUE_DIFF_KEY
+from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+from gaitscope.sessions.synth.speed_walks import speed_walk
 from gaitscope.sessions.synth.trials import sensor_trial
+from tests.device_tokens import device_path
+from tests.sessions.live.test_gp_learning import CHANNELS as GP_CHANNELS
+from tests.sessions.live.test_gp_learning import WALK as GP_WALK
+from tests.sessions.live.test_gp_learning import _send as gp_send
+from tests.sessions.live.test_gp_learning import _session as gp_session
 
 ALL = 20000  # max_points above every trial's length: no decimation
 #: Columns a re-run cannot reproduce: the server's wall clock at arrival (0 in a re-run).
@@ -233,3 +241,36 @@ def test_a_missing_or_damaged_state_reruns_from_fresh_filters_and_says_so(
         assert ("checksum" in start) == (damage == "checksum") and ("os.system" in start) == (damage == "refused")
     # a trial that began mid-session then differs from what ran over its first strides, as before the state was kept
     assert fresh[TORQUE_DIFF_KEY][0] > 0.01 and _max_torque_diff(client, tid, fresh) == fresh[TORQUE_DIFF_KEY][0]
+
+
+@pytest.fixture(scope="module")
+def walk() -> tuple[list[dict[str, Any]], float, float]:
+    """A GP-EKF walk's device frames (as JSON objects) and the subject's leg length and mass (as
+    ``tests/sessions/live/test_gp_learning.py``'s)."""
+    subject = make_subjects(CohortSpec())[0]
+    table = speed_walk(subject, GP_WALK)
+    frames = frames_from_table(table[["time_s", *GP_CHANNELS]])
+    return [json.loads(f.model_dump_json(exclude_none=True)) for f in frames], subject.leg_length_m, subject.mass_kg
+
+
+def test_a_trial_that_begins_after_the_gp_ekf_learned_reruns_bit_identically(
+    client: TestClient, walk: tuple[list[dict[str, Any]], float, float]
+) -> None:
+    """The GP-EKF's learned model (v1, installed before the trial) and the next one (installed inside it) are
+    in force in the re-run exactly where they were live."""
+    frames = walk[0]
+    sid = gp_session(client, walk)
+    runtime = client.app.state.ctx.manager.get(sid)  # type: ignore[attr-defined]
+    with client.websocket_connect(device_path(client, sid)) as device:
+        gp_send(client, sid, device, frames, 9.0)
+        assert runtime.gp_learning.version >= 1  # learned before the trial
+        client.post(f"/api/sessions/{sid}/recording", json={"action": "stop"})
+        r = client.post(f"/api/sessions/{sid}/recording", json={"action": "start", "name": "after learning"})
+        assert r.status_code == 200, r.text
+        tid, before = r.json()["id"], runtime.gp_learning.version
+        gp_send(client, sid, device, frames, 20.0)
+        assert runtime.gp_learning.version > before  # another one installed inside the trial
+    client.post(f"/api/sessions/{sid}/stop")
+    ctx = client.app.state.ctx  # type: ignore[attr-defined]
+    path = Path(ctx.settings.data_dir) / ctx.store.get_trial(tid).path
+    _assert_identical(client, path, tid, _rerun(client, tid))
