@@ -214,7 +214,6 @@ PRIMARY_BLEND_S: Final = 0.5
 TORQUE_RAISE_INTERVAL_S: Final = 3.0
 
 
-
 def _setting(name: str, default: float | None, description: str | None = None) -> Any:
     """A field bounded by ``SETTING_LIMITS[name]`` (``ge`` its minimum, ``le`` its maximum)."""
     lo, hi, _ = SETTING_LIMITS[name]
@@ -291,6 +290,15 @@ class TorqueRaiseRefused(_Strict):
     peak_before_Nm: float = Field(ge=0.0, description="peak torque over a stride with the settings now")
     peak_after_Nm: float = Field(ge=0.0, description="peak torque over a stride with the change made")
     retry_after_s: float = Field(ge=0.0, description="how long until it may be made (0: now, with confirm)")
+
+class TorqueCheck(_Strict):
+    """``POST /api/sessions/{id}/settings/check``: what a settings change would do to the torque, changing nothing,
+    for a client to ask its user before it sends the change (which is judged again when sent)."""
+
+    fields: list[str] = Field(description="the settings of the change that can raise the torque ([]: it asks nothing)")
+    peak_before_Nm: float = Field(ge=0.0, description="peak torque over a stride with the settings now")
+    peak_after_Nm: float = Field(ge=0.0, description="peak torque over a stride with the change made")
+    retry_after_s: float = Field(ge=0.0, description="how long until a change that can raise the torque may be made")
 
 
 class ProtocolStep(_Strict):
@@ -1677,5 +1685,5 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     GPLearningState, GPLearningControl, SessionSummary, SummaryProgress, ExportCreate, ExportJob, CompareRequest,
     Comparison, ReviewAnnotationCreate, ReviewAnnotation, SettingsUndo, User, UserCreate, UserChange, LoginRequest,
     PasswordChange, Me, DeviceToken, AssistanceLimits, SubjectLimits, AuditEntry, AuditQuery, AuditVerification,
-    TorqueRaiseRefused,
+    TorqueRaiseRefused, TorqueCheck,
 )  # fmt: skip

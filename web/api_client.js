@@ -48,6 +48,7 @@ import { api, apiBytes, query } from "./api.js";
 /** @typedef {import("./wire.js").SubjectCreate} SubjectCreate */
 /** @typedef {import("./wire.js").SubjectLimits} SubjectLimits */
 /** @typedef {import("./wire.js").SummaryProgress} SummaryProgress */
+/** @typedef {import("./wire.js").TorqueCheck} TorqueCheck */
 /** @typedef {import("./wire.js").Trial} Trial */
 /** @typedef {import("./wire.js").Upload} Upload */
 /** @typedef {import("./wire.js").UploadCreate} UploadCreate */
@@ -606,6 +607,27 @@ export function changeSettingsUrl(sessionId) {
  */
 export function changeSettings(sessionId, body) {
   return api("PATCH", changeSettingsUrl(sessionId), body);
+}
+
+/**
+ * The address of `POST /api/sessions/{session_id}/settings/check`.
+ * @param {number} sessionId
+ * @returns {string}
+ */
+export function checkSettingsUrl(sessionId) {
+  return `/api/sessions/${_p(sessionId)}/settings/check`;
+}
+
+/**
+ * `POST /api/sessions/{session_id}/settings/check`: What a settings change would do to the torque of a
+ * running session, changing nothing: whether it needs ``confirm`` (``fields``), the peak torque before and
+ * after, how long until it may be made. The dashboard asks its user with it before it sends the change.
+ * @param {number} sessionId
+ * @param {SettingsChange} body
+ * @returns {Promise<TorqueCheck>}
+ */
+export function checkSettings(sessionId, body) {
+  return api("POST", checkSettingsUrl(sessionId), body);
 }
 
 /**

@@ -15,6 +15,10 @@
 // server's history), so the plots open full. The health box judges the figures (`live_health.js`); the stream
 // reconnects by itself, at once when the server is back, and says what happened to a session that ended.
 //
+// Issue #23: a status strip (`live_status.js`) above the panels holds what must stay in sight on a tablet: the
+// session's state and Stop, LIVE, the recording state (also in the header while a trial records) and the
+// summary figures; Space pauses and resumes the plots.
+//
 // Components (issue #22): the time plots and their ring (`live_plots.js`, whose plot specs the review shares),
 // the per-stride overlays and baseline (`live_strides.js`), the summary figures (`live_summary.js`), the
 // estimator stack and the primary's switch (`live_stack.js`), the panels (`live_layout.js`).
@@ -35,6 +39,7 @@ import { LiveStack } from "./live_stack.js";
 import { sessionEndBanner } from "./live_session_end.js";
 import { StrideCard } from "./live_strides.js";
 import { LiveSummary } from "./live_summary.js";
+import { liveStatus } from "./live_status.js";
 import { PlotGroup } from "./plots.js";
 import { onServerChange } from "./server_status.js";
 import { errorBox, h, showError } from "./ui.js";
@@ -88,15 +93,17 @@ export function mountLive(root, sessionId) {
       credentials.setSession(s);
       group.setContext({ max_torque_Nm: s.settings.max_torque_Nm });
       if (s.state === "running") sessionEnd.hide();
+      else status.recording.refresh(); // stopping the session finished its recording
     },
   });
-  const panels = livePanels({ pauseNote: plots.pauseNote, keyBox: plots.keyBox, summary: summary.el, health: healthBox.el,
+  const panels = livePanels({ keyBox: plots.keyBox, health: healthBox.el,
     controls: controls.cards, overlays: strides.el, events: events.el, moreBox: plots.moreBox,
     leg: legView({ session_id: sessionId }), gp: gp.el, credentials: credentials.el });
   const layout = new PanelLayout(panels, currentUser().name);
+  const status = liveStatus(sessionId, group, { session: controls.cards.session, indicator: healthBox.indicator, summary: summary.el });
   const page = h("div", { class: "page live-page" },
-    h("div", { class: "page-head" }, title, plots.pauseBtn, layout.menu, h("a", { class: "button", href: "#/", text: "← Sessions" })),
-    streamError, sessionEnd.el, layout.grid);
+    h("div", { class: "page-head" }, title, plots.pauseNote, plots.pauseBtn, layout.menu, h("a", { class: "button", href: "#/", text: "← Sessions" })),
+    status.el, streamError, sessionEnd.el, layout.grid);
   root.append(page);
   strides.start();
 
@@ -106,6 +113,7 @@ export function mountLive(root, sessionId) {
     const history = states.length > 0 && states[states.length - 1].recv_ns / 1e6 < helloWall - 50;
     if (!history) healthBox.noteStates(states);
     const est = estimators || {};
+    for (const s of states) if (s.sources) summary.setSources(s.sources, s.torque_assumes);
     stack.fromBatch(est);
     summary.showIntent(INTENT ? est[INTENT] : undefined);
     gp.push(states, est[GP_EKF]);
@@ -160,7 +168,7 @@ export function mountLive(root, sessionId) {
           break;
         case "event":
           addEvents(msg.event);
-          if (msg.event.kind === "recording" || msg.event.kind === "system") controls.refreshRecording();
+          if (msg.event.kind === "recording" || msg.event.kind === "system") Promise.all([controls.refreshRecording(), status.recording.refresh()]);
           if (msg.event.field === GP_EKF) gp.onEvent();
           break;
         case "settings":
@@ -227,6 +235,7 @@ export function mountLive(root, sessionId) {
       alive = false;
       cancelAnimationFrame(raf);
       stopWatching();
+      status.destroy();
       stream.close();
       plots.destroy();
       strides.destroy();

@@ -1,6 +1,6 @@
 // The live page's panels: which are shown, their order and width, remembered per acting user (localStorage,
-// keyed by the name chosen in "Acting as"), with a menu to change them and a reset. On a phone (one column)
-// the data health and the session's stop control always come first (live.css).
+// keyed by the name chosen in "Acting as"), with a menu to change them and a reset. The session's Stop, LIVE, the
+// recording state and the summary figures are not panels: they stay in the status strip above (live_status.js).
 
 import { h } from "./ui.js";
 
@@ -30,8 +30,8 @@ export function normalizeLayout(stored, panels) {
 }
 
 /**
- * The live page's panels in their default order, from their elements: the key plots (`pauseNote`, `keyBox`), the
- * summary, data health, the controls' cards (`controls`: session, settings, annotation, recording, imu), the
+ * The live page's panels in their default order, from their elements: the key plots (`keyBox`),
+ * data health, the controls' cards (`controls`: settings, annotation, recording, imu), the
  * per-stride overlays, the events, the more plots, the leg view, the GP-EKF card and the device credentials.
  * @param {Record<string, any>} els
  * @returns {{id: string, title: string, size: number, el: HTMLElement}[]}
@@ -40,11 +40,8 @@ export function livePanels(els) {
   const card = (id, heading, ...body) => h("section", { class: "card", "data-testid": `${id}-card` }, h("h2", { text: heading }), ...body);
   const c = els.controls;
   return [
-    { id: "key-plots", title: "Key plots", size: 2, el: card("key-plots", "Phase, torque, phase rate, incline",
-      h("div", { class: "live-tools" }, els.pauseNote), els.keyBox) },
-    { id: "summary", title: "Summary figures", size: 1, el: els.summary },
+    { id: "key-plots", title: "Key plots", size: 2, el: card("key-plots", "Phase, torque, phase rate, incline", els.keyBox) },
     { id: "health", title: "Data health", size: 1, el: els.health },
-    { id: "session", title: "Session (start, stop)", size: 1, el: c.session },
     { id: "settings", title: "Assistance settings", size: 1, el: c.settings },
     { id: "overlays", title: "Per-stride overlays", size: 2, el: els.overlays },
     { id: "events", title: "Events", size: 1, el: card("events", "Events (newest first)", els.events) },

@@ -65,7 +65,8 @@ export const intentValue = (v) => (v == null || !(v > 0) ? null : v);
 
 /** A `GaitState` as one row of plot columns (phase in % of the cycle; hip flexion as the thigh angle). */
 export function stateRow(s) {
-  return { ...s, phase_pct: s.phase * 100, tbe_pct: s.tbe_phase * 100, hip_flex_deg: s.thigh_angle_deg,
+  // null (not estimated) stays null: a gap, never 0 % (issue #23)
+  return { ...s, phase_pct: s.phase == null ? null : s.phase * 100, tbe_pct: s.tbe_phase == null ? null : s.tbe_phase * 100, hip_flex_deg: s.thigh_angle_deg,
     knee_flex_deg: kneeFlexion(s.thigh_angle_deg, s.shank_angle_deg) };
 }
 
@@ -109,7 +110,7 @@ export function bandPlot(container, title, yLabel, color, fill) {
 
 /** The key plots, first and in view at 1440x900; the rest go in the "more plots" panel. */
 const KEY_PLOTS = ["phase", "torque", "phase_rate", "incline"];
-const KEY_HEIGHT = 180;
+const KEY_HEIGHT = 260;
 
 /**
  * The live view's time plots and the ring they draw from.

@@ -2,8 +2,13 @@
 // stride length, speed, incline, the last stride's peak torque, and seed 001's speed-change intent when the
 // session runs it (what the walker is about to do).
 
-import { STANCE_PHASE } from "./estimators.js";
+import { STANCE_PHASE, estimatorLabel } from "./estimators.js";
 import { fmt, h } from "./ui.js";
+
+/** What a figure is shown for when no estimator estimates it (issue #23: never a number nobody estimated). */
+export const NOT_ESTIMATED = "not estimated";
+/** The gait-state quantity each tile shows (the speed needs the stride length and the rate). */
+const TILE_QUANTITIES = { cad: ["phase_rate"], sl: ["stride_length_m"], sp: ["stride_length_m", "phase_rate"], inc: ["incline_deg"] };
 
 export class LiveSummary {
   constructor() {
@@ -17,13 +22,55 @@ export class LiveSummary {
     const [spCell, spV] = cell("speed", "Speed", "m/s");
     const [incCell, incV] = cell("incline", "Incline", "deg");
     const [pkCell, pkV] = cell("peak-torque", "Peak torque, last stride", "N·m");
+    // shown from the start (issue #23: in the first screen, its place kept); "–" until the stack's intent estimator says
     const [intentCell, intentV] = cell("intent", "Speed-change intent", "");
-    intentCell.hidden = true;
     this.v = { phase: phaseV, cad: cadV, sl: slV, sp: spV, inc: incV, pk: pkV, intent: intentV };
     this.phaseLabel = phaseCell.querySelector(".label");
     this.intentCell = intentCell;
     this.intentUnit = intentCell.querySelector(".unit");
-    this.el = h("div", { class: "summary", "data-testid": "summary" }, phaseCell, cadCell, slCell, spCell, incCell, pkCell, intentCell);
+    // where the figures come from when not from the primary, and what the torque assumes in their place
+    this.sourceNote = h("p", { class: "summary-sources muted", "data-testid": "summary-sources", hidden: true });
+    this.sources = null; // GaitState.sources: quantity -> estimator (absent: not estimated); null: not yet known
+    this.el = h("div", { class: "summary", "data-testid": "summary" }, phaseCell, cadCell, slCell, spCell, incCell, pkCell, intentCell, this.sourceNote);
+  }
+
+  /**
+   * Where each figure comes from (a `GaitState`'s `sources`, sent on the first state and when they change) and
+   * the values the torque profile assumes for what the primary does not estimate (`torque_assumes`).
+   * @param {Record<string, string>} sources @param {Record<string, number> | null | undefined} assumes
+   */
+  setSources(sources, assumes) {
+    this.sources = sources;
+    const primary = sources.phase || null;
+    const lines = [];
+    const from = new Map();
+    for (const q of ["phase_rate", "stride_length_m", "incline_deg"]) {
+      const name = sources[q];
+      if (name && name !== primary) from.set(name, [...(from.get(name) || []), QUANTITY_WORDS[q]]);
+    }
+    for (const [name, words] of from) lines.push(`${capitalize(words.join(" and "))} from ${estimatorLabel(name)}.`);
+    const missing = ["stride_length_m", "incline_deg"].filter((q) => !sources[q]).map((q) => QUANTITY_WORDS[q]);
+    if (missing.length) lines.push(`${capitalize(missing.join(" and "))}: not estimated by any estimator of this session.`);
+    const a = assumes || {};
+    const assumed = [];
+    if (a.stride_length_m != null) assumed.push(`a ${fmt(a.stride_length_m, 2)} m stride`);
+    if (a.incline_deg != null) assumed.push(a.incline_deg === 0 ? "level ground" : `a ${fmt(a.incline_deg, 1)} deg incline`);
+    if (assumed.length && primary) lines.push(`The torque assumes ${assumed.join(" and ")} (${estimatorLabel(primary)} does not estimate them).`);
+    this.sourceNote.textContent = lines.join(" ");
+    this.sourceNote.hidden = lines.length === 0;
+    for (const [key, qs] of Object.entries(TILE_QUANTITIES)) {
+      const cell = this.v[key].parentElement;
+      const absent = qs.some((q) => !sources[q]);
+      cell.dataset.source = absent ? "none" : qs.map((q) => sources[q]).join(",");
+      cell.title = absent ? NOT_ESTIMATED : qs.map((q) => `${QUANTITY_WORDS[q]}: ${estimatorLabel(sources[q])}`).join("; ");
+    }
+  }
+
+  /** A tile's text: "not estimated" when a quantity it shows has no source, else the number. */
+  figure(key, value, digits) {
+    const s = this.sources;
+    if (s && TILE_QUANTITIES[key].some((q) => !s[q])) return NOT_ESTIMATED;
+    return fmt(value, digits);
   }
 
   /** A primary with a stance phase puts it in the gait state: the summary says which phase it shows. */
@@ -66,10 +113,13 @@ export class LiveSummary {
     // a stance-phase primary's rate is the stance's, not the stride's: the cadence is then the stride's duration
     const rate = STANCE_PHASE.has(primary) ? (st ? 1 / st.duration : NaN) : st ? st.mean.phase_rate : last("phase_rate");
     const sl = st ? st.mean.stride_length_m : last("stride_length_m");
-    v.cad.textContent = fmt(60 * rate, 1);
-    v.sl.textContent = fmt(sl, 2);
-    v.sp.textContent = fmt(sl * rate, 2);
-    v.inc.textContent = fmt(st ? st.mean.incline_deg : last("incline_deg"), 1);
+    v.cad.textContent = this.figure("cad", 60 * rate, 1);
+    v.sl.textContent = this.figure("sl", sl, 2);
+    v.sp.textContent = this.figure("sp", sl * rate, 2);
+    v.inc.textContent = this.figure("inc", st ? st.mean.incline_deg : last("incline_deg"), 1);
     v.pk.textContent = fmt(st ? st.peak.torque_Nm : NaN, 1);
   }
 }
+
+const QUANTITY_WORDS = { phase_rate: "cadence", stride_length_m: "stride length", incline_deg: "incline" };
+const capitalize = (text) => text.charAt(0).toUpperCase() + text.slice(1);

@@ -1,5 +1,5 @@
 // The toolbar of a `Plot` (plot_view.js): zoom in and out, move earlier and later, pan mode, reset, the
-// y range form (remembered per signal), and what the plot shows (paused, zoomed).
+// y range form (remembered per signal), large-plot mode, and what the plot shows (paused, zoomed).
 
 import { parseRange, storedRange, storeRange, Y_RANGES } from "./plot_ranges.js";
 import { fmt, h } from "./ui.js";
@@ -17,6 +17,7 @@ export function plotTools(plot) {
   const later = btn("later", "›", "Later: move the view forward by a quarter of its width");
   const pan = btn("pan", "Pan", "Pan: drag to move along time (or hold Shift and drag)");
   const reset = btn("reset", "Reset", "Show the whole range again (or double-click the plot)");
+  const large = btn("enlarge", "⤢", "Large plot: fill the window (Esc returns)");
   const signal = Y_RANGES[plot.yKey] ? Y_RANGES[plot.yKey].name : "this plot";
   const yBtn = btn("y-range", "Y range", `Set the vertical range of ${signal} (remembered in this browser)`);
   const state = h("span", { class: "plot-state", "data-testid": "plot-state", role: "status" });
@@ -29,7 +30,8 @@ export function plotTools(plot) {
   const form = h("form", { class: "plot-yform", "data-testid": "plot-y-form", hidden: true },
     h("label", {}, "From ", lo), h("label", {}, " to ", hi), unit, apply, resetY, err);
   const el = h("div", { class: "plot-tools", "data-testid": "plot-tools" },
-    ...(plot.zoomable ? [zoomIn, zoomOut, earlier, later, pan, reset] : []), ...(plot.yKey ? [yBtn] : []), state, form);
+    state, ...(plot.zoomable ? [zoomIn, zoomOut, earlier, later, pan, reset] : []), ...(plot.yKey ? [yBtn] : []), large, form);
+  large.addEventListener("click", () => plot.setLarge(!plot.large));
   zoomIn.addEventListener("click", () => plot.zoomAt(0.5));
   zoomOut.addEventListener("click", () => plot.zoomAt(2));
   earlier.addEventListener("click", () => plot.group.panBy(-0.25));
@@ -65,13 +67,16 @@ export function plotTools(plot) {
     yBtn.setAttribute("aria-expanded", "false");
     plot._rangeChanged();
   });
-  return { el, sync: () => sync(plot, { pan, reset, yBtn, state }) };
+  return { el, sync: () => sync(plot, { pan, reset, yBtn, state, large }) };
 }
 
 /** The toolbar's buttons and state text as the plot's group stands. */
 function sync(plot, t) {
   const g = plot.group;
   t.pan.setAttribute("aria-pressed", String(!!g.panMode));
+  t.large.setAttribute("aria-pressed", String(plot.large));
+  t.large.textContent = plot.large ? "✕" : "⤢";
+  t.large.title = plot.large ? "Back to the page (Esc)" : "Large plot: fill the window (Esc returns)";
   t.reset.disabled = !g.x;
   plot.container.classList.toggle("gs-paused", g.paused);
   plot.container.classList.toggle("gs-pan-mode", !!g.panMode);

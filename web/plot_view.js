@@ -5,12 +5,17 @@
 
 import uPlot from "./vendor/uPlot.esm.js";
 import { checkMarkers, drawMarkers, PlotGroup } from "./plot_group.js";
-import { defaultRange, storedRange, unitOf, Y_RANGES } from "./plot_ranges.js";
+import { defaultRange, fitRange, storedRange, unitOf, Y_RANGES } from "./plot_ranges.js";
 import { plotTools } from "./plot_tools.js";
 import { fmt, h } from "./ui.js";
 
-const _AXIS = { stroke: "#111", font: "14px system-ui, sans-serif", labelFont: "bold 14px system-ui, sans-serif",
-  grid: { stroke: "#d0d4da", width: 1 }, ticks: { stroke: "#9aa0a6", width: 1 } };
+const _AXIS = { stroke: "#111", font: "13px system-ui, sans-serif", labelFont: "bold 13px system-ui, sans-serif",
+  grid: { stroke: "#d0d4da", width: 1 }, ticks: { stroke: "#9aa0a6", width: 1, size: 4 }, gap: 3 };
+// Issue #23: the data take most of a plot's card. The title, the y unit and the toolbar share one row above the
+// canvas (`.plot-head`); the axes carry numbers, not labels (the unit is in the head; a time axis needs none);
+// the legend is one line of fixed height (plots.css), so hover values never move the layout.
+const _X_AXIS_PX = 26;
+const _Y_AXIS_PX = 40;
 
 /** Colours with strong contrast on white, distinguishable with common colour-vision deficiencies. */
 export const COLORS = { blue: "#0b5cad", orange: "#c2410c", green: "#1d7a3a", purple: "#6b21a8", teal: "#0f766e", grey: "#4b5563" };
@@ -35,6 +40,21 @@ const _live = new Set();
 const _SCROLL_GRACE_MS = 400;
 let _lastScroll = -Infinity;
 addEventListener("scroll", () => (_lastScroll = performance.now()), { passive: true, capture: true });
+
+/** The plot shown large (at most one), and the key that returns it. */
+let _largeOne = null;
+function _escLarge(e) {
+  if (e.key === "Escape" && _largeOne) {
+    e.preventDefault();
+    _largeOne.setLarge(false);
+  }
+}
+
+/** A container's horizontal padding (px): the canvas fits inside it. */
+function _padOf(el) {
+  const cs = getComputedStyle(el);
+  return (parseFloat(cs.paddingLeft) || 0) + (parseFloat(cs.paddingRight) || 0);
+}
 
 const _copy = (a) => (a && typeof a.slice === "function" ? a.slice() : a);
 
@@ -64,17 +84,18 @@ export class Plot {
     this._hover = false;
     container.classList.add("gs-plot");
     this.tools = spec.tools === false ? null : plotTools(this);
-    if (this.tools) container.append(this.tools.el);
+    this.unitEl = h("span", { class: "plot-unit", "data-testid": "plot-unit", title: spec.yLabel || "" });
+    this.head = h("div", { class: "plot-head" }, this.unitEl, ...(this.tools ? [this.tools.el] : []));
+    container.append(this.head);
+    this.large = false; // enlarged to fill the window (`setLarge`)
     this.tip = h("div", { class: "plot-marker-tip", role: "tooltip", "data-testid": "plot-marker-tip", hidden: true });
     this._build(spec.series);
     this.group.add(this);
     _live.add(this);
     if (this.group.paused) this._freeze();
     this._syncTools();
-    this._observer = new ResizeObserver(() => {
-      const w = Math.max(container.clientWidth, 300);
-      if (w !== this.u.width) this.u.setSize({ width: w, height: this.height });
-    });
+    this.unitEl.textContent = this._unit({}); // "%" for "% of cycle": the head keeps its room for the title
+    this._observer = new ResizeObserver(() => this._fit());
     this._observer.observe(container);
     // A plot scrolled out of view (or in a closed panel) does not redraw at every frame of a live view: its
     // newest data is drawn when it shows again.
@@ -106,6 +127,9 @@ export class Plot {
   }
 
   _yScale(u, min, max) {
+    const user = this.yKey ? storedRange(this.yKey) : null;
+    const fitted = user || this.spec.yRange ? null : fitRange(this.yKey, min, max);
+    if (fitted) return fitted;
     const r = this.yRange();
     if (typeof r === "function") return r(u, min, max);
     if (r) return r;
@@ -123,16 +147,18 @@ export class Plot {
     const zoom = this.zoomable;
     const opts = {
       title: spec.title,
-      width: Math.max(this.container.clientWidth, 300),
+      width: Math.max(this.container.clientWidth - _padOf(this.container), 300),
       height: this.height,
       scales: { x: { time: false, range: (u, min, max) => this.group.x || this._ownX(u, min, max) },
         y: { range: (u, min, max) => this._yScale(u, min, max) } },
-      axes: [{ ..._AXIS, label: spec.xLabel || "time (s)" }, { ..._AXIS, label: spec.yLabel, size: 60 }],
+      axes: [{ ..._AXIS, size: _X_AXIS_PX, ...(spec.xLabel ? { label: spec.xLabel, labelSize: 18, labelGap: 0 } : {}) },
+        { ..._AXIS, size: _Y_AXIS_PX }],
       series: [
         { label: spec.xLabel || "t (s)", value: (u, v) => (v == null ? "–" : v.toFixed(2)) },
         ...series.map(_seriesOpts),
       ],
       bands: spec.bands,
+      padding: /** @type {[number, number, number, number]} */ ([8, 12, 0, 0]), // the axes' labels need no more room than their numbers
       legend: { live: true },
       cursor: {
         drag: { x: zoom || !!spec.drag, y: false, setScale: false },
@@ -177,6 +203,14 @@ export class Plot {
     const empty = [new Float64Array(0), ...series.map(() => new Float64Array(0))];
     this.u = new uPlot(opts, empty, this.container);
     this._rebuilt = true;
+    // the title joins the unit and the toolbar in the head (same element and class: `.u-title`)
+    const title = this.u.root.querySelector(".u-title");
+    if (this._title) this._title.remove();
+    this._title = title;
+    if (title) {
+      title.setAttribute("title", spec.title);
+      this.head.prepend(title);
+    }
     // hover values with their unit: written after the number by CSS (plots.css), the number stays the text
     this._values = [];
     this.u.root.querySelectorAll(".u-legend .u-series").forEach((row, i) => {
@@ -201,6 +235,34 @@ export class Plot {
         this.zoomAt(e.deltaY < 0 ? _WHEEL_IN : 1 / _WHEEL_IN, this.u.posToVal(e.clientX - rect.left, "x"));
       }, { passive: false });
     }
+  }
+
+  // --- size ------------------------------------------------------------------------------------------
+  /** Follows the container's width (and, enlarged, the window's height). */
+  _fit() {
+    const w = Math.max(this.container.clientWidth - _padOf(this.container), 300);
+    const hgt = this.large ? Math.max(200, innerHeight - 150) : this.height;
+    if (w !== this.u.width || hgt !== this.u.height) this.u.setSize({ width: w, height: hgt });
+  }
+
+  /**
+   * Large-plot mode: the plot fills the window above the page (Esc, or the toolbar's button, returns).
+   * @param {boolean} on
+   */
+  setLarge(on) {
+    if (on === this.large) return;
+    this.large = on;
+    this.container.classList.toggle("gs-large", on);
+    if (on) {
+      _largeOne?.setLarge(false);
+      _largeOne = this;
+      document.addEventListener("keydown", _escLarge);
+    } else if (_largeOne === this) {
+      _largeOne = null;
+      document.removeEventListener("keydown", _escLarge);
+    }
+    this._fit();
+    if (this.tools) this.tools.sync();
   }
 
   // --- zoom and pan ----------------------------------------------------------------------------------
@@ -362,12 +424,13 @@ export class Plot {
   }
 
   destroy() {
+    this.setLarge(false);
     _live.delete(this);
     this.group.delete(this);
     this._observer.disconnect();
     this._seen.disconnect();
     this.u.destroy();
-    if (this.tools) this.tools.el.remove();
+    this.head.remove();
   }
 }
 

@@ -16,7 +16,8 @@
 //     default y range and the unit; with a key the plot has a "Y range" control (min/max, "Default"),
 //     remembered in localStorage ("gaitscope.plots.y.<key>") and applied to every plot of that key on the
 //     page. Per-stride band plots: pass yKey ("torque", "foot") to give them the table's range too.
-//     y range used: the user's > spec.yRange > Y_RANGES[key] > auto. Leave yRange out to use the table.
+//     y range used: the user's > spec.yRange > the data fitted, at least the table's `fit` span (incline, phase
+//     rate, stride length, speed; issue #23) > Y_RANGES[key] > auto. Leave yRange out to use the table.
 //   * unit: unit of the hover values (default: the series' `unit`, the table's, else from yLabel,
 //     "% of cycle" -> "%"). Shown after each legend value (CSS ::after, data-unit); the legend's
 //     .u-value textContent stays the bare number (tests read it).
@@ -54,7 +55,7 @@ import uPlot from "./vendor/uPlot.esm.js";
 
 export { measureFrames } from "./plot_frametime.js";
 export { MARKER_COLORS, PlotGroup } from "./plot_group.js";
-export { storedRange, storeRange, unitOf, Y_RANGES } from "./plot_ranges.js";
+export { fitRange, storedRange, storeRange, unitOf, Y_RANGES } from "./plot_ranges.js";
 export { COLORS, Plot, uPlot };
 
 /**

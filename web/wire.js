@@ -911,6 +911,16 @@
  */
 
 /**
+ * ``POST /api/sessions/{id}/settings/check``: what a settings change would do to the torque, changing nothing,
+ * for a client to ask its user before it sends the change (which is judged again when sent).
+ * @typedef {object} TorqueCheck
+ * @property {Array<string>} fields the settings of the change that can raise the torque ([]: it asks nothing)
+ * @property {number} peak_before_Nm peak torque over a stride with the settings now (>= 0)
+ * @property {number} peak_after_Nm peak torque over a stride with the change made (>= 0)
+ * @property {number} retry_after_s how long until a change that can raise the torque may be made (>= 0)
+ */
+
+/**
  * One re-run's figures, its time series (on the comparison's ``t``) and its mean stride.
  * @typedef {object} ComparedRun
  * @property {string} name
@@ -1660,6 +1670,7 @@ export const FIELD_LIMITS = deepFreeze({
     peak_after_Nm: { min: 0.0 },
     retry_after_s: { min: 0.0 },
   },
+  TorqueCheck: { peak_before_Nm: { min: 0.0 }, peak_after_Nm: { min: 0.0 }, retry_after_s: { min: 0.0 } },
   ComparedRunSpec: { name: { minLength: 1, maxLength: 40 }, estimators: { maxItems: 16 } },
   DeviceSource: { rate_hz: { min: 1.0, max: 1000.0 }, channels: { maxItems: 256 } },
   ImuSensorCalibration: {

@@ -101,6 +101,18 @@ async def change_settings(session_id: Id, body: schema.SettingsChange, c: Ctx, w
     return await runtime.change_settings_async(by(body, who))  # stored (off the loop) before it is applied
 
 
+@router.post("/sessions/{session_id}/settings/check", dependencies=[allow("read")])
+async def check_settings(session_id: Id, body: schema.SettingsChange, c: Ctx) -> schema.TorqueCheck:
+    """What a settings change would do to the torque of a running session, changing nothing: whether it needs
+    ``confirm`` (``fields``), the peak torque before and after, how long until it may be made. The dashboard asks
+    its user with it before it sends the change."""
+    runtime = c.manager.get(session_id)
+    if runtime is None:
+        c.store.get_session(session_id)
+        raise SessionStateError(not_running_here(c, session_id, "; settings change only while it runs"))
+    return runtime.settings_changes.check(body)
+
+
 @router.get("/sessions/{session_id}/events", dependencies=[allow("read")])
 def session_events(session_id: Id, c: Ctx) -> list[schema.Event]:
     c.store.get_session(session_id)

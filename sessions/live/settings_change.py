@@ -205,11 +205,7 @@ class SettingsChanges:
         if self.saving:
             raise SettingRejected("another settings change is being saved; try again in a moment")
         current = self.rt.session.settings
-        updates = {
-            k: v
-            for k, v in change.model_dump(exclude={"actor", "reason", "confirm"}).items()
-            if v is not None and v != getattr(current, k)
-        }
+        updates = self._updates(change)
         now = self.rt.clock()
         for name, value in updates.items():
             if name == "primary":
@@ -251,6 +247,30 @@ class SettingsChanges:
             for name, value in updates.items()
         ]
         return _Plan(new, list(updates), events, t, now, raises)
+
+    def _updates(self, change: SettingsChange) -> dict[str, Any]:
+        """The fields ``change`` sets to another value than the settings in effect."""
+        current = self.rt.session.settings
+        asked = change.model_dump(exclude={"actor", "reason", "confirm"}).items()
+        return {k: v for k, v in asked if v is not None and v != getattr(current, k)}
+
+    def check(self, change: SettingsChange) -> schema.TorqueCheck:
+        """What ``change`` would do to the torque (the peaks before and after, whether it asks, how long until it
+        may be made), changing nothing: for a client to ask its user first. The bounds and rates are not checked."""
+        current = self.rt.session.settings
+        updates = self._updates(change)
+        new = current.model_copy(update=updates)
+        fields = raising_fields(current, updates)
+        stack = self.rt.estimator.stack
+        before = self._gait_state(stack.primary)
+        after = self._gait_state(new.primary) if "primary" in fields else before
+        peaks = assess(current, new, fields, before, after, stack.mass_kg)
+        wait = 0.0
+        if fields and self._last_raise is not None:
+            wait = max(0.0, schema.TORQUE_RAISE_INTERVAL_S - (self.rt.clock() - self._last_raise))
+        return schema.TorqueCheck(
+            fields=fields, peak_before_Nm=peaks.peak_before_Nm, peak_after_Nm=peaks.peak_after_Nm, retry_after_s=wait
+        )
 
     def _torque_rule(
         self,

@@ -150,7 +150,8 @@ def test_key_plots_in_view_and_the_layout_is_each_users(server: str, wide: Watch
         ".map((p) => p.dataset.panel)"
     )
     standard = order()
-    assert standard[:3] == ["key-plots", "summary", "health"] and "leg" in standard
+    # (the summary and the session's Stop are not panels since issue #23: the status strip above keeps them in view)
+    assert standard[:2] == ["key-plots", "health"] and "leg" in standard
     page.get_by_test_id("layout-menu").locator("summary").click()
     expect(page.get_by_test_id("layout-owner")).to_contain_text("clinician")
     for _ in range(standard.index("events") - 1):
@@ -190,10 +191,11 @@ def test_tablet_and_phone_put_what_matters_first(server: str, browser: playwrigh
             events = page.get_by_test_id("events-card").bounding_box()
             assert stop and health and phase and events
             if width == 390:  # a phone: the stop control and the data health come first, in the first screen
-                assert stop["y"] + stop["height"] <= height and health["y"] < height
+                indicator = page.get_by_test_id("live-indicator").bounding_box()  # the health's verdict (issue #23)
+                assert indicator and stop["y"] + stop["height"] <= height and indicator["y"] < height
                 assert stop["y"] < phase["y"] and health["y"] < phase["y"]
                 summary = page.get_by_test_id("summary").bounding_box()
-                assert summary and health["y"] < summary["y"]
+                assert summary and indicator["y"] < summary["y"]
             else:
                 assert _inside(page.get_by_test_id("plot-phase").bounding_box(), width, height)
             # the events list fits its panel at every size: no sideways scrolling inside it

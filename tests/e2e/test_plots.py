@@ -320,8 +320,8 @@ def test_y_ranges_fixed_adjustable_remembered(server: str, watched: Watched) -> 
     page.evaluate("() => localStorage.clear()")
     page.evaluate("() => __h.plots.forEach((p) => p._applyY())")
     # the table's ranges: phase 0-100 %, torque 0 to the session's bound (30 N·m by default, 5 % headroom),
-    # incline +-15 deg although it only ripples by 0.1 deg
-    assert _ys(page) == [[0, 100], [0, pytest.approx(31.5)], [-15, 15]]
+    # incline fitted to its data but never narrower than 4 deg (issue #23), although it only ripples by 0.1 deg
+    assert _ys(page) == [[0, 100], [0, pytest.approx(31.5)], [-2, 2]]
     page.evaluate("() => __h.group.setContext({ max_torque_Nm: 50 })")
     assert _ys(page)[1] == [0, pytest.approx(52.5)]
 
@@ -329,7 +329,7 @@ def test_y_ranges_fixed_adjustable_remembered(server: str, watched: Watched) -> 
     incline.get_by_test_id("plot-y-range").click()
     form = incline.get_by_test_id("plot-y-form")
     expect(form).to_be_visible()
-    expect(incline.get_by_test_id("plot-y-min")).to_have_value("-15")
+    expect(incline.get_by_test_id("plot-y-min")).to_have_value("-2")
     incline.get_by_test_id("plot-y-min").fill("5")
     incline.get_by_test_id("plot-y-max").fill("2")
     incline.get_by_test_id("plot-y-apply").click()
@@ -351,7 +351,7 @@ def test_y_ranges_fixed_adjustable_remembered(server: str, watched: Watched) -> 
     incline = page.get_by_test_id("h-incline")
     incline.get_by_test_id("plot-y-range").click()
     incline.get_by_test_id("plot-y-default").click()
-    assert _ys(page)[2] == [-15, 15]
+    assert _ys(page)[2] == [-2, 2]
     assert page.evaluate("() => localStorage.getItem('gaitscope.plots.y.incline')") is None
     watched.check_clean()
 

@@ -59,6 +59,8 @@ AUDITED: dict[tuple[str, str], str] = {
 }
 #: (method, route) -> why it writes no entry.
 EXEMPT: dict[tuple[str, str], str] = {
+    ("POST", "/api/sessions/{session_id}/settings/check"): "computes what a settings change would do to the torque "
+    "and changes nothing; the change itself is audited (settings.change)",
     ("POST", "/api/trials/{trial_id}/rerun"): "computes a re-run of a stored trial and stores nothing",
     ("POST", "/api/trials/{trial_id}/compare"): "computes re-runs of a stored trial and stores nothing",
     ("PUT", "/api/uploads/{upload_id}"): "one chunk of the bytes of an upload whose creation and import are audited "

@@ -65,6 +65,7 @@ EXPECTED: dict[tuple[str, str], str] = {
     ("POST", "/api/sessions/{session_id}/stop"): "run",
     ("PATCH", "/api/sessions/{session_id}/settings"): "assist_within_limits",
     ("POST", "/api/sessions/{session_id}/settings/undo"): "assist_within_limits",
+    ("POST", "/api/sessions/{session_id}/settings/check"): "read",
     ("GET", "/api/sessions/{session_id}/events"): "read",
     ("POST", "/api/sessions/{session_id}/annotations"): "annotate",
     ("POST", "/api/sessions/{session_id}/recording"): "run",
