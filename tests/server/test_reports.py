@@ -184,7 +184,7 @@ def test_summary_is_kept_until_the_sessions_trials_change(recorded: Any) -> None
         assert summaries.kept[sid][1] is not kept and changed["health"]["trials_recovered"] == 1
     finally:
         store.finish_trial(trial.id, trial.status, trial.samples, trial.duration_s)
-    assert client.get(f"/api/sessions/999/summary/progress").status_code == 404
+    assert client.get("/api/sessions/999/summary/progress").status_code == 404
 
 
 def test_summary_progress_while_it_is_made(recorded: Any) -> None:
