@@ -211,7 +211,7 @@ export function mountLive(root, sessionId) {
     if (now - lastText > 200) {
       lastText = now;
       const verdict = healthBox.update(now, plots.last("t"));
-      controls.editor.clampSliders(now);
+      controls.editor.showRateLimits(now);
       // The stream stays open, silent, when another screen stops the session: ask for its state.
       if (!verdict.live && !ended && healthBox.connected && now - lastStatePoll > 5000) {
         lastStatePoll = now;

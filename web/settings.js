@@ -1,9 +1,12 @@
 // The clinician-adjustable settings: bounds, and an editor (number box + slider per setting) used by
-// the live view's "Apply" and the review view's "Re-run with settings". In the live view (`rateLimited`)
-// each row shows the value applied now beside the one being edited, and its slider reaches only what the
-// rate limit allows now: ± rate × the seconds since the field last changed, at most ± rate.
+// the live view's "Apply" and the review view's "Re-run with settings". Every slider spans the setting's
+// absolute range (its bounds in sessions/schema.py), so that where its thumb sits says the value: 40 of 0–80 N·m
+// sits in the middle (issue #23, 6). In the live view (`rateLimited`) each row shows the value applied now beside
+// the one being edited, and the rate limit as such, in words beside the slider ("up to ±10 per change", and how
+// long until the field may change again), never by narrowing the slider. Lowering the torque gain, the maximum
+// torque or the intent boost is never held back (gaitscope.sessions.live.torque_rule).
 
-import { SETTING_LIMITS as WIRE_LIMITS } from "./wire.js";
+import { SETTING_LIMITS as WIRE_LIMITS, TORQUE_RULE } from "./wire.js";
 import { fmt, h, ValidationError } from "./ui.js";
 
 /** How each setting is shown; its bounds come from the schema. */
@@ -53,6 +56,9 @@ export class SettingsEditor {
     });
     const note = h("span", { class: "note", "data-testid": `${id}-note` });
     const applied = h("span", { class: "applied", "data-testid": `${id}-applied`, hidden: !this.rateLimited });
+    // the rate limit, shown as such: the largest step of one change, and the wait before the next one
+    const rate = h("span", { class: "rate-limit", "data-testid": `${id}-rate`, hidden: !this.rateLimited,
+      text: `up to ±${lim.rate} per change` });
     const hint = h("span", {
       class: "hint", id: `${id}-hint`,
       text: `${lim.min}–${lim.max} ${lim.unit}; at most ±${lim.rate} per second`,
@@ -67,8 +73,8 @@ export class SettingsEditor {
     });
     const row = h("div", { class: "setting-row" },
       h("label", { for: id, class: "caption", text: `${lim.label} (${lim.unit})` }),
-      h("div", { class: "setting-inputs" }, number, slider, applied), hint, note);
-    this.rows[key] = { number, slider, note, applied, row, dirty: false };
+      h("div", { class: "setting-inputs" }, number, slider, applied), rate, hint, note);
+    this.rows[key] = { number, slider, note, applied, rate, row, dirty: false };
     this.el.append(row);
   }
 
@@ -100,7 +106,7 @@ export class SettingsEditor {
       }
       this._markDirty(key);
     }
-    this.clampSliders();
+    this.showRateLimits();
   }
 
   /**
@@ -119,22 +125,22 @@ export class SettingsEditor {
     return out;
   }
 
-  /** Live view: each slider's range set to what the rate limit lets it reach now (call a few times a second). */
-  clampSliders(now = performance.now()) {
+  /**
+   * Live view: beside each slider, its rate limit in words: the largest step of one change and, just after a
+   * change, how long until the next (call a few times a second). The slider keeps its absolute range.
+   */
+  showRateLimits(now = performance.now()) {
     if (!this.rateLimited) return;
     const reach = this.reachable(now);
     for (const key of SETTING_KEYS) {
-      const base = this.baseline[key];
-      if (base === undefined) continue;
       const lim = SETTING_LIMITS[key];
       const r = this.rows[key];
-      const steps = Math.floor(reach[key] / lim.step + 1e-9) * lim.step; // on the slider's grid about the value
-      const lo = Math.max(lim.min, base - steps);
-      const hi = Math.min(lim.max, base + steps);
-      const [a, b] = [String(+lo.toFixed(6)), String(+hi.toFixed(6))];
-      if (r.slider.min !== a) r.slider.min = a;
-      if (r.slider.max !== b) r.slider.max = b;
-      r.slider.title = `The slider reaches ${a}–${b} now (at most ±${lim.rate} per second)`;
+      const lowers = TORQUE_RULE.raising.includes(key) ? "; lowering: any step, at any time" : "";
+      const wait = reach[key] < lim.rate - 1e-9 && this.changedAt[key] !== undefined
+        ? ` (now up to ±${+reach[key].toFixed(3)}: the full step ${((1000 - (now - this.changedAt[key])) / 1000).toFixed(1)} s after the last change)`
+        : "";
+      const text = `up to ±${lim.rate} per change${wait}${lowers}`;
+      if (r.rate.textContent !== text) r.rate.textContent = text;
     }
   }
 
@@ -161,13 +167,15 @@ export class SettingsEditor {
     for (const key of SETTING_KEYS) {
       const step = Math.abs(all[key] - this.baseline[key]);
       if (step <= _EPS) continue;
+      out[key] = all[key];
+      // lowering the torque is never held back (the server's torque rule): any step, at any time
+      if (TORQUE_RULE.raising.includes(key) && all[key] < this.baseline[key]) continue;
       // The server also limits how soon a field may change again (409, with the wait in its message).
       const lim = SETTING_LIMITS[key];
       if (step > lim.rate + _EPS) {
         throw new ValidationError(`${lim.label} may change by at most ${lim.rate} per step ` +
           `(${this.baseline[key]} → ${all[key]} is a step of ${+step.toFixed(6)}); apply it in smaller steps.`);
       }
-      out[key] = all[key];
     }
     return out;
   }
