@@ -1400,6 +1400,11 @@ class ComparedRun(BaseModel):
     phase_diff_pct: list[float | None] = Field(description="this run's phase minus the first run's, wrapped to ±50 %")
     stride_torque_mean_Nm: list[float | None] = Field(description="mean torque per % of the stride (stride_pct)")
     stride_torque_sd_Nm: list[float | None] = Field(description="its standard deviation across strides")
+    start: str = Field(
+        default="",
+        description="how its estimators began: resumed from the estimation state recorded at the trial's start "
+        "(a run as recorded: what ran, exactly), or fresh filters and why (the re-run's start)",
+    )
 
 
 class Comparison(BaseModel):

@@ -126,6 +126,7 @@ export function abCard(trialId, hooks) {
       h("h3", { text: "Figures per re-run" }),
       c.ground_truth ? h("p", { class: "hint", "data-testid": "ab-truth", text: `Errors (root mean square) against the ground truth: ${c.ground_truth}.` })
         : h("p", { class: "hint", "data-testid": "ab-truth", text: "No ground truth is known for this trial, so no errors are shown." }),
+      h("p", { class: "hint", "data-testid": "ab-start", text: `${ref} (the reference): ${c.runs[0].start || ""}` }),
       h("div", { class: "table-scroll" }, table));
     results.hidden = false;
     const timePlot = (div, spec) => {

@@ -931,6 +931,7 @@
  * @property {Array<number | null>} phase_diff_pct this run's phase minus the first run's, wrapped to ±50 %
  * @property {Array<number | null>} stride_torque_mean_Nm mean torque per % of the stride (stride_pct)
  * @property {Array<number | null>} stride_torque_sd_Nm its standard deviation across strides
+ * @property {string} [start=""] how its estimators began: resumed from the estimation state recorded at the trial's start (a run as recorded: what ran, exactly), or fresh filters and why (the re-run's start)
  */
 
 /**

@@ -9,7 +9,9 @@ Per run (:func:`run_figures`): the complete strides (each run's own heel strikes
 mean of each stride's peak torque command (N·m), the mean estimated phase rate (1/s) and stride length
 (m); with a ground truth (:func:`simulated_truth`: a simulated session's walk, regenerated from its
 seed), the RMS errors of phase (% of a cycle, wrapped), phase rate, stride length and incline.
-Against the first run (the reference, "A"): the torque and phase differences over time. The mean
+Against the first run (the reference, "A"): the torque and phase differences over time. A run as recorded
+resumes from the estimation state recorded at the trial's start, so a baseline "what ran" is exactly what ran
+(each run's ``start`` says how its estimators began). The mean
 stride (:func:`stride_mean`): torque per % of the stride, mean and SD across strides.
 """
 
@@ -27,7 +29,7 @@ from numpy.typing import NDArray
 from gaitscope.estimators.pipeline import TrainedModel
 from gaitscope.sessions.errors import DataFormatError
 from gaitscope.sessions.formats.mcap_io import count_messages, read_messages, series_window
-from gaitscope.sessions.review.rerun import rerun_series
+from gaitscope.sessions.review.rerun import START_KEY, rerun_series
 from gaitscope.sessions.schema import (
     ComparedRun,
     ComparedRunSpec,
@@ -216,6 +218,7 @@ def compare(
     for r in results[1:]:
         common &= set(r["seq"])
     seqs = np.array(sorted(common), dtype=np.int64)
+    starts = [str(r[START_KEY][0]) for r in results]
     cols: list[dict[str, Any]] = []
     for r in results:
         index = {s: i for i, s in enumerate(r["seq"])}
@@ -233,7 +236,7 @@ def compare(
     diffs = [(c["torque_Nm"] - ref["torque_Nm"], 100.0 * _wrap(c["phase"] - ref["phase"])) for c in cols]
     keep = _keep([x for c, d in zip(cols, diffs, strict=True) for x in (c["torque_Nm"], *d)], len(t), max_points)
     out = []
-    for spec, c, (dtorque, dphase) in zip(runs, cols, diffs, strict=True):
+    for spec, c, (dtorque, dphase), start in zip(runs, cols, diffs, starts, strict=True):
         mean, sd, _ = stride_mean(c["t"], c["torque_Nm"], c["heel_strike"])
         figures = run_figures(
             c["t"], c["torque_Nm"], c["phase"], c["phase_rate"], c["stride_length_m"], c["incline_deg"],
@@ -249,6 +252,7 @@ def compare(
                 phase_diff_pct=_list(dphase[keep]),
                 stride_torque_mean_Nm=_list(mean),
                 stride_torque_sd_Nm=_list(sd),
+                start=start,
             )
         )
     return Comparison(

@@ -147,7 +147,7 @@ def test_every_trial_reruns_bit_identically_across_switches_and_gain_changes(cli
     recorded = client.get(f"/api/trials/{second}/series?max_points={ALL}").json()
     torque = dict(zip(recorded["t"], recorded["torque_Nm"], strict=True))
     assert len(c["t"]) > 300 and [torque[t] for t in c["t"]] == c["runs"][0]["torque_Nm"]
-    assert set(c["runs"][1]["torque_diff_Nm"]) == {0.0}
+    assert set(c["runs"][1]["torque_diff_Nm"]) == {0.0} and c["runs"][0]["start"] == RESUMED
     # the recorded changes took effect in the second trial: both switches and the gains are on its timeline
     settings = [m for _, _, m in read_messages(s.path(second), ["/settings"])]
     assert [(m["primary"], m["torque_gain"]) for m in settings] == [
