@@ -1,5 +1,7 @@
 // The live view's control panels: settings (apply / revert / undo the last change), recording, annotations,
-// session start/stop. Raising the maximum torque asks for a confirmation first. Every request's refusal is
+// session start/stop. Every change that can raise the torque on the person (a raise of the torque gain, the maximum
+// torque or the intent boost, an undo that does one) asks first, naming the peak torque before and after
+// (confirm_change.js, the server's torque rule); lowering never asks. Every request's refusal is
 // shown in plain words next to its control. Roles (issue #13): a card whose actions the user's role may not
 // take is fenced off with the reason (auth.js); an experimenter sees the subject's assistance limits next to
 // the settings, and a change beyond them is refused here, before it is sent.
@@ -7,6 +9,7 @@
 import * as api from "./api_client.js";
 import { limitsText, loadLimits, overLimits } from "./assistance_limits.js";
 import { fence, may } from "./auth.js";
+import { sendByTorqueRule, torqueConfirmBox } from "./confirm_change.js";
 import { describeEvent } from "./events.js";
 import { imuCalibrationCard } from "./imu_calibration.js";
 import { SETTING_LIMITS, SettingsEditor } from "./settings.js";
@@ -27,13 +30,8 @@ export function mountControls(sessionId, hooks) {
   const undoWhat = h("p", { class: "hint", "data-testid": "settings-undo-what", text: "No change to undo yet." });
   const settingsError = errorBox("settings-error");
   const settingsOk = h("p", { class: "ok", role: "status", "data-testid": "settings-ok" });
-  // raising the maximum torque: a second, explicit step
-  const confirmText = h("p", { "data-testid": "confirm-raise-text" });
-  const confirmBtn = h("button", { type: "button", class: "danger", "data-testid": "confirm-raise", text: "Raise it" });
-  const cancelBtn = h("button", { type: "button", "data-testid": "confirm-cancel", text: "Cancel" });
-  const confirmBox = h("div", { class: "confirm-box", role: "alertdialog", "aria-label": "Confirm raising the maximum torque",
-    "data-testid": "confirm-raise-box", hidden: true }, confirmText, h("div", { class: "buttons" }, confirmBtn, cancelBtn));
-  let pending = null; // the changes waiting for the confirmation
+  // a change that can raise the torque: a second, explicit step, with the peaks before and after
+  const confirm = torqueConfirmBox("confirm-raise");
   const label = (k) => SETTING_LIMITS[k].label.split(":")[0];
   // an experimenter: assistance only within the subject's limits (loaded with the first session seen)
   const bounded = !may("assist") && may("assist_within_limits");
@@ -55,7 +53,12 @@ export function mountControls(sessionId, hooks) {
       const over = overLimits(changes, limits.value);
       if (over) throw new ValidationError(over);
     }
-    const session = await api.changeSettings(sessionId, changes);
+    const session = await sendByTorqueRule(sessionId, changes, confirm,
+      (yes) => api.changeSettings(sessionId, yes ? { ...changes, confirm: true } : changes));
+    if (!session) {
+      settingsOk.textContent = "Not applied: cancelled.";
+      return;
+    }
     editor.setBaseline(session.settings);
     settingsOk.textContent = `Applied: ${Object.keys(changes).map(label).join(", ")}.`;
     hooks.onSession(session);
@@ -65,40 +68,24 @@ export function mountControls(sessionId, hooks) {
     runAction(applyBtn, settingsError, async () => {
       const changes = editor.changes();
       if (!Object.keys(changes).length) throw new ValidationError("Nothing to apply: no setting differs from the session's.");
-      const now = editor.baseline.max_torque_Nm;
-      if (changes.max_torque_Nm !== undefined && changes.max_torque_Nm > now) {
-        pending = changes;
-        confirmText.textContent = `Raise the maximum torque from ${now} to ${changes.max_torque_Nm} N·m? ` +
-          "The device may then push harder on the subject.";
-        confirmBox.hidden = false;
-        confirmBtn.focus();
-        return;
-      }
       await apply(changes);
     });
   });
-  confirmBtn.addEventListener("click", () => runAction(confirmBtn, settingsError, async () => {
-    const changes = pending;
-    pending = null;
-    confirmBox.hidden = true;
-    if (changes) await apply(changes);
-  }));
-  cancelBtn.addEventListener("click", () => {
-    pending = null;
-    confirmBox.hidden = true;
-    settingsOk.textContent = "Not applied: the maximum torque was not raised.";
-  });
   revertBtn.addEventListener("click", () => {
     editor.revert();
-    pending = null;
-    confirmBox.hidden = true;
+    confirm.cancel();
     showError(settingsError, null);
     settingsOk.textContent = "";
   });
   undoBtn.addEventListener("click", () => {
     settingsOk.textContent = "";
     runAction(undoBtn, settingsError, async () => {
-      const session = await api.undoSettings(sessionId, {});
+      const session = await sendByTorqueRule(sessionId, null, confirm,
+        (yes) => api.undoSettings(sessionId, yes ? { confirm: true } : {}), "Undo the last change");
+      if (!session) {
+        settingsOk.textContent = "Not undone: cancelled.";
+        return;
+      }
       editor.setBaseline(session.settings);
       settingsOk.textContent = "Undone: the settings are back to what they were before the last change.";
       hooks.onSession(session);
@@ -115,7 +102,7 @@ export function mountControls(sessionId, hooks) {
   }
   const settingsCard = h("section", { class: "card", "data-testid": "settings-card" },
     h("h2", { text: "Assistance and estimator" }), limitsLine, editor.el,
-    h("div", { class: "buttons" }, applyBtn, revertBtn, undoBtn), undoWhat, confirmBox, settingsError, settingsOk);
+    h("div", { class: "buttons" }, applyBtn, revertBtn, undoBtn), undoWhat, confirm.el, settingsError, settingsOk);
 
   // --- recording, annotations (below) ------------------------------------------------------------
   const recording = recordingCard(sessionId);

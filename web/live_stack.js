@@ -5,6 +5,7 @@
 
 import * as api from "./api_client.js";
 import { fence } from "./auth.js";
+import { sendByTorqueRule, torqueConfirmBox } from "./confirm_change.js";
 import { estimatorLabel, STANCE_PHASE } from "./estimators.js";
 import { errorBox, h, runAction } from "./ui.js";
 
@@ -31,14 +32,19 @@ export class LiveStack {
     this.select = h("select", { id: "primary-select", "data-testid": "primary-select", "aria-label": "Primary estimator" });
     const primaryBtn = h("button", { type: "button", "data-testid": "primary-apply", text: "Switch" });
     const primaryError = errorBox("primary-error");
+    // switching the primary changes what drives the torque: it asks first, as every such change (confirm_change.js)
+    const confirm = torqueConfirmBox("confirm-primary");
     primaryBtn.addEventListener("click", () => runAction(primaryBtn, primaryError, async () => {
-      const session = await api.changeSettings(sessionId, { primary: this.select.value });
-      hooks.setSession(session);
+      const change = { primary: this.select.value };
+      const session = await sendByTorqueRule(sessionId, change, confirm,
+        (yes) => api.changeSettings(sessionId, yes ? { ...change, confirm: true } : change),
+        `Switch the estimator the torque follows to ${this.select.selectedOptions[0]?.textContent || change.primary}`);
+      if (session) hooks.setSession(session);
     }));
     /** the primary's switch and its error, for the data-health box */
     this.els = [fence(h("div", { class: "inline", "data-testid": "primary-switch" },
       h("label", { for: "primary-select", text: "Torque follows " }), this.select, primaryBtn), "assist",
-    "Only a clinician or an admin switches the estimator driving the torque."), primaryError];
+    "Only a clinician or an admin switches the estimator driving the torque."), confirm.el, primaryError];
   }
 
   /** The stack is known (or changed): the health box says it, the phase plot and the switch follow it. */
