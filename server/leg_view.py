@@ -183,8 +183,8 @@ def status_markdown(state: schema.GaitState | None, session_id: int | None) -> s
         rows += [("phase", "-"), ("incline", "-"), ("torque", "-")]
     else:
         rows += [
-            ("phase", f"{state.phase:.2f}"),
-            ("incline", f"{state.incline_deg:+.1f} deg"),
+            ("phase", "not estimated" if state.phase is None else f"{state.phase:.2f}"),
+            ("incline", "not estimated" if state.incline_deg is None else f"{state.incline_deg:+.1f} deg"),
             ("torque", f"{state.torque_Nm:.1f} N m"),
         ]
     return "  \n".join(f"**{k}** {v}" for k, v in rows)  # two spaces: a markdown line break

@@ -326,6 +326,8 @@ class FrameEstimator:
             shank_pred_deg=e.shank_pred_deg,
             sent_ns=frame.sent_ns,
             recv_ns=recv_ns,
+            sources=e.sources,
+            torque_assumes=None if e.sources is None else dict(self.stack.torque_assumes),
         )
 
     def replaying(self, time_origin: float | None) -> None:

@@ -291,6 +291,7 @@ class TorqueRaiseRefused(_Strict):
     peak_after_Nm: float = Field(ge=0.0, description="peak torque over a stride with the change made")
     retry_after_s: float = Field(ge=0.0, description="how long until it may be made (0: now, with confirm)")
 
+
 class TorqueCheck(_Strict):
     """``POST /api/sessions/{id}/settings/check``: what a settings change would do to the torque, changing nothing,
     for a client to ask its user before it sends the change (which is judged again when sent)."""
@@ -1009,27 +1010,48 @@ MAX_FRAME_BYTES: Final = -(-4 * _longest_frame_bytes() // 1024) * 1024
 MAX_FRAME_KEYS: Final = len(SensorFrame.model_fields)
 
 
+_NOT_ESTIMATED: Final = (
+    "the primary estimator's, else the first healthy estimator's that estimates it (named in sources); "
+    "null: not estimated"
+)
+
+
 class GaitState(BaseModel):
     """The estimate at one sample, as streamed to browsers and recorded (``/gait_state``)."""
 
     seq: int
     t: float
-    phase: float
-    phase_rate: float
-    stride_length_m: float
-    incline_deg: float
+    phase: float | None = Field(description="the primary estimator's gait phase (null: no estimator drives the torque)")
+    phase_rate: float | None = Field(description=_NOT_ESTIMATED)
+    stride_length_m: float | None = Field(description=_NOT_ESTIMATED)
+    incline_deg: float | None = Field(description=_NOT_ESTIMATED)
     torque_Nm: float
-    tbe_phase: float
+    tbe_phase: float | None = Field(description="the timing-based estimate's phase (null: not in the stack, or failed)")
     heel_strike: bool
     backup_reset: bool
     fault: bool = Field(default=False, description="the filters were reset or the torque forced to 0 here")
     foot_angle_deg: float | None
     shank_angle_deg: float | None
     thigh_angle_deg: float | None
-    foot_pred_deg: float
-    shank_pred_deg: float
+    foot_pred_deg: float | None = Field(description=_NOT_ESTIMATED)
+    shank_pred_deg: float | None = Field(description=_NOT_ESTIMATED)
     sent_ns: int | None = None
     recv_ns: int = Field(description="server wall clock when the sensor frame arrived (ns)")
+    sources: dict[str, str] | None = Field(
+        default=None,
+        description=(
+            "which estimator each quantity comes from (phase, phase_rate, stride_length_m, incline_deg, "
+            "foot_pred_deg, shank_pred_deg -> estimator name; a quantity absent is not estimated), on the first "
+            "state of a stream or recording and where it changed (a primary switch, a failure); null: unchanged"
+        ),
+    )
+    torque_assumes: dict[str, float] | None = Field(
+        default=None,
+        description=(
+            "with sources: the values the torque profile takes for what the primary does not estimate "
+            "(stride_length_m in m, incline_deg in deg); they drive the torque only, never shown as estimates"
+        ),
+    )
 
 
 class TorqueCommand(BaseModel):

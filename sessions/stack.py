@@ -6,13 +6,13 @@ returns its declared outputs; an output that is itself a channel (``heel_strike`
 phase EKF) fills that channel for the estimators after it when the source does not send it.
 
 The **primary** estimator's phase (and its stride length and incline when it has them, else
-:data:`NOMINAL_STRIDE` leg lengths on level ground) drives the torque profile, unless the primary
-declares a ``torque_Nm`` output of its own (seed 003's ``gp_ekf``: its control surface over stance phase
-and phase rate, whose ``phase`` is the stance phase, not the gait phase the profile is indexed by). Then its
-own command wins: ``torque_Nm`` times the session's torque gain, clamped to ``[0, max_torque]`` and taken to 0
-as the estimator says the walker stands (``standing``), like the profile's. Switching the primary
-(:meth:`EstimatorStack.set_primary`) blends the command from the old primary's to the new one's over
-``blend_s`` seconds, so the torque never steps.
+:data:`NOMINAL_STRIDE` leg lengths on level ground: :attr:`EstimatorStack.torque_assumes`) drives the torque
+profile, unless the primary declares a ``torque_Nm`` output of its own (seed 003's ``gp_ekf``: its control
+surface over stance phase and phase rate, whose ``phase`` is the stance phase, not the gait phase the profile is
+indexed by). Then its own command wins: ``torque_Nm`` times the session's torque gain, clamped to
+``[0, max_torque]`` and taken to 0 as the estimator says the walker stands (``standing``), like the
+profile's. Switching the primary (:meth:`EstimatorStack.set_primary`) blends the command from the old
+primary's to the new one's over ``blend_s`` seconds, so the torque never steps.
 
 Isolation: an estimator that raises, returns a non-finite output (or the wrong number of them), or
 whose covariance is non-finite or has a variance outside ``[0, max_variance]`` is marked failed, with
@@ -21,13 +21,19 @@ torque to the fallback (:data:`FALLBACK`, the timing-based estimate) if it is he
 torque, blending from the last command in the same way. Every such change is reported in
 :attr:`StackSample.events` for the session's event log.
 
+What a sample reports is what some estimator estimated, never a value assumed for it: each quantity of
+:data:`REPORTED` comes from the primary when it estimates it, else from the first healthy estimator in stack
+order that does (:attr:`EstimatorStack.sources` names which), else it is None, "not estimated". The nominal
+values the torque profile assumes for a primary without a stride length or incline drive the torque only; they
+are stated in :attr:`EstimatorStack.torque_assumes`, not reported as the gait state.
+
 Pure computation (no I/O, no clocks); the torque is always a finite number in ``[0, max_torque]``.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -39,7 +45,7 @@ from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, inp
 from gaitscope.estimators.torque import TorqueProfile
 from gaitscope.sessions.schema import CHANNELS, PRIMARY_BLEND_S
 
-__all__ = ["FALLBACK", "MAX_VARIANCE", "NOMINAL_STRIDE", "OWN_TORQUE", "EstimatorStack", "StackSample"]
+__all__ = ["FALLBACK", "MAX_VARIANCE", "NOMINAL_STRIDE", "OWN_TORQUE", "REPORTED", "EstimatorStack", "StackSample"]
 
 #: Takes the torque when the primary fails (if it is in the stack and healthy; else the torque is 0).
 FALLBACK: Final = "tbe"
@@ -58,6 +64,10 @@ _LOST: Final = 4.0  # FAULTS.index("lost"): reset from a backup, torque 0 on tha
 #: it holds its last angle and rate for its own continuity, but derives no channel for the others.
 _IMU_MISSING: Final = 1.0
 _RESUMED: Final = 5.0  # FAULTS.index("resumed"): restarted as walking resumed after standing still
+#: The quantities a sample reports (its :class:`StackSample` fields, each an estimator output of that name):
+#: the primary's when it has the output, else the first healthy estimator's in stack order that has it, else
+#: None (not estimated). The phase is the primary's alone (None without a primary).
+REPORTED: Final = ("phase_rate", "stride_length_m", "incline_deg", "foot_pred_deg", "shank_pred_deg")
 
 
 @dataclass
@@ -68,12 +78,15 @@ class StackSample:
         outputs: per estimator in stack order, its outputs (None once it has failed).
         torque_Nm: the command, finite and within ``[0, max_torque]``.
         primary: the estimator driving it (None: none, the torque blends to 0).
-        phase, phase_rate, stride_length_m, incline_deg: the primary's (stride length and incline:
-            what the torque profile used, nominal when the primary does not estimate them).
-        tbe_phase: the ``tbe`` estimator's phase (0 without a healthy one).
+        phase: the primary's (None: no primary).
+        phase_rate, stride_length_m, incline_deg, foot_pred_deg, shank_pred_deg: the primary's when it
+            estimates them, else the first healthy estimator's that does, else None (not estimated; see
+            :data:`REPORTED` and :attr:`EstimatorStack.sources`). Not what the torque profile assumed.
+        tbe_phase: the ``tbe`` estimator's phase (None without a healthy one).
         heel_strike: the heel-strike channel (the source's, else the first estimator's to derive it).
-        backup_reset, foot_pred_deg, shank_pred_deg: the primary's when it has them (the predictions: else
-            the first healthy estimator's that has them, else 0).
+        backup_reset: the primary's when it has it.
+        sources: :attr:`EstimatorStack.sources` on the first sample and wherever they changed (a primary
+            switch, a failure, :meth:`EstimatorStack.announce_sources`), else None (unchanged).
         standing: the primary says the walker stands still (its ``standing`` output, :mod:`gaitscope.estimators.lock`).
         fault: ``""``; ``"gap"`` (samples further apart than ``max_gap_s``: the estimators restarted);
             ``"diverged"`` (the primary reset its state: torque 0); ``"lost"`` (the primary lost track and
@@ -87,16 +100,17 @@ class StackSample:
     outputs: list[NDArray[np.float64] | None]
     torque_Nm: float
     primary: str | None
-    phase: float
-    phase_rate: float
-    stride_length_m: float
-    incline_deg: float
-    tbe_phase: float
+    phase: float | None
+    phase_rate: float | None
+    stride_length_m: float | None
+    incline_deg: float | None
+    tbe_phase: float | None
     heel_strike: bool
     backup_reset: bool
-    foot_pred_deg: float
-    shank_pred_deg: float
+    foot_pred_deg: float | None
+    shank_pred_deg: float | None
     standing: bool = False
+    sources: dict[str, str] | None = None
     fault: str = ""
     resets: list[str] = field(default_factory=list)
     events: list[str] = field(default_factory=list)
@@ -120,6 +134,11 @@ class EstimatorStack:
         names: the estimators' names in run order; outputs: each one's output names.
         failed: failed estimators and why (they are not stepped again).
         primary: the estimator driving the torque now (None: none).
+        sources: which estimator each reported quantity comes from now (``phase`` and those of
+            :data:`REPORTED`); a quantity absent is not estimated.
+        torque_assumes: the values the torque profile takes for what the primary does not estimate
+            (``stride_length_m`` in m, ``incline_deg``); empty when it estimates both or drives the torque
+            with its own command.
     """
 
     def __init__(
@@ -170,6 +189,11 @@ class EstimatorStack:
         self._t: float | None = None
         self._last_torque = 0.0
         self._pending: list[str] = []
+        #: (field, estimator position, output index) of each reported quantity; None: to be made again
+        self._reading: list[tuple[str, int, int]] | None = None
+        self.sources: dict[str, str] = {}
+        self.torque_assumes: dict[str, float] = {}
+        self._announce = True
 
     # --- settings -------------------------------------------------------------------------------
     def retune_torque(self, gain: float, bound: float) -> None:
@@ -208,6 +232,10 @@ class EstimatorStack:
         if name != self.primary:
             self._switch(name)
 
+    def announce_sources(self) -> None:
+        """Report :attr:`sources` on the next sample even if unchanged (a new recording starts with them)."""
+        self._announce = True
+
     def take_events(self) -> list[str]:
         """Events of failures outside :meth:`step` (a retune that raised), once."""
         events, self._pending = self._pending, []
@@ -221,6 +249,7 @@ class EstimatorStack:
         start = self._t if self._t is not None else 0.0
         self._blend = (old if live else None, self._last_torque, start) if self.blend_s > 0 else None
         self.primary = to
+        self._reading = None
 
     # --- per sample -----------------------------------------------------------------------------
     def step(self, t: float, channels: dict[str, float]) -> StackSample:
@@ -309,6 +338,7 @@ class EstimatorStack:
     def _fail(self, name: str, reason: str, t: float | None = None) -> None:
         """Mark ``name`` failed; a failed primary hands the torque to the fallback, else to none."""
         self.failed[name] = reason
+        self._reading = None
         at = "" if t is None else f" at {t:.3f} s"
         self._pending.append(f"estimator {name} failed{at}: {reason}")
         if name == self.primary:
@@ -358,55 +388,76 @@ class EstimatorStack:
                 before = held if old is None or old in self.failed else self._command(old, outputs)
                 torque = (1.0 - w) * before + w * new
         hs = channels.get(HEEL_STRIKE, math.nan)
-        phase = rate = incline = 0.0
-        stride = NOMINAL_STRIDE * self.leg_length
-        backup_reset = standing = False
-        if primary is not None:  # the primary's outputs, read once (a live session does this 200 times a second)
-            k = self._position[primary]
+        reading = self._reading if self._reading is not None else self._read_plan()
+        values: dict[str, float | None] = dict.fromkeys(REPORTED)
+        values["phase"] = None
+        for name, k, i in reading:  # a live session does this 200 times a second: no more than the reads
             y = outputs[k]
             if y is not None:
-                values, idx = y.tolist(), self._index[k]
-                phase = values[idx["phase"]]
-                i = idx.get("phase_rate")
-                rate = 0.0 if i is None else values[i]
-                i = idx.get("stride_length_m")
-                stride = stride if i is None else values[i]
-                i = idx.get("incline_deg")
-                incline = 0.0 if i is None else values[i]
-                i = idx.get("backup_reset")
-                backup_reset = i is not None and values[i] > 0.5
-                i = idx.get("standing")
-                standing = i is not None and values[i] > 0.5
+                values[name] = float(y[i])
+        backup_reset = standing = False
+        if primary is not None:
+            k = self._position[primary]
+            y, idx = outputs[k], self._index[k]
+            if y is not None:
+                b, st = idx.get("backup_reset"), idx.get("standing")
+                backup_reset = b is not None and y[b] > 0.5
+                standing = st is not None and y[st] > 0.5
+        sources = None
+        if self._announce:
+            sources, self._announce = dict(self.sources), False
         return StackSample(
             outputs=outputs,
             torque_Nm=torque,
             primary=primary,
-            phase=phase,
-            phase_rate=rate,
-            stride_length_m=stride,
-            incline_deg=incline,
-            tbe_phase=self._value("tbe", "phase", outputs, 0.0),
+            phase=values["phase"],
+            phase_rate=values["phase_rate"],
+            stride_length_m=values["stride_length_m"],
+            incline_deg=values["incline_deg"],
+            tbe_phase=self._value("tbe", "phase", outputs),
             heel_strike=bool(hs > 0.5),
             backup_reset=backup_reset,
             standing=standing,
-            foot_pred_deg=self._first("foot_pred_deg", primary, outputs),
-            shank_pred_deg=self._first("shank_pred_deg", primary, outputs),
+            foot_pred_deg=values["foot_pred_deg"],
+            shank_pred_deg=values["shank_pred_deg"],
+            sources=sources,
         )
 
-    def _value(self, name: str, output: str, outputs: list[NDArray[np.float64] | None], default: float) -> float:
+    def _read_plan(self) -> list[tuple[str, int, int]]:
+        """Where each reported quantity is read from now (see :data:`REPORTED`); sets :attr:`sources` and
+        :attr:`torque_assumes` to match."""
+        primary = self.primary
+        order = [n for n in ((primary,) if primary is not None else ()) + self.names if n not in self.failed]
+        reading: list[tuple[str, int, int]] = []
+        sources: dict[str, str] = {}
+        if primary is not None and primary not in self.failed:
+            k = self._position[primary]
+            reading.append(("phase", k, self._index[k]["phase"]))
+            sources["phase"] = primary
+        for quantity in REPORTED:
+            for name in order:
+                k = self._position[name]
+                i = self._index[k].get(quantity)
+                if i is not None:
+                    reading.append((quantity, k, i))
+                    sources[quantity] = name
+                    break
+        assumes: dict[str, float] = {}
+        if primary is not None and self._own_torque[self._position[primary]] is None:
+            idx = self._index[self._position[primary]]
+            if "stride_length_m" not in idx:
+                assumes["stride_length_m"] = NOMINAL_STRIDE * self.leg_length
+            if "incline_deg" not in idx:
+                assumes["incline_deg"] = 0.0
+        if sources != self.sources or assumes != self.torque_assumes:
+            self._announce = True
+        self.sources, self.torque_assumes, self._reading = sources, assumes, reading
+        return reading
+
+    def _value(self, name: str, output: str, outputs: list[NDArray[np.float64] | None]) -> float | None:
+        """Estimator ``name``'s ``output`` at this sample (None: not in the stack, no such output, failed)."""
         k = self._position.get(name)
         if k is None:
-            return default
+            return None
         y, i = outputs[k], self._index[k].get(output)
-        return default if y is None or i is None else float(y[i])
-
-    def _first(self, output: str, primary: str | None, outputs: list[NDArray[np.float64] | None]) -> float:
-        """``output`` of the primary if it has one, else of the first healthy estimator that has it."""
-        order: Iterable[str] = self.names if primary is None else (primary, *self.names)
-        for name in order:
-            k = self._position[name]
-            i = self._index[k].get(output)
-            y = outputs[k]
-            if i is not None and y is not None:
-                return float(y[i])
-        return 0.0
+        return None if y is None or i is None else float(y[i])

@@ -133,7 +133,7 @@ class SessionRuntime:
         self.events = EventLog(self)
         self.event, self.event_soon, self.settle_events = self.events.event, self.events.event_soon, self.events.settle
         self.trials = Trials(self)  # the recordings (:mod:`gaitscope.sessions.live.trials`)
-        self.start_recording, self.stop_recording = self.trials.start, self.trials.stop
+        self.stop_recording = self.trials.stop
         self.data_dir, self.on_state = data_dir, on_state
         period = 1.0 / source.rate_hz if source.rate_hz else DEFAULT_PERIOD
         self.sample_period = period  # recorded, so that a review re-run builds the same estimator
@@ -299,6 +299,15 @@ class SessionRuntime:
         if self.on_state is not None:
             self.on_state(self.session.id, state, self.subject.leg_length_m)
         return state
+
+    def start_recording(self, name: str = "") -> schema.Trial:
+        """Start a trial's recording (:meth:`Trials.start`); its first state says where the estimates come from.
+
+        Raises:
+            DiskFull: the disk is (almost) full; nothing was started.
+        """
+        self.estimator.stack.announce_sources()  # before the trial's start: a re-run restores it announcing
+        return self.trials.start(name)
 
     def write_recording(self, write: Callable[[Recorder], object]) -> None:
         """``write`` to the trial recording now, if any; a write that fails (a full disk) ends it and the session."""

@@ -52,17 +52,23 @@ class Subscriber:
     closed: bool = False
     _count: int = 0
     _carry_hs: bool = False
+    _carry_sources: GaitState | None = None  # a skipped sample that said where the estimates come from
 
     def _kept(self, state: GaitState) -> GaitState | None:
-        """``state`` if it is an ``decimation``-th sample (with a heel strike of the samples skipped since the
-        last kept one carried onto it), else None."""
+        """``state`` if it is an ``decimation``-th sample (with a heel strike and the estimates' sources of the
+        samples skipped since the last kept one carried onto it), else None."""
         self._count += 1
         if (self._count - 1) % self.decimation:
             self._carry_hs = self._carry_hs or state.heel_strike
+            if state.sources is not None:
+                self._carry_sources = state
             return None
+        carry = self._carry_sources
+        if carry is not None and state.sources is None:
+            state = state.model_copy(update={"sources": carry.sources, "torque_assumes": carry.torque_assumes})
         if self._carry_hs and not state.heel_strike:
             state = state.model_copy(update={"heel_strike": True})
-        self._carry_hs = False
+        self._carry_hs, self._carry_sources = False, None
         return state
 
     def offer(self, state: GaitState, outputs: Sequence[NDArray[np.float64] | None] = ()) -> None:
@@ -118,7 +124,8 @@ HISTORY_BATCH = 500
 
 @dataclass(eq=False)
 class SessionHistory(Subscriber):
-    """The last :data:`HISTORY_S` seconds (of session time) of a session's states and estimator outputs.
+    """The last :data:`HISTORY_S` seconds (of session time) of a session's states and estimator outputs; its
+    first state always says where the estimates come from (``GaitState.sources``), as in force then.
 
     Fed like a browser's subscriber (every ``decimation``-th sample, heel strikes carried), but never
     sent anything, never counted as a client and never dropping for being slow: the oldest samples leave
@@ -145,8 +152,11 @@ class SessionHistory(Subscriber):
         self.pending_outputs.append(outputs)
         oldest = state.t - self.seconds
         while self.pending[0].t < oldest:
-            self.pending.popleft()
+            gone = self.pending.popleft()
             self.pending_outputs.popleft()
+            if gone.sources is not None and self.pending[0].sources is None:  # the first one says where from
+                update = {"sources": gone.sources, "torque_assumes": gone.torque_assumes}
+                self.pending[0] = self.pending[0].model_copy(update=update)
 
     def notify(self, message: schema.BaseModel) -> None:
         """Health and events are not kept: the events come from the store, the health is the present."""
@@ -194,4 +204,5 @@ def attach_history(runtime: SessionRuntime) -> SessionHistory:
         )
         runtime.subscribers.add(history)
         _HISTORIES[runtime] = history
+        stack.announce_sources()  # its first state says where the estimates come from
     return history

@@ -281,18 +281,19 @@ class _Stacked:
         given = [math.nan] * (b - a) if hs_in is None else hs_in[a:b].astype(np.float64).tolist()
         columns: tuple[list[float], ...] = tuple([] for _ in range(7))
         phase, rate, stride, incline, torque, hs, tbe = columns
-        resets = 0
+        resets, nan = 0, math.nan
         for k, tk in enumerate(t):
             channels = dict(zip(names, rows[k], strict=True))
             channels[HEEL_STRIKE] = given[k]
             e = step(tk, channels)
-            phase.append(e.phase)
-            rate.append(e.phase_rate)
-            stride.append(e.stride_length_m)
-            incline.append(e.incline_deg)
+            # not estimated (None): NaN in the replay's columns
+            phase.append(nan if e.phase is None else e.phase)
+            rate.append(nan if e.phase_rate is None else e.phase_rate)
+            stride.append(nan if e.stride_length_m is None else e.stride_length_m)
+            incline.append(nan if e.incline_deg is None else e.incline_deg)
             torque.append(e.torque_Nm)
             hs.append(e.heel_strike)
-            tbe.append(e.tbe_phase)
+            tbe.append(nan if e.tbe_phase is None else e.tbe_phase)
             resets += e.backup_reset
             self.lost += e.fault == "lost"
             if e.events:

@@ -110,6 +110,34 @@ def test_the_default_stack_keeps_the_gait_state_of_the_phase_ekf(small_model: Tr
     assert sum(s.heel_strike for s in full) >= 12 and max(s.torque_Nm for s in full) > 10.0
 
 
+# --- what is shown is what some estimator estimated -----------------------------------------------------
+def test_a_timing_based_primary_shows_the_slope_another_estimator_estimates_or_none(small_model: TrainedModel) -> None:
+    """Issue #23: the timing-based estimate estimates no incline or stride length. With the phase EKF beside it,
+    those come from the phase EKF (named as their source); alone, they are not estimated (None), never the
+    nominal values its torque profile assumes (which are stated apart)."""
+    sensors, leg, mass = sensor_trial([(1.2, 10.0, 8), (1.2, -10.0, 8)], subject=0, rate_hz=1 / PERIOD)
+    slope = (frames_from_table(sensors), leg, mass)
+    tbe = SETTINGS.model_copy(update={"primary": "tbe"})
+    both, est = _run(small_model, slope, tbe, estimators=["phase_ekf", "tbe"])
+    assert both[0].sources == {
+        "phase": "tbe", "phase_rate": "tbe", "stride_length_m": "phase_ekf", "incline_deg": "phase_ekf",
+        "foot_pred_deg": "phase_ekf", "shank_pred_deg": "phase_ekf",
+    }  # fmt: skip
+    assert both[0].torque_assumes == {"stride_length_m": pytest.approx(1.3 * leg), "incline_deg": 0.0}
+    assert all(s.sources is None for s in both[1:])  # sent again only when they change
+    k = est.stack.names.index("phase_ekf")
+    assert est.last is not None and both[-1].incline_deg == est.last.outputs[k][3]  # type: ignore[index]
+    uphill = [s.incline_deg for s in both[500:850] if s.incline_deg is not None]
+    downhill = [s.incline_deg for s in both[1400:1700] if s.incline_deg is not None]
+    assert np.mean(uphill) > 5.0 and np.mean(downhill) < -5.0  # the slope, not a level 0
+    alone, _ = _run(small_model, slope, tbe, estimators=["tbe"])
+    assert alone[0].sources == {"phase": "tbe", "phase_rate": "tbe"}
+    assert all(s.incline_deg is None and s.stride_length_m is None for s in alone)
+    assert all(s.foot_pred_deg is None and s.shank_pred_deg is None for s in alone)
+    assert all(s.phase is not None for s in alone) and max(s.torque_Nm for s in alone) > 10.0  # assists on
+    assert est.stack.outputs[k][3] == "incline_deg"
+
+
 # --- primary switch ----------------------------------------------------------------------------------
 def test_switching_the_primary_while_walking_does_not_step_the_torque(small_model: TrainedModel, walk) -> None:
     def shifted() -> Scripted:
@@ -214,7 +242,13 @@ def test_without_a_fallback_the_torque_ramps_down_to_zero(small_model: TrainedMo
     assert est.primary is None and "no fallback" in est.events[-1]
     ramp = round(PRIMARY_BLEND_S / PERIOD)
     assert np.abs(np.diff(torque[k - 1 : k + ramp + 1])).max() <= torque[k - 1] * PERIOD / PRIMARY_BLEND_S + 1e-9
-    assert np.all(torque[k + ramp :] == 0.0) and states[-1].phase == 0.0
+    assert np.all(torque[k + ramp :] == 0.0)
+    # no estimator drives the torque: no phase is shown; what phase_ekf still estimates is, named as its
+    assert states[-1].phase is None and est.stack.sources == {
+        q: "phase_ekf" for q in ("phase_rate", "stride_length_m", "incline_deg", "foot_pred_deg", "shank_pred_deg")
+    }
+    [announced] = [s.sources for s in states[k:] if s.sources is not None]
+    assert announced == est.stack.sources and "phase" not in announced
 
 
 def test_an_estimator_whose_retune_raises_fails_alone(small_model: TrainedModel, walk) -> None:
