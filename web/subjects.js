@@ -1,6 +1,7 @@
 // Subjects page (`#/subjects`): every subject, searchable and sortable, with each one's sessions and trials (dates,
 // durations, states) and links to a session's summary, its live view and each trial's review. Trial names are
-// unique within a session (the server refuses a second trial of the same name).
+// unique within a session (the server refuses a second trial of the same name). A trial still recording is shown as
+// such, with its length so far (the server counts it live), never as "nothing recorded".
 
 import * as api from "./api_client.js";
 import { fmtDuration, plural, sessionSeconds, SOURCE_WORDS, STATE_WORDS, TRIAL_WORDS } from "./people_format.js";
@@ -26,7 +27,8 @@ function group(subjects, sessions, trials) {
       .map((s) => ({ session: s, trials: bySession.get(s.id) || [] }));
     const last = own.length ? own[0].session.started_utc || own[0].session.created_utc : null;
     const recorded = own.reduce((sum, x) => sum + x.trials.reduce((a, t) => a + (t.duration_s || 0), 0), 0);
-    return { subject, sessions: own, last, recorded, trials: own.reduce((n, x) => n + x.trials.length, 0) };
+    const recording = own.flatMap((x) => x.trials).filter((t) => t.status === "recording");
+    return { subject, sessions: own, last, recorded, recording, trials: own.reduce((n, x) => n + x.trials.length, 0) };
   });
 }
 
@@ -41,7 +43,10 @@ function sessionBlock(entry) {
   const trials = entry.trials.length
     ? h("ul", { class: "trial-list" }, ...entry.trials.map((t) => h("li", { "data-testid": "subject-trial", "data-id": t.id },
       h("a", { href: `#/trials/${t.id}`, text: t.name || `Trial ${t.id}` }),
-      h("span", { class: "hint", text: ` · ${fmtUtc(t.started_utc)} · ${fmtDuration(t.duration_s)} · ${TRIAL_WORDS[t.status] || t.status}` }),
+      t.status === "recording"
+        ? h("span", { class: "hint", "data-testid": "trial-recording",
+          text: ` · ${fmtUtc(t.started_utc)} · recording now, ${fmtDuration(t.duration_s)} so far` })
+        : h("span", { class: "hint", text: ` · ${fmtUtc(t.started_utc)} · ${fmtDuration(t.duration_s)} · ${TRIAL_WORDS[t.status] || t.status}` }),
       uses.get(t.name.toLowerCase()) > 1 ? h("span", { class: "people-dup", "data-testid": "trial-name-twice",
         text: ` · another trial of this session has this name (trial ${t.id} here)` }) : null)))
     : h("p", { class: "hint", text: "No trial recorded." });
@@ -56,6 +61,12 @@ function sessionBlock(entry) {
     trials);
 }
 
+/** What the subject has recorded: so much, so much so far while a trial records, or nothing yet. */
+function recordedText(g) {
+  if (g.recording.length) return `${fmtDuration(g.recorded)} recorded so far`;
+  return g.recorded > 0 ? `${fmtDuration(g.recorded)} recorded` : "nothing recorded yet";
+}
+
 function subjectCard(g, open) {
   const s = g.subject;
   const details = h("details", { class: "people-sessions", "data-testid": "subject-details", open },
@@ -67,7 +78,9 @@ function subjectCard(g, open) {
       h("h2", {}, h("a", { href: `#/subjects/${s.id}`, "data-testid": "subject-code", text: s.code })),
       h("span", { text: `${s.side} side · leg ${s.leg_length_m} m · ${s.mass_kg} kg` }),
       h("span", { "data-testid": "subject-last", text: g.last ? `last session ${fmtUtc(g.last)}` : "no session yet" }),
-      h("span", { "data-testid": "subject-recorded", text: g.recorded > 0 ? `${fmtDuration(g.recorded)} recorded` : "nothing recorded yet" })),
+      g.recording.length ? h("span", { class: "state state-running", "data-testid": "subject-recording",
+        text: `recording now (trial ${g.recording.map((t) => t.id).join(", ")})` }) : null,
+      h("span", { "data-testid": "subject-recorded", text: recordedText(g) })),
     s.notes ? h("p", { class: "hint", text: s.notes }) : null,
     details);
 }

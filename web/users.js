@@ -2,7 +2,8 @@
 // back until when) and last login; add a user; change a role; disable or enable; unlock; set a new password (a reset).
 // Each change is one `PATCH /api/users/{name}` (UserChange); the server ends the account's logins when its role
 // changes, it is disabled or its password reset, refuses to demote or disable the last admin (409), and its
-// refusals are shown next to the row in its own words.
+// refusals are shown next to the row in its own words. With accounts off (no login) the page says so first, and
+// how to turn them on; the accounts added meanwhile are kept for then.
 
 import * as api from "./api_client.js";
 import { currentUser, fence } from "./auth.js";
@@ -35,8 +36,21 @@ export function userState(u, now = Date.now()) {
   return "active";
 }
 
+/** With accounts off: that nobody logs in, and how to turn accounts on (docs/deployment.md). */
+function accountsOffCard() {
+  return h("section", { class: "card", "data-testid": "users-accounts-off" },
+    h("h2", { text: "Accounts are off on this server" }),
+    h("p", { text: "Nobody logs in: whoever opens gaitscope on this computer acts as \u201clocal\u201d, with every right, "
+      + "and the server answers this computer only. The accounts below are kept, and used once accounts are on." }),
+    h("p", { text: "To turn accounts on: add the first admin on the server, then start it again with GAITSCOPE_AUTH=true "
+      + "(on a network also with TLS: see docs/deployment.md)." }),
+    h("pre", { class: "hint", "data-testid": "users-accounts-on-steps",
+      text: "gaitscope user add --role admin NAME   # asks for the password\nGAITSCOPE_AUTH=true gaitscope serve" }));
+}
+
 /** @param {HTMLElement} root */
 export function mountUsers(root) {
+  const me = currentUser();
   const rows = h("tbody", { "data-testid": "users-rows" });
   const listError = errorBox("users-error");
 
@@ -118,7 +132,8 @@ export function mountUsers(root) {
   async function load() {
     try {
       const users = await api.listUsers();
-      rows.replaceChildren(...users.map(row));
+      rows.replaceChildren(...(users.length ? users.map(row) : [h("tr", { "data-testid": "users-none" },
+        h("td", { colspan: 5, class: "hint", text: "No accounts yet: add the first admin above." }))]));
       showError(listError, null);
     } catch (err) {
       showError(listError, err);
@@ -130,7 +145,8 @@ export function mountUsers(root) {
       h("thead", {}, h("tr", {}, ...["Name", "Role", "State", "Last login", "Change"].map((t) => h("th", { text: t })))),
       rows)), listError), "admin", "Only an admin sees and changes the accounts.");
   const page = h("div", { class: "page users-page" },
-    h("div", { class: "page-head" }, h("h1", { text: "Users" })), fence(addForm, "admin", "Only an admin adds users."), listCard);
+    h("div", { class: "page-head" }, h("h1", { text: "Users" })), me && !me.accounts ? accountsOffCard() : null,
+    fence(addForm, "admin", "Only an admin adds users."), listCard);
   root.append(page);
   if (listCard.dataset.fenced === undefined) load();
   return { unmount() {} };

@@ -283,10 +283,15 @@ class SessionManager:
         return session if unsaved is None else unsaved.session
 
     def shown_trial(self, trial: schema.Trial) -> schema.Trial:
-        """``trial`` as it is: its final row if it ended here and the database does not have it yet."""
+        """``trial`` as it is: its final row if it ended here and the database does not have it yet; while it
+        records here, with the samples and the duration recorded so far (the row has them once it stops)."""
         runtime = self.runtimes.get(trial.session_id)
         if runtime is not None and trial.id in runtime.unsaved_trials:  # stored when its session ends
             return runtime.unsaved_trials[trial.id]
+        current = None if runtime is None else runtime.trial
+        recorder = None if runtime is None or current is None or current.id != trial.id else runtime.recorder
+        if recorder is not None and trial.status == "recording":
+            return trial.model_copy(update={"samples": recorder.samples, "duration_s": float(recorder.duration_s)})
         unsaved = self.unsaved.get(trial.session_id)
         return trial if unsaved is None else unsaved.trials.get(trial.id, trial)
 

@@ -141,10 +141,24 @@ def test_calibrate_compare_promote_and_roll_back(
     listing = call(server, "GET", f"/api/subjects/{sid}/fingerprints")
     pid = listing["versions"][0]["id"]
 
-    # --- compare: the walk re-run with the average and the candidate's model, overlaid ---------------------
-    with page.expect_request(re.compile(rf"/api/trials/{walk['id']}/rerun\?max_points=2000$")) as rerun:
+    # --- compare: a held-out walk (the short one: v1 was fitted on the other) re-run with the average and the
+    # candidate's model, overlaid; then the calibration walk itself, said to be in-sample (issue #23, 9) -----------
+    with page.expect_request(re.compile(rf"/api/trials/{short['id']}/rerun\?max_points=2000$")) as rerun:
         row.get_by_test_id("compare").click()
     assert rerun.value.post_data_json == {"estimators": ["fp_avg", "fp_ls"], "personalization_id": pid}
+    expect(page.get_by_test_id("compare-sample")).to_have_text(
+        f"Held-out walk: trial {short['id']}, not used to fit v1 (fitted on trial {walk['id']})."
+    )
+    expect(page.get_by_test_id("compare-ok")).to_contain_text(f"Trial {short['id']} re-run")
+    page.get_by_test_id("compare-trial").select_option(str(walk["id"]))
+    expect(page.get_by_test_id("compare-trial").locator("option:checked")).to_contain_text(
+        "(in-sample: v1 was fitted on it)"
+    )
+    with page.expect_request(re.compile(rf"/api/trials/{walk['id']}/rerun\?max_points=2000$")):
+        page.get_by_test_id("compare-submit").click()
+    expect(page.get_by_test_id("compare-sample")).to_contain_text(
+        f"In-sample: trial {walk['id']} is the walk v1 was fitted on"
+    )
     compared = f"Trial {walk['id']} re-run with the average model and v1's fingerprint"
     expect(page.get_by_test_id("compare-ok")).to_contain_text(compared)
     for key in ("phase", "stride", "thigh"):

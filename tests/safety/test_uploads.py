@@ -160,7 +160,8 @@ def _recording(tmp_path: Path) -> bytes:
 @pytest.mark.parametrize("suffix", [".parquet", ".csv"])
 def test_locohub_tables_import(make_client: Callable[..., TestClient], tmp_path: Path, suffix: str) -> None:
     client = make_client()
-    code, trial = _upload(client, _locohub_bytes(suffix, tmp_path), f"cohort{suffix}", _subject(client))
+    data = _locohub_bytes(suffix, tmp_path)
+    code, trial = _upload(client, data, f"cohort{suffix}", _subject(client))
     assert code == 201, trial
     # one frame per distinct time of each (subject, task)
     expected = sum(g["time_s"].nunique() for _, g in _locohub().groupby(["subject", "task_id"]))
@@ -168,7 +169,8 @@ def test_locohub_tables_import(make_client: Callable[..., TestClient], tmp_path:
     series = client.get(f"/api/trials/{trial['id']}/series?max_points=20000").json()
     assert len(series["t"]) == expected
     session = client.get(f"/api/sessions/{trial['session_id']}").json()
-    assert session["state"] == "stopped" and session["source"] == {"kind": "upload", "filename": f"cohort{suffix}"}
+    source = {"kind": "upload", "filename": f"cohort{suffix}", "sha256": hashlib.sha256(data).hexdigest()}
+    assert session["state"] == "stopped" and session["source"] == source
 
 
 def test_replay_csv_and_mcap_import(make_client: Callable[..., TestClient], tmp_path: Path) -> None:

@@ -124,3 +124,18 @@ def test_the_login_says_the_tries_left_and_the_lock_the_same_for_a_name_that_doe
         "/api/auth/login", json={"name": "cleo", "password": PASSWORD}
     )
     assert r.status_code == 200, r.text
+
+
+def test_a_trial_still_recording_is_listed_with_its_length_so_far(client: TestClient) -> None:
+    s = session(client)
+    wait_samples(client, s["id"], 1.0)
+    [trial] = client.get(f"/api/trials?session_id={s['id']}").json()
+    assert trial["status"] == "recording" and trial["samples"] >= 100 and trial["duration_s"] >= 0.5
+    stored = client.app.state.ctx.store.get_trial(trial["id"])  # type: ignore[attr-defined]
+    assert (stored.samples, stored.duration_s) == (0, 0.0)  # the row has them once it stops
+    wait_samples(client, s["id"], 2.0)
+    again = client.get(f"/api/trials/{trial['id']}").json()
+    assert again["samples"] > trial["samples"] and again["duration_s"] > trial["duration_s"]
+    client.post(f"/api/sessions/{s['id']}/stop")
+    final = client.get(f"/api/trials/{trial['id']}").json()
+    assert final["status"] == "finished" and final["samples"] >= again["samples"]
