@@ -134,7 +134,7 @@ export function mountReport(root, sessionId) {
     const caption = h("p", { class: "hint", "data-testid": "overlay-caption" });
     card.append(h("div", { class: "inline" }, field("Condition", cond), field("Signal", sig)), box, caption,
       h("p", { class: "hint", "data-testid": "conditions-rule", text: "A condition is a speed (to 0.2 m/s) and an incline (to 2.5°) the "
-        + "walker held: at least 5 strides, in runs of 3 or more one after the other. "
+        + "walker held: strides in runs of 3 or more one after the other. "
         + (s.transition_strides ? `${plural(s.transition_strides, "stride")} walked while the speed or incline changed belong to none. ` : "")
         + "Grey: single strides; blue: their mean." }));
     let p = null;

@@ -10,7 +10,8 @@ bridges time that was not recorded.
 **Conditions.** A stride's condition is its speed rounded to :data:`SPEED_BIN` m/s and its incline rounded to
 :data:`INCLINE_BIN` degrees. A condition is one the walker held: strides count towards it only in runs of at
 least :data:`MIN_RUN` consecutive strides (no gap between them) of that condition, and it is listed only with at
-least :data:`MIN_CONDITION_STRIDES` such strides. A stride that straddles a change of the protocol, or one of the
+least :data:`MIN_CONDITION_STRIDES` such strides (both 3: a short session's one condition is listed, a ramp's
+strides, one or two per bin, are not). A stride that straddles a change of the protocol, or one of the
 strides walked while the speed or the incline ramped, is alone in its bin, so it makes no condition (the summary
 counts them as ``transition_strides``). A condition's curves are each signal resampled over the stride at
 :data:`POINTS` points (0-100 %).
@@ -76,7 +77,7 @@ _FLAGS: Final = ("heel_strike", "fault", "backup_reset")
 _PROGRESS_ROWS: Final = 2000
 #: Least consecutive strides of one condition that count towards it (a run), and least strides a condition needs.
 MIN_RUN: Final = 3
-MIN_CONDITION_STRIDES: Final = 5
+MIN_CONDITION_STRIDES: Final = 3
 #: Fields of setting events by the name a clinician reads (``schema.SETTING_NAMES``, the one table).
 SETTING_NAMES: Final = {k: name for k, (name, _) in schema.SETTING_NAMES.items()}
 _SOURCES: Final = {"simulated": "simulated walker", "replay": "replay of a trial", "device": "live device",

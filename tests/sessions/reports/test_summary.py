@@ -84,9 +84,11 @@ def test_a_condition_is_one_the_walker_held() -> None:
     held, transitions = sm._held(_walk(keys))
     assert set(held) == {a, b} and len(held[a]) == 6 and len(held[b]) == 5  # the last 2 of b: a run too short
     assert transitions == len(keys) - 11
-    # a run broken by a gap (time not recorded) is two runs: 2 + 4 strides, only the 4 count, too few
+    # a run broken by a gap (time not recorded) is two runs: 2 + 4 strides, only the 4 count
     held, transitions = sm._held(_walk([a] * 6, gap_after=1))
-    assert held == {} and transitions == 6
+    assert len(held[a]) == 4 and transitions == 2
+    held, transitions = sm._held(_walk([a, a, b, a, a]))  # never 3 in a row: no condition
+    assert held == {} and transitions == 5
     # runs of MIN_RUN in one condition add up to it
     held, _ = sm._held(_walk([a] * sm.MIN_RUN + [b] + [a] * sm.MIN_RUN))
     assert len(held[a]) == 2 * sm.MIN_RUN and b not in held
