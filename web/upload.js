@@ -69,7 +69,7 @@ async function _finish(id, recover, keepCopy) {
 export function mountUpload(subjectSelect) {
   let cancelled = false;
   let activeId = null;
-  let pending = null; // the recoverable file refused last: {file, subjectId}
+  let pending = null; // the recoverable file refused last: {file, subjectId, keepCopy}
   let duplicate = null; // the file refused last as uploaded before: {file, subjectId}
   const file = h("input", { type: "file", id: "upload-file", "data-testid": "upload-file", accept: ".mcap,.csv,.parquet" });
   const progress = h("progress", { id: "upload-progress", "data-testid": "upload-progress", max: 1, value: 0 });
@@ -131,7 +131,7 @@ export function mountUpload(subjectSelect) {
       if (activeId) api.cancelUpload(activeId).catch(() => {});
       activeId = null;
       if (err.recoverable && !recover) {
-        pending = { file: f, subjectId };
+        pending = { file: f, subjectId, keepCopy };
         recoverBox.hidden = false;
       }
       if (err.duplicateOf && !keepCopy) {
@@ -167,12 +167,12 @@ export function mountUpload(subjectSelect) {
 
   recoverBtn.addEventListener("click", () => {
     if (!pending) return;
-    const { file: f, subjectId } = pending;
+    const { file: f, subjectId, keepCopy } = pending;
     cancelled = false;
     cancel.disabled = false;
     submit.disabled = true;
     runAction(recoverBtn, error, async () => {
-      await send(f, subjectId, true);
+      await send(f, subjectId, true, keepCopy);
       pending = null;
       recoverBox.hidden = true;
     }).finally(() => {
