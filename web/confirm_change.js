@@ -51,8 +51,9 @@ export function torqueConfirmBox(prefix) {
     ask(check, what) {
       settle(false); // a question still open is answered "no"
       const rises = check.peak_after_Nm > check.peak_before_Nm;
-      text.textContent = `${what || `Change ${fieldsText(check.fields)}`}? This can raise the torque on the person` +
-        `${rises ? "" : " (its peak stays where it is, but what drives it changes)"}.`;
+      const why = check.fields.includes("primary") ? " (another estimator drives it)"
+        : rises ? "" : " (not its peak at the present gait state, but at others)";
+      text.textContent = `${what || `Change ${fieldsText(check.fields)}`}? This can raise the torque on the person${why}.`;
       before.textContent = `${fmt(check.peak_before_Nm, 1)} N·m`;
       after.textContent = `${fmt(check.peak_after_Nm, 1)} N·m`;
       yes.textContent = check.fields.includes("primary") ? "Switch it" : rises ? "Raise it" : "Confirm";
