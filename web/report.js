@@ -13,6 +13,7 @@ import { fmtDuration, plural, STATE_WORDS } from "./people_format.js";
 import { COLORS, Plot } from "./plots.js";
 import { exportCard } from "./report_export.js";
 import { errorBox, field, fmt, fmtUtc, h, showError } from "./ui.js";
+import { SETTING_NAMES } from "./wire.js";
 
 const SIGNALS = {
   torque_Nm: { label: "Assistance torque", unit: "N·m" },
@@ -96,9 +97,9 @@ export function mountReport(root, sessionId) {
       : h("p", { class: "hint", "data-testid": "settings-history", text: "No setting was changed during the session." });
     return h("section", { class: "card", "data-testid": "report-settings" }, h("h2", { text: "Settings" }),
       dl([
-        ["Torque gain", start ? `${fmt(start.torque_gain, 2)} at the start, ${fmt(end.torque_gain, 2)} at the end` : fmt(end.torque_gain, 2), "settings-gain"],
-        ["Torque limit", start ? `${fmt(start.max_torque_Nm, 1)} N·m at the start, ${fmt(end.max_torque_Nm, 1)} N·m at the end` : `${fmt(end.max_torque_Nm, 1)} N·m`, "settings-limit"],
-        ["Torque follows", estimatorLabel(end.primary), "settings-primary"],
+        [SETTING_NAMES.torque_gain.name, start ? `${fmt(start.torque_gain, 2)} at the start, ${fmt(end.torque_gain, 2)} at the end` : fmt(end.torque_gain, 2), "settings-gain"],
+        [SETTING_NAMES.max_torque_Nm.name, start ? `${fmt(start.max_torque_Nm, 1)} N·m at the start, ${fmt(end.max_torque_Nm, 1)} N·m at the end` : `${fmt(end.max_torque_Nm, 1)} N·m`, "settings-limit"],
+        [SETTING_NAMES.primary.name, estimatorLabel(end.primary), "settings-primary"],
       ]), h("h3", { text: "Changes" }), list);
   }
 
