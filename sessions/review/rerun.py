@@ -193,8 +193,9 @@ def rerun_series(
         if hi is not None and log_time > hi:
             break
         if topic == "/gait_state":  # recorded after its frame, at its log time
-            if stepped is not None and stepped[0] == log_time:
-                diff = abs(stepped[1] - _recorded_torque(path, log_time, msg))
+            recorded_torque = _recorded_torque(msg)
+            if stepped is not None and stepped[0] == log_time and recorded_torque is not None:
+                diff = abs(stepped[1] - recorded_torque)
                 worst = diff if worst is None or not diff <= worst else worst
             stepped = None
             continue
@@ -310,11 +311,10 @@ def _retune(estimator: FrameEstimator, settings: SessionSettings) -> None:
         pass  # a switch to a primary this re-run does not have: the others apply
 
 
-def _recorded_torque(path: Path, log_time: int, msg: object) -> float:
+def _recorded_torque(msg: object) -> float | None:
+    """A recorded gait state's torque (None: it has none to compare with)."""
     torque = msg.get("torque_Nm") if isinstance(msg, dict) else None
-    if not isinstance(torque, int | float) or isinstance(torque, bool):
-        raise DataFormatError(f"/gait_state message without torque_Nm at {log_time} ns", file=str(path))
-    return float(torque)
+    return float(torque) if isinstance(torque, int | float) and not isinstance(torque, bool) else None
 
 
 def rerun_choices(path: Path, fingerprint: Sequence[float] | None = None) -> RerunChoices:
