@@ -9,6 +9,8 @@ estimator driving the torque is switched to the timing-based estimate, and stops
 - the summary's duration is the recorded time (the trials' durations summed), shown beside the session's longer
   wall time; while the server reads the recordings the page shows how far it has got; the summary is kept;
 - a trial's PDF is linked from its review page.
+
+Screenshots at 1024x768: ``tests/e2e/artifacts/trust-reports-{live,summary,review}-1024x768.png``.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from pypdf import PdfReader
 
 from gaitscope.sessions.registry import descriptors
 from tests.e2e.accounts import call, session_time
-from tests.e2e.pages import Watched
+from tests.e2e.pages import ARTIFACTS, Watched
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
@@ -87,6 +89,7 @@ def test_live_page_names_no_estimator_by_its_machine_name(
     assert set(options.all_inner_texts()) >= {LABELS["phase_ekf"], LABELS["tbe"]}
     page.wait_for_timeout(1500)  # a few batches drawn: legends and health filled
     assert _raw_ids(page.locator("body").inner_text()) == []
+    page.screenshot(path=str(ARTIFACTS / "trust-reports-live-1024x768.png"))
     watched.check_clean()
 
 
@@ -134,6 +137,7 @@ def test_summary_shows_recorded_time_beside_wall_time_with_progress(
         "running": False, "cached": True, "progress": 1.0, "step": "ready"
     }  # fmt: skip
     assert _raw_ids(page.locator("body").inner_text()) == []
+    page.screenshot(path=str(ARTIFACTS / "trust-reports-summary-1024x768.png"), full_page=True)
     watched.check_clean()
 
 
@@ -158,6 +162,7 @@ def test_review_names_no_estimator_and_links_the_trials_pdf(
     card = page.get_by_test_id("trial-export-card")
     card.scroll_into_view_if_needed()
     assert _raw_ids(page.locator("body").inner_text()) == []
+    page.screenshot(path=str(ARTIFACTS / "trust-reports-review-1024x768.png"), full_page=True)
     with page.expect_download(timeout=60_000) as dl:
         card.get_by_test_id("export-pdf").click()
     assert dl.value.suggested_filename == f"gaitscope_VOC01_session{sid}_trial{trial['id']}.pdf"
