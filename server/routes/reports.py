@@ -82,6 +82,14 @@ class Summaries:
             self.kept.popitem(last=False)
         return made
 
+    def fresh(self, c: Ctx, session_id: int) -> schema.SessionSummary | None:
+        """The kept summary of the session, if its trials have not changed since (with its events now), else
+        None. Called from the export worker's thread too (it only reads the kept summaries)."""
+        hit = self.kept.get(session_id)
+        if hit is None or hit[0] != self.key(c, session_id):
+            return None
+        return with_events(hit[1], c.store.get_session(session_id), c.store.list_events(session_id))
+
     def state(self, c: Ctx, session_id: int) -> schema.SummaryProgress:
         """How far the making of the session's summary has got, or whether it is kept."""
         hit = self.kept.get(session_id)
@@ -109,6 +117,8 @@ def _exports(request: Request, c: Ctx) -> ExportJobs:
     if jobs is None or jobs.store is not c.store:
         jobs = ExportJobs(c.store, c.settings.data_dir, gaitscope_version())
         jobs.clear_leftovers()
+        summaries = _summaries(request)
+        jobs.kept = lambda session_id: summaries.fresh(c, session_id)  # a kept summary is not made again
         request.app.state.exports = jobs
     return jobs
 

@@ -50,6 +50,9 @@ class ExportJobs:
         self._jobs: OrderedDict[str, schema.ExportJob] = OrderedDict()
         self._lock = threading.Lock()
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="gaitscope-export")
+        #: A session's summary kept by the app when it is up to date (None: none), which a session's PDF then
+        #: typesets without reading the recordings again (set by the routes: ``server/routes/reports.py``).
+        self.kept: Callable[[int], schema.SessionSummary | None] | None = None
 
     def clear_leftovers(self) -> None:
         """Delete the files of an earlier run's exports."""
@@ -139,14 +142,16 @@ class ExportJobs:
         return on
 
     def _pdf(self, job: schema.ExportJob) -> None:
-        self._update(job.id, step="reading the recordings")
-        summary, _ = session_summary(
-            self.store,
-            self.data_dir,
-            job.session_id,
-            trial_id=job.trial_id,
-            on_progress=self._progress(job.id, 0.0, 0.7, "reading the recordings"),
-        )
+        summary = self.kept(job.session_id) if self.kept is not None and job.trial_id is None else None
+        if summary is None:
+            self._update(job.id, step="reading the recordings")
+            summary, _ = session_summary(
+                self.store,
+                self.data_dir,
+                job.session_id,
+                trial_id=job.trial_id,
+                on_progress=self._progress(job.id, 0.0, 0.7, "reading the recordings"),
+            )
         self._update(job.id, progress=0.75, step="typesetting the report")
         now = dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
         self._path(job).write_bytes(render_pdf(summary, version=self.version, generated_utc=now))

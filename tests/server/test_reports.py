@@ -213,3 +213,22 @@ def test_one_trial_exports(recorded: Any) -> None:
     rows = list(csv.DictReader(io.StringIO(data.decode("utf-8"))))
     assert len(rows) == trial["samples"] and {r["trial_id"] for r in rows} == {str(trial["id"])}
     assert client.post("/api/trials/999/exports", json={"kind": "pdf"}).status_code == 404
+
+
+def test_a_sessions_pdf_typesets_the_kept_summary(recorded: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue #23: a summary made once is not made again for the PDF (the recordings are not read again)."""
+    from gaitscope.sessions.reports import jobs
+
+    client, sid = recorded
+    client.get(f"/api/sessions/{sid}/summary")  # made and kept
+
+    def not_again(*args: Any, **kw: Any) -> Any:
+        raise AssertionError("the recordings were read again")
+
+    monkeypatch.setattr(jobs, "session_summary", not_again)
+    _, data, _ = _export(client, sid, "pdf")
+    assert data[:5] == b"%PDF-"
+    trial = client.get(f"/api/trials?session_id={sid}").json()[0]
+    r = client.post(f"/api/trials/{trial['id']}/exports", json={"kind": "pdf"})  # a trial's: made, so it fails here
+    wait_until(lambda: client.get(f"/api/exports/{r.json()['id']}").json()["state"] != "running", 30.0, "the job")
+    assert client.get(f"/api/exports/{r.json()['id']}").json()["error"] == "the recordings were read again"
