@@ -91,11 +91,11 @@ class Trials:
     def _record_state(self) -> None:
         """Record the estimation state a re-run resumes from (:mod:`~gaitscope.sessions.formats.stack_state`).
 
-        Taken on the loop, between two samples: the pickle is the copy (0.7 ms for the default stack). Its
-        encoding (base64, 0.5 ms) runs on a worker thread when there is a loop; the message is written when it
-        is back, at the session time of the trial's start (:meth:`stop` writes it first if it is not back
-        yet). A stack that cannot be pickled (a test double) is recorded without it: its re-runs start from
-        fresh filters, and say so."""
+        Taken on the loop, between two samples: the pickle is the copy (under 1 ms for the default stack,
+        ``docs/results.md``). Its encoding (base64 and SHA-256, a quarter of that) runs on a worker thread when
+        there is a loop; the message is written when it is back, at the session time of the trial's start
+        (:meth:`stop` writes it first if it is not back yet). A stack that cannot be pickled (a test double) is
+        recorded without it: its re-runs start from fresh filters, and say so."""
         rt = self.rt
         recorder = rt.recorder
         assert recorder is not None
@@ -115,9 +115,13 @@ class Trials:
         future = loop.run_in_executor(None, encode)
 
         def done(f: asyncio.Future[bytes]) -> None:
-            if self._state is not None and self._state[0] is recorder and not f.cancelled() and f.exception() is None:
-                self._state = None
-                self._write_state(recorder, t, f.result())
+            if self._state is None or self._state[0] is not recorder:
+                return  # written by stop(), or another trial's
+            self._state = None
+            if f.cancelled() or f.exception() is not None:
+                log.warning("session %d: the estimation state could not be encoded: %s", rt.session.id, f)
+                return
+            self._write_state(recorder, t, f.result())
 
         future.add_done_callback(done)
 
@@ -139,7 +143,10 @@ class Trials:
         if self._state is not None:  # the state's encoding is not back yet: it goes in before the trial ends
             state, self._state = self._state, None
             if state[0] is recorder:
-                self._write_state(recorder, state[1], state[2]())
+                try:
+                    self._write_state(recorder, state[1], state[2]())
+                except Exception as e:  # the trial ends whatever happens
+                    log.warning("session %d: the estimation state could not be encoded: %s", rt.session.id, e)
         rt.events.lasting_event(f"recording stopped: {trial.name}", kind="recording")
         rt.trial, rt.recorder = None, None
         status: schema.TrialStatus = "finished"
