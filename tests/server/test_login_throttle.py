@@ -64,8 +64,11 @@ def test_every_refusal_is_the_same_answer(app: TestClient) -> None:
     held_back = _answer(guesser, "cleo", PASSWORD)  # the right password, held back after 3 failures
     held_back_unknown = _answer(guesser, "nobody", PASSWORD)
     assert held_back == held_back_unknown  # the lock is said, the same for a name that does not exist
-    assert held_back[:2] == (401, b'{"detail":"locked after too many failed logins: try again in 1 s '
-                             b'(this attempt was not checked)"}') and ("retry-after", "1") in held_back[2]
+    assert (
+        held_back[:2]
+        == (401, b'{"detail":"locked after too many failed logins: try again in 1 s (this attempt was not checked)"}')
+        and ("retry-after", "1") in held_back[2]
+    )
     assert app.app.state.ctx.accounts.throttle.wait("10.0.0.66", "cleo") > 0  # type: ignore[attr-defined]
 
 

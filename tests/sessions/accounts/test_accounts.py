@@ -128,7 +128,11 @@ def test_every_refusal_is_the_same_answer_after_one_verification(parts: tuple[Ac
     locked = f"{REFUSED}. Too many failed logins: logins with this name from this computer are locked for 1 s"
     held = "locked after too many failed logins: try again in 1 s (this attempt was not checked)"
     assert [a.split(" (each")[0] for a in answers[::2]] == [
-        REFUSED, f"{REFUSED} (1 try left before logins with this name are locked)", locked, held, held
+        REFUSED,
+        f"{REFUSED} (1 try left before logins with this name are locked)",
+        locked,
+        held,
+        held,
     ]
 
 
