@@ -129,7 +129,7 @@ export function compareCard(subjectId, hooks) {
       draw(v, res);
       const own = tid === v.source_trial_id;
       cmpSample.textContent = sampleText(v, tid, held !== null);
-      cmpSample.className = own ? "warn" : "ok";
+      cmpSample.className = own ? "note" : "ok"; // in-sample in the warning colour
       cmpSample.dataset.sample = own ? "in-sample" : "held-out";
       cmpSample.hidden = false;
       const measured = res.thigh_angle_deg || [];
