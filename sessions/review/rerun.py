@@ -73,6 +73,7 @@ from gaitscope.sessions.schema import GPModelRecord, ImuCalibration, RerunChoice
 
 __all__ = [
     "FRESH",
+    "IMPORTED",
     "NOT_RECORDED",
     "REFUSED",
     "RESUMED",
@@ -103,10 +104,15 @@ NOT_RECORDED: Final = (
     "This recording holds no estimation state from the trial's start (made before gaitscope kept one, or by "
     "another tool): the re-run starts from fresh filters, so its first strides may differ from what ran."
 )
+IMPORTED: Final = (
+    "An imported log: its states were estimated from its first frame with fresh filters, and so is the re-run."
+)
 REFUSED: Final = (
     "The estimation state recorded at the trial's start could not be restored ({why}): the re-run starts from "
     "fresh filters, so its first strides may differ from what ran."
 )
+#: The metadata ``source`` of a log estimated at its upload (:mod:`gaitscope.sessions.formats.imports`).
+_IMPORT_SOURCE: Final = "upload "
 #: Keys of a re-run's answer that are not series: how it started, and how far its torque is from the recording's.
 START_KEY: Final = "start"
 TORQUE_DIFF_KEY: Final = "recorded_torque_diff_Nm"
@@ -142,7 +148,7 @@ def rerun_series(
     """Series (as :func:`~gaitscope.sessions.formats.mcap_io.read_series`) of the trial re-estimated, and the
     outputs of each estimator as ``<name>.<output>`` columns (None where it had failed); and two entries that
     are not series: ``start`` (:data:`START_KEY`), one sentence saying how the estimators began (:data:`RESUMED`,
-    :data:`FRESH`, :data:`NOT_RECORDED`, :data:`REFUSED`), and ``recorded_torque_diff_Nm``
+    :data:`FRESH`, :data:`IMPORTED`, :data:`NOT_RECORDED`, :data:`REFUSED`), and ``recorded_torque_diff_Nm``
     (:data:`TORQUE_DIFF_KEY`), the largest ``|torque - recorded torque|`` (N m) over the samples returned, each
     against the recorded gait state of the same frame, before decimation (None: the trial records none).
 
@@ -224,6 +230,8 @@ def rerun_series(
             if resumable:
                 assert names is not None
                 estimator, start = _resumed(recorded_state, model, tuple(names), origin)
+                if recorded_state is None and _metadata(path).get("source", "").startswith(_IMPORT_SOURCE):
+                    start = IMPORTED  # estimated at the upload from its first frame: fresh filters are what ran
             if estimator is not None:  # the state holds the settings, IMU calibration and GP models of the start
                 if estimator.settings != current:
                     _retune(estimator, current)

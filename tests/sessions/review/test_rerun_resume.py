@@ -26,15 +26,16 @@ from gaitscope.sessions.formats import stack_state
 from gaitscope.sessions.formats.mcap_io import read_messages
 from gaitscope.sessions.live.runtime import SessionRuntime
 from gaitscope.sessions.live.sources import LiveDevice, frames_from_table
-from gaitscope.sessions.review.rerun import NOT_RECORDED, REFUSED, RESUMED, START_KEY, TORQUE_DIFF_KEY
+from gaitscope.sessions.review.rerun import IMPORTED, NOT_RECORDED, REFUSED, RESUMED, START_KEY, TORQUE_DIFF_KEY
 from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
 from gaitscope.sessions.synth.speed_walks import speed_walk
-from gaitscope.sessions.synth.trials import sensor_trial
+from gaitscope.sessions.synth.trials import replay_columns, sensor_trial
 from tests.device_tokens import device_path
 from tests.sessions.live.test_gp_learning import CHANNELS as GP_CHANNELS
 from tests.sessions.live.test_gp_learning import WALK as GP_WALK
 from tests.sessions.live.test_gp_learning import _send as gp_send
 from tests.sessions.live.test_gp_learning import _session as gp_session
+from tests.uploads import upload
 
 ALL = 20000  # max_points above every trial's length: no decimation
 #: Columns a re-run cannot reproduce: the server's wall clock at arrival (0 in a re-run).
@@ -274,3 +275,15 @@ def test_a_trial_that_begins_after_the_gp_ekf_learned_reruns_bit_identically(
     ctx = client.app.state.ctx  # type: ignore[attr-defined]
     path = Path(ctx.settings.data_dir) / ctx.store.get_trial(tid).path
     _assert_identical(client, path, tid, _rerun(client, tid))
+
+
+def test_an_imported_log_reruns_from_fresh_filters_as_it_ran_and_says_so(client: TestClient, tmp_path: Path) -> None:
+    sensors, _, _ = sensor_trial([(1.0, 0.0, 8)], rate_hz=100.0)
+    path = tmp_path / "walk.csv"
+    replay_columns(sensors).to_csv(path, index=False, float_format="%.6f")
+    r = client.post("/api/subjects", json={"code": "IMP1", "leg_length_m": 0.9, "mass_kg": 70.0})
+    trial = upload(client, path, r.json()["id"])
+    rerun = _rerun(client, trial["id"])
+    assert rerun[START_KEY] == [IMPORTED] and rerun[TORQUE_DIFF_KEY] == [0.0]
+    recorded = client.get(f"/api/trials/{trial['id']}/series?max_points={ALL}").json()
+    assert rerun["torque_Nm"] == recorded["torque_Nm"] and rerun["phase"] == recorded["phase"]
