@@ -23,6 +23,7 @@ from websockets.sync.client import connect
 from tests.e2e.accounts import PASSWORDS, Refused, client
 from tests.e2e.pages import ARTIFACTS, Watched, watch
 from tests.e2e.servers import start
+from tests.waiting import wait_until
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
@@ -260,6 +261,7 @@ def test_an_experimenter_is_held_to_the_subjects_limits(server: str, browser: An
             assert sent == []  # refused here, not by the server
             gain.fill("1.1")
             page.get_by_test_id("settings-apply").click()
+            page.get_by_test_id("confirm-raise").click()  # a raise asks first (tests/e2e/test_trust_confirm.py)
             expect(page.get_by_test_id("settings-ok")).to_have_text("Applied: Torque gain.")
             assert len(sent) == 1
             # the clinician lowers the limit meanwhile: the page still holds the old one, the server refuses
@@ -268,13 +270,16 @@ def test_an_experimenter_is_held_to_the_subjects_limits(server: str, browser: An
                 f"/api/subjects/{subject_id}/assistance-limits",
                 {"torque_gain": 1.0, "max_torque_Nm": 30.0, "intent_gain_boost": 0.0},
             )
-            # past the per-field rate limit: the slider reaches 1.15 (the page counts from when it saw 1.1
-            # applied, after the server did)
-            page.wait_for_function(
-                "() => Number(document.querySelector('[data-testid=setting-torque_gain-slider]').max) >= 1.15"
+            # past the torque rule's interval between two raises (3 s), as the server counts it
+            asker, check = client(server, "experimenter"), f"/api/sessions/{sid}/settings/check"
+            wait_until(
+                lambda a=asker, c=check: a.call("POST", c, {"torque_gain": 1.15})["retry_after_s"] == 0,
+                10.0,
+                "the next raise allowed",
             )
             gain.fill("1.15")
             page.get_by_test_id("settings-apply").click()
+            page.get_by_test_id("confirm-raise").click()
             expect(page.get_by_test_id("settings-error")).to_have_text(
                 f"Not allowed: over the clinician's limits for subject {subject_id}: "
                 "torque_gain 1.15 over the limit of 1"

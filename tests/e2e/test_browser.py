@@ -20,11 +20,18 @@ from playwright import sync_api as playwright_api
 
 from tests.e2e.accounts import client
 from tests.e2e.pages import ARTIFACTS, Watched, wait_responsive
+from tests.waiting import wait_until
 
 
 def _patch(base: str, path: str, body: dict[str, object], user: str = "experimenter") -> object:
     """A PATCH from outside the browser: another user's screen."""
     return client(base, user).call("PATCH", path, body)
+
+
+def _raise_allowed(base: str, session_id: int, change: dict[str, object]) -> None:
+    """Wait until the server's torque rule allows the next change that can raise the torque (3 s after the last)."""
+    path = f"/api/sessions/{session_id}/settings/check"
+    wait_until(lambda: client(base).call("POST", path, change)["retry_after_s"] == 0, 10.0, "the next raise allowed")
 
 
 def _number(text: str | None) -> float:
@@ -128,10 +135,11 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     expect(gain).to_have_value("1")
     gain.fill("1.3")
     page.get_by_test_id("settings-apply").click()
+    page.get_by_test_id("confirm-raise").click()  # a raise asks first, with the peak torques (test_trust_confirm)
     expect(page.get_by_test_id("settings-ok")).to_have_text("Applied: Torque gain.")
-    gain.fill("1.8")  # a step of 0.5 is allowed, but only 1 s after the last change of the field
+    gain.fill("1.8")  # a step of 0.5 is allowed, but a raise only 3 s after the last
     page.get_by_test_id("settings-apply").click()
-    expect(page.get_by_test_id("settings-error")).to_contain_text("Refused: torque_gain changed")
+    expect(page.get_by_test_id("settings-error")).to_contain_text("Not yet: a change that can raise the torque")
     gain.fill("2.9")
     page.get_by_test_id("settings-apply").click()
     expect(page.get_by_test_id("settings-error")).to_contain_text("Torque gain may change by at most 0.5 per step")
@@ -145,6 +153,7 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     # set): the controls and the events follow ------------------------------------------------------------------
     limits = {"torque_gain": 2.0, "max_torque_Nm": 40.0, "intent_gain_boost": 0.3}
     client(server, "clinician").call("PUT", f"/api/subjects/{subject_id}/assistance-limits", limits)
+    _raise_allowed(server, session_id, {"max_torque_Nm": 35.0})
     _patch(server, f"/api/sessions/{session_id}/settings", {"max_torque_Nm": 35.0, "confirm": True})
     expect(page.get_by_test_id("setting-max_torque_Nm")).to_have_value("35")
     expect(page.get_by_test_id("setting-max_torque_Nm-note")).to_have_text("changed elsewhere to 35.0")
@@ -159,7 +168,9 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     for label in ("Phase EKF (seed 000) (primary: drives the torque)", "Timing-based estimate"):
         expect(page.get_by_test_id("plot-phase")).to_contain_text(label)
     page.get_by_test_id("primary-select").select_option("tbe")
+    _raise_allowed(server, session_id, {"primary": "tbe"})
     page.get_by_test_id("primary-apply").click()
+    page.get_by_test_id("confirm-primary").click()  # it changes what drives the torque: it asks first
     expect(page.get_by_test_id("health-primary")).to_have_text("Timing-based estimate", timeout=5_000)
     expect(page.get_by_test_id("plot-phase")).to_contain_text("Timing-based estimate (primary: drives the torque)")
     expect(setting_row).to_have_count(3)
