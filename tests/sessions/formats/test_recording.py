@@ -220,6 +220,7 @@ def test_summary_names_encodings_and_metadata(recorded: Path) -> None:
             "/events": ("foxglove.Event", "jsonschema", "json"),
             "/imu_calibration": ("gaitscope.ImuCalibration", "jsonschema", "json"),
             "/gp_models": ("gaitscope.GPModelRecord", "jsonschema", "json"),
+            "/estimation_state": ("gaitscope.EstimationState", "jsonschema", "json"),
         }
         models: dict[str, type[BaseModel]] = {
             "/sensor": schema.SensorFrame,
@@ -229,6 +230,7 @@ def test_summary_names_encodings_and_metadata(recorded: Path) -> None:
             "/events": schema.FoxgloveEvent,
             "/imu_calibration": schema.ImuCalibration,
             "/gp_models": schema.GPModelRecord,
+            "/estimation_state": schema.EstimationState,
         }
         for c in summary.channels.values():
             assert summary.schemas[c.schema_id].data == json.dumps(models[c.topic].model_json_schema()).encode()
