@@ -13,7 +13,7 @@ import { sendByTorqueRule, torqueConfirmBox } from "./confirm_change.js";
 import { describeEvent } from "./events.js";
 import { imuCalibrationCard } from "./imu_calibration.js";
 import { SETTING_LIMITS, SettingsEditor } from "./settings.js";
-import { armedButton, errorBox, h, runAction, showError, ValidationError } from "./ui.js";
+import { armedButton, errorBox, fmt, h, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
 
 /**
@@ -53,8 +53,10 @@ export function mountControls(sessionId, hooks) {
       const over = overLimits(changes, limits.value);
       if (over) throw new ValidationError(over);
     }
+    const what = `Change ${Object.keys(changes).map((k) => `${label(k).toLowerCase()} ` +
+      `${fmt(editor.baseline[k], SETTING_LIMITS[k].digits)} → ${fmt(changes[k], SETTING_LIMITS[k].digits)}`).join(", ")}`;
     const session = await sendByTorqueRule(sessionId, changes, confirm,
-      (yes) => api.changeSettings(sessionId, yes ? { ...changes, confirm: true } : changes));
+      (yes) => api.changeSettings(sessionId, yes ? { ...changes, confirm: true } : changes), what);
     if (!session) {
       settingsOk.textContent = "Not applied: cancelled.";
       return;

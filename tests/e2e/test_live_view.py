@@ -333,7 +333,7 @@ def test_changes_as_markers_undo_and_safe_controls(server: str, wide: Watched) -
     page.get_by_test_id("setting-max_torque_Nm").fill("35")
     page.get_by_test_id("settings-apply").click()
     expect(page.get_by_test_id("confirm-raise-text")).to_have_text(
-        re.compile(r"^Change maximum torque\? This can raise the torque on the person")
+        re.compile(r"^Change maximum torque 30\.0 → 35\.0\? This can raise the torque on the person")
     )
     page.get_by_test_id("confirm-raise-cancel").click()
     expect(page.get_by_test_id("confirm-raise-box")).to_be_hidden()

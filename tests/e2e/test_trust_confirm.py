@@ -76,7 +76,9 @@ def test_a_gain_raise_asks_with_both_peaks_and_a_second_raise_too_soon_is_held_b
     gain.fill("1.3")
     page.get_by_test_id("settings-apply").click()
     expect(box).to_be_visible()
-    expect(page.get_by_test_id("confirm-raise-text")).to_contain_text("Change torque gain?")
+    expect(page.get_by_test_id("confirm-raise-text")).to_have_text(
+        "Change torque gain 1.00 → 1.30? This can raise the torque on the person."
+    )
     before, after = _peaks(page, "confirm-raise")
     assert 5.0 < before < after and after == pytest.approx(min(30.0, 1.3 * before), abs=0.15), (before, after)
     page.screenshot(path=str(ARTIFACTS / "trust-confirm-gain.png"))
