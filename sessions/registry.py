@@ -400,12 +400,14 @@ def build_stack(
         torque_gain=torque_gain,
         max_torque=max_torque,
         blend_s=blend_s,
+        labels={d.name: d.label for d in DESCRIPTORS},
     )
     out.requested = primary
     if out.primary != primary:
-        out._pending.append(
-            f"primary {primary} is not in the stack ({', '.join(out.names)}): the torque follows {out.primary}"
-        )
+        shown = ", ".join(out.labels.values())
+        follows = "none" if out.primary is None else out.labels[out.primary]
+        asked = DECLARED[primary].label if primary in DECLARED else primary
+        out._pending.append(f"primary {asked} is not in the stack ({shown}): the torque follows {follows}")
     return out
 
 

@@ -33,7 +33,7 @@ Pure computation (no I/O, no clocks); the torque is always a finite number in ``
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -129,6 +129,7 @@ class EstimatorStack:
         fallback: takes the torque from a failed primary (if healthy), else the torque goes to 0.
         max_variance: a covariance with a larger variance counts as diverged.
         max_gap_s: samples further apart count as a gap (``fault="gap"``).
+        labels: each estimator's name on screen, for the events' words (default: its name).
 
     Attributes:
         names: the estimators' names in run order; outputs: each one's output names.
@@ -155,6 +156,7 @@ class EstimatorStack:
         fallback: str = FALLBACK,
         max_variance: float = MAX_VARIANCE,
         max_gap_s: float = MAX_GAP_S,
+        labels: Mapping[str, str] | None = None,
     ):
         self.estimators = list(estimators)
         self.names = tuple(e.name for e in self.estimators)
@@ -170,6 +172,7 @@ class EstimatorStack:
         #: each estimator's own torque command output (``torque_Nm``), None for those without one
         self._own_torque = [idx.get(OWN_TORQUE) for idx in self._index]
         self._position = {n: k for k, n in enumerate(self.names)}
+        self.labels = {n: (labels or {}).get(n, n) for n in self.names}
         self.torque = torque
         self.leg_length = leg_length
         self.mass_kg = mass_kg
@@ -340,13 +343,14 @@ class EstimatorStack:
         self.failed[name] = reason
         self._reading = None
         at = "" if t is None else f" at {t:.3f} s"
-        self._pending.append(f"estimator {name} failed{at}: {reason}")
+        label = self.labels.get(name, name)
+        self._pending.append(f"estimator {label} failed{at}: {reason}")
         if name == self.primary:
             fb = self.fallback
             healthy = fb in self._position and fb not in self.failed and "phase" in self._index[self._position[fb]]
             self._switch(fb if healthy else None)
-            then = f"the torque now follows {fb}" if healthy else "no fallback, the torque ramps down to 0"
-            self._pending.append(f"primary estimator {name} failed{at}: {then}")
+            then = f"the torque now follows {self.labels[fb]}" if healthy else "no fallback, the torque ramps down to 0"
+            self._pending.append(f"primary estimator {label} failed{at}: {then}")
 
     def _command(self, name: str, outputs: list[NDArray[np.float64] | None]) -> float:
         """The command estimator ``name``'s outputs make (0 where it reset a diverged state): its own
