@@ -50,6 +50,7 @@ AUDITED: dict[tuple[str, str], str] = {
     ("POST", "/api/sessions/{session_id}/device-tokens"): "device_token.issue",
     ("DELETE", "/api/sessions/{session_id}/device-tokens/{token_id}"): "device_token.revoke",
     ("POST", "/api/sessions/{session_id}/exports"): "export.csv",
+    ("POST", "/api/trials/{trial_id}/exports"): "export.pdf",
     ("POST", "/api/trials/{trial_id}/annotations"): "review_note.add",
     ("DELETE", "/api/trials/{trial_id}/annotations/{annotation_id}"): "review_note.delete",
     ("POST", "/api/uploads"): "upload.create",
@@ -172,6 +173,7 @@ def test_each_audited_route_writes_its_entry_when_it_succeeds(client: TestClient
     exported = d.call("GET", "/api/subjects/{subject_id}/fingerprints/{personalization_id}/export", ids)
     d.call("POST", "/api/subjects/{subject_id}/fingerprints/import", ids, json=exported)
     ids["trial_id"] = trial
+    d.call("POST", "/api/trials/{trial_id}/exports", ids, json={"kind": "pdf"})
     note = d.call("POST", "/api/trials/{trial_id}/annotations", ids, json={"t": 2.0, "text": "heel strike late"})
     ids["annotation_id"] = note["id"]
     d.call("DELETE", "/api/trials/{trial_id}/annotations/{annotation_id}", ids)
