@@ -8,6 +8,9 @@ import { h } from "./ui.js";
 export const SIZES = { 1: "narrow", 2: "wide", 3: "full width" };
 
 const _KEY = "gaitscope.live.layout.";
+const _NAMED = "gaitscope.live.layouts."; // the user's named layouts: {name: layout}
+/** What an exported layout file says it is (PlotJuggler and Foxglove users keep layouts as files too). */
+export const LAYOUT_FORMAT = "gaitscope.live.layout/1";
 
 /**
  * A stored layout made to fit the panels there are: unknown ids dropped, missing ones added in their default
@@ -78,10 +81,71 @@ export class PanelLayout {
       localStorage.removeItem(this._key());
       this.load();
     });
+    this.named = namedLayouts(this);
     this.menu = h("details", { class: "layout-menu", "data-testid": "layout-menu" },
       h("summary", { text: "Panels" }),
-      h("div", { class: "layout-pop" }, h("p", { class: "hint", "data-testid": "layout-owner" }), this.menuBody, reset));
+      h("div", { class: "layout-pop" }, h("p", { class: "hint", "data-testid": "layout-owner" }), this.menuBody, reset, this.named.el));
     this.load();
+  }
+
+  /** The named layouts of the acting user: {name: layout}. */
+  saved() {
+    try {
+      const all = JSON.parse(localStorage.getItem(_NAMED + this.actor) || "{}");
+      return all && typeof all === "object" && !Array.isArray(all) ? all : {};
+    } catch {
+      return {};
+    }
+  }
+
+  /** Keeps the current layout under `name` (replacing one of that name). */
+  saveAs(name) {
+    const all = this.saved();
+    all[name] = { ...this.layout };
+    localStorage.setItem(_NAMED + this.actor, JSON.stringify(all));
+    this.named.render();
+  }
+
+  /** Shows the named layout `name` (and keeps it as the current one). */
+  useNamed(name) {
+    const stored = this.saved()[name];
+    if (!stored) return;
+    this.layout = normalizeLayout(stored, this.panels);
+    this._save();
+  }
+
+  forget(name) {
+    const all = this.saved();
+    delete all[name];
+    localStorage.setItem(_NAMED + this.actor, JSON.stringify(all));
+    this.named.render();
+  }
+
+  /** The current layout as a file's JSON text, named. */
+  exportJson(name) {
+    const { order, size, hidden } = this.layout;
+    return JSON.stringify({ format: LAYOUT_FORMAT, name, order, size, hidden }, null, 2);
+  }
+
+  /**
+   * A layout file's text: shown and kept under its name; throws an Error in plain words when it is not one.
+   * @returns {string} its name
+   */
+  importJson(text) {
+    let data;
+    try {
+      data = JSON.parse(text);
+    } catch {
+      throw new Error("This file is not JSON: not a gaitscope layout.");
+    }
+    if (!data || data.format !== LAYOUT_FORMAT || !Array.isArray(data.order)) {
+      throw new Error(`This file is not a gaitscope live layout (its "format" is not ${LAYOUT_FORMAT}).`);
+    }
+    const name = String(data.name || "imported").slice(0, 60);
+    this.layout = normalizeLayout(data, this.panels);
+    this._save();
+    this.saveAs(name);
+    return name;
   }
 
   _key() {
@@ -104,6 +168,7 @@ export class PanelLayout {
   use(user) {
     this.actor = user;
     this.load();
+    this.named.render();
   }
 
   _save() {
@@ -157,4 +222,77 @@ export class PanelLayout {
       return h("div", { class: "layout-row" }, h("label", {}, shown, ` ${title[id]}`), up, down, width);
     }));
   }
+}
+
+/**
+ * The menu's named layouts: save the current one under a name, use or delete a saved one, export it as a JSON
+ * file and import one.
+ * @param {PanelLayout} layout
+ */
+function namedLayouts(layout) {
+  const name = h("input", { type: "text", maxlength: 60, "data-testid": "layout-name", placeholder: "e.g. treadmill, clinic",
+    "aria-label": "Name of the layout to save" });
+  const save = h("button", { type: "button", "data-testid": "layout-save", text: "Save as" });
+  const pick = h("select", { "data-testid": "layout-saved", "aria-label": "Saved layouts" });
+  const use = h("button", { type: "button", "data-testid": "layout-use", text: "Use" });
+  const del = h("button", { type: "button", "data-testid": "layout-delete", text: "Delete" });
+  const exp = h("button", { type: "button", "data-testid": "layout-export", text: "Export JSON" });
+  const file = h("input", { type: "file", accept: ".json,application/json", "data-testid": "layout-import",
+    "aria-label": "Import a layout (JSON file)" });
+  const note = h("p", { class: "hint", role: "status", "data-testid": "layout-note" });
+  const render = () => {
+    const names = Object.keys(layout.saved()).sort();
+    pick.replaceChildren(...(names.length ? names.map((n) => h("option", { value: n, text: n }))
+      : [h("option", { value: "", text: "no saved layout yet" })]));
+    pick.disabled = use.disabled = del.disabled = !names.length;
+  };
+  save.addEventListener("click", () => {
+    const n = name.value.trim();
+    if (!n) {
+      note.textContent = "Name the layout first.";
+      return;
+    }
+    layout.saveAs(n);
+    pick.value = n;
+    name.value = "";
+    note.textContent = `Saved as “${n}”.`;
+  });
+  use.addEventListener("click", () => {
+    layout.useNamed(pick.value);
+    note.textContent = `Showing “${pick.value}”.`;
+  });
+  del.addEventListener("click", () => {
+    const n = pick.value;
+    layout.forget(n);
+    note.textContent = `Deleted “${n}”.`;
+  });
+  exp.addEventListener("click", () => {
+    const n = pick.value || "layout";
+    const url = URL.createObjectURL(new Blob([layout.exportJson(n)], { type: "application/json" }));
+    const a = h("a", { href: url, download: `gaitscope-layout-${n.replace(/[^\w.-]+/g, "_")}.json` });
+    document.body.append(a);
+    a.click();
+    a.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 1000);
+  });
+  file.addEventListener("change", async () => {
+    const f = file.files && file.files[0];
+    if (!f) return;
+    try {
+      const n = layout.importJson(await f.text());
+      render();
+      pick.value = n;
+      note.textContent = `Imported “${n}”.`;
+    } catch (err) {
+      note.textContent = err.message;
+    }
+    file.value = "";
+  });
+  const el = h("div", { class: "layout-named", "data-testid": "layout-named" },
+    h("p", { class: "caption", text: "Named layouts" }),
+    h("div", { class: "layout-line" }, name, save),
+    h("div", { class: "layout-line" }, pick, use, del),
+    h("div", { class: "layout-line" }, exp, h("label", { class: "button layout-file" }, "Import JSON", file)), note);
+  render();
+  return { el, render };
 }

@@ -240,13 +240,16 @@ export class LivePlots {
     this.estimatorPlots.draw();
   }
 
-  /** What the key plots span and where each plot drew its markers, readable from the page (the e2e tests). */
+  /** What the key plots span, where each plot drew its markers and its y range, readable from the page (the e2e tests). */
   readouts() {
     const shown = this.ring.window("t", [], WINDOW_S)[0];
     this.keyBox.dataset.shownS = shown.length ? (shown[shown.length - 1] - shown[0]).toFixed(1) : "0";
     for (const p of [...this.plots, { div: this.intentDiv, plot: this.intentPlot }]) {
       const marks = JSON.stringify(p.plot.drawnMarkers.map((m) => [m.label, Math.round(m.x), m.row]));
       if (p.div.dataset.markers !== marks) p.div.dataset.markers = marks;
+      const y = p.plot.u.scales.y;
+      const range = y.min == null || y.max == null ? "" : `${+y.min.toFixed(3)},${+y.max.toFixed(3)}`;
+      if (p.div.dataset.yRange !== range) p.div.dataset.yRange = range;
     }
   }
 

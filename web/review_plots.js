@@ -10,6 +10,9 @@ import { COLORS, decimateMinMax, Plot, StrideOverlay, uPlot } from "./plots.js";
 import { RERUN_POINTS } from "./review_rerun.js";
 import { h, ValidationError } from "./ui.js";
 
+/** The canvas height of each review plot: with its head and one-line legend, the data take >= 60 % (issue #23). */
+const REVIEW_HEIGHT = 260;
+
 export const MAX_POINTS = 2000; // per request, as the server decimates
 const RERUN_COLS = { phase: "phase_pct", torque: "torque_Nm", incline: "incline_deg" }; // plot key -> column
 const RERUN_STYLE = { label: "re-run", color: COLORS.purple, width: 2 }; // the re-run's gait state
@@ -69,7 +72,7 @@ export function reviewPlots(st, hooks) {
     const div = h("div", { class: "plot", "data-testid": `review-plot-${spec.key}` });
     plotsBox.append(div, ...(spec.key === "joints" ? [kneeNote] : []));
     const entry = { spec };
-    entry.plot = new Plot(div, { ...spec, group, series: [...spec.series, ...overlaySeries(spec.key)],
+    entry.plot = new Plot(div, { ...spec, group, series: [...spec.series, ...overlaySeries(spec.key)], height: REVIEW_HEIGHT,
       plugins: hooks.plugins(div, () => entry.plot) });
     return entry;
   });
@@ -79,7 +82,8 @@ export function reviewPlots(st, hooks) {
   const intentCard = h("section", { class: "card", "data-testid": "review-intent" },
     h("h2", { text: "Speed-change intent (seed 001): desired vs actual speed" }), intentNote, intentDiv);
   const intentRef = { plot: null };
-  const intentPlot = new Plot(intentDiv, { ...INTENT_SPEC, group, plugins: hooks.plugins(intentDiv, () => intentRef.plot) });
+  const intentPlot = new Plot(intentDiv, { ...INTENT_SPEC, group, height: REVIEW_HEIGHT,
+    plugins: hooks.plugins(intentDiv, () => intentRef.plot) });
   intentRef.plot = intentPlot;
   const strideNote = h("span", { class: "hint", "data-testid": "review-stride-count" });
   const bandT = h("div", { class: "plot" });
