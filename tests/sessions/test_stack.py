@@ -206,7 +206,10 @@ def test_a_failed_primary_hands_the_torque_to_the_tbe(small_model: TrainedModel,
     tbe, _ = _run(small_model, walk, SETTINGS.model_copy(update={"primary": "tbe"}))
     torque, tbe_torque = _torque(states), _torque(tbe)
     assert est.primary == "tbe" and est.stack.requested == "broken"
-    assert est.events[-1].startswith("primary estimator broken failed at") and "now follows Timing-based estimate" in est.events[-1]
+    assert (
+        est.events[-1].startswith("primary estimator broken failed at")
+        and "now follows Timing-based estimate" in est.events[-1]
+    )
     assert states[k].fault and not states[k + 1].fault
     assert np.all(np.isfinite(torque)) and torque.min() >= 0.0 and torque.max() <= SETTINGS.max_torque_Nm
     normal = max(np.abs(np.diff(torque[200:k])).max(), np.abs(np.diff(tbe_torque[200:])).max())
@@ -415,7 +418,9 @@ def test_a_running_session_records_streams_and_reports_every_estimator(
 
     events = ctx.store.list_events(session.id)
     texts = [e.text for e in events]
-    assert any(t.startswith("estimator Scripted double broken failed at 1.500 s: returned a non-finite phase") for t in texts)
+    assert any(
+        t.startswith("estimator Scripted double broken failed at 1.500 s: returned a non-finite phase") for t in texts
+    )
     [change] = [e for e in events if e.kind == "setting"]
     assert (change.field, change.before, change.after) == ("primary", "phase_ekf", "tbe")
     assert change.text == "primary phase_ekf -> tbe, the torque blends over 0.5 s (compare)"
