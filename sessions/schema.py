@@ -550,6 +550,11 @@ class PersonalizationChange(_Strict):
 
     actor: str = _ACTOR
     reason: str = Field(default="", max_length=500)
+    confirm: bool = Field(
+        default=False,
+        description="the user confirmed the change of what drives the torque: required (else 409) while a running "
+        "session of the subject has its torque follow the personalized filter (fp_ls), which takes the change live",
+    )
 
 
 class Personalization(BaseModel):

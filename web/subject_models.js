@@ -4,12 +4,15 @@
 
 import * as api from "./api_client.js";
 import { currentUser, fence, may, refusalReason } from "./auth.js";
+import { estimatorLabel, fingerprintEstimators } from "./estimators.js";
 import { gText } from "./fingerprint_plot.js";
 import { errorBox, field, fmt, fmtUtc, h, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
 
 // PersonalizationChange.reason (sessions/schema.py), from the generated wire.js.
 const REASON_MAX = FIELD_LIMITS.PersonalizationChange.reason.maxLength;
+/** The fingerprint filter that runs the subject's active personalization (its descriptor's role). */
+const PERSONAL = fingerprintEstimators("personal")[0];
 const COLUMNS = ["Version", "State", "Calibration walk", "Fit RMSE (deg) average → personal", "Fingerprint (deg)", "Created, promoted", "Actions"];
 
 /** What a fit left out, e.g. "2 too short; 1 not steady". */
@@ -100,7 +103,9 @@ export function modelsCard(subjectId, hooks) {
     pending = what;
     showError(changeError, null);
     status.textContent = "";
-    const sessions = `Running sessions of ${code()} log it; a session running the personalized filter (fp_ls) takes it at its next heel strike.`;
+    // the server asks the same (confirm) while a running session's torque follows the personalized filter
+    const sessions = `Running sessions of ${code()} log it; a session running the ${estimatorLabel(PERSONAL)} takes it at its next heel strike, `
+      + "and where it drives the torque, the torque changes with it.";
     if (what.kind === "promote") {
       const v = what.v;
       confirmText.textContent = `Promote v${v.version} (${v.state}, fit RMSE ${rmseText(v)} deg) as ${code()}'s model? ${sessions}`;
@@ -134,7 +139,7 @@ export function modelsCard(subjectId, hooks) {
     const why = reason.value.trim();
     const said = why ? ` (${why})` : "";
     runAction(confirmBtn, changeError, async () => {
-      const body = { reason: why };
+      const body = { reason: why, confirm: true }; // confirmed: the box above said what it changes
       if (what.kind === "promote") {
         const p = await api.promoteFingerprint(subjectId, what.v.id, body);
         status.textContent = `v${p.version} promoted by ${p.promoted_by}${said}: it is ${code()}'s model now.`;

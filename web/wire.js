@@ -444,6 +444,7 @@
  * @typedef {object} PersonalizationChange
  * @property {string} [actor="local"] set by the server to the logged-in user; ignored if sent
  * @property {string} [reason=""]
+ * @property {boolean} [confirm=false] the user confirmed the change of what drives the torque: required (else 409) while a running session of the subject has its torque follow the personalized filter (fp_ls), which takes the change live
  */
 
 /**

@@ -17,8 +17,11 @@ from gaitscope.server.routes.common import Ctx, Id, audit, audited, reviewable_t
 from gaitscope.sessions import schema
 from gaitscope.sessions.errors import DataFormatError
 from gaitscope.sessions.personalization.calibration import CalibrationRefused, calibrate, read_walk
+from gaitscope.sessions.registry import DESCRIPTORS
 
 router = APIRouter(prefix="/api")
+#: The fingerprint filter that runs the subject's active personalization (its descriptor's role ``personal``).
+PERSONAL_FILTER = next(d.name for d in DESCRIPTORS if d.fingerprint == "personal")
 
 
 def _map(c: Ctx, model: str) -> tuple[FingerprintMap, schema.ModelProvenance]:
@@ -108,6 +111,26 @@ async def calibrate_fingerprint(
     return await c.writer.run(add, f"subject {subject_id}: fingerprint")
 
 
+def _confirmed(c: Ctx, subject_id: int, body: schema.PersonalizationChange, what: str) -> None:
+    """409 unless ``body`` is confirmed when a running session of the subject has its torque follow the
+    personalized filter (``fp_ls``): the change reaches that torque live (issue #23: every change of what
+    drives the torque asks first, for API clients as for the dashboard)."""
+    if body.confirm:
+        return
+    driven = sorted(
+        r.session.id
+        for r in c.manager.running()
+        if r.session.subject_id == subject_id and r.estimator.stack.primary == PERSONAL_FILTER
+    )
+    if driven:
+        sessions = ", ".join(map(str, driven))
+        raise HTTPException(
+            409,
+            f"the torque of running session {sessions} follows the personalized filter ({PERSONAL_FILTER}): "
+            f"{what} changes what drives it at its next heel strike; confirm it (confirm: true) to make it",
+        )
+
+
 def _announce(c: Ctx, subject_id: int, text: str, actor: str) -> None:
     """An event in the log of every running session of the subject (a promotion reaches them live)."""
     for runtime in c.manager.running():
@@ -124,6 +147,7 @@ def promote_fingerprint(
     if p.subject_id != subject_id:
         raise HTTPException(404, f"personalization {personalization_id} is not of subject {subject_id}")
     _map(c, p.model)  # the model must still have its map
+    _confirmed(c, subject_id, body, f"promoting v{p.version}")
     active = c.store.active_personalization(subject_id, p.model)
     target = f"subject {subject_id} model {p.model}"
     before, after = None if active is None else f"v{active.version}", f"v{p.version}"
@@ -140,6 +164,8 @@ def rollback_fingerprint(
 ) -> schema.Fingerprints:
     """Retire the active personalization; the one it replaced is active again (none: the average model)."""
     active = c.store.active_personalization(subject_id, model)
+    if active is not None:
+        _confirmed(c, subject_id, body, f"rolling back v{active.version}")
     before = None if active is None else f"v{active.version}"
     audit(c, who, "fingerprint.rollback", f"subject {subject_id} model {model}", before=before, detail=body.reason)
     old, now = c.store.rollback_personalization(subject_id, model, who.name)

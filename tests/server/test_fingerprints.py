@@ -59,6 +59,17 @@ def test_calibrate_compare_promote_and_roll_back(client: TestClient) -> None:
         assert r.status_code == 200, r.text
         texts = [e.text for e in client.app.state.ctx.store.list_events(runtime.session.id)]  # type: ignore[attr-defined]
         assert any("v2 promoted by local; fp_ls takes it at the next heel strike" in t for t in texts), texts
+        # while its torque follows fp_ls, a promotion or a roll back changes what drives it: asked first (#23)
+        runtime.estimator.stack.set_primary("fp_ls")
+        for url, body in ((f"fingerprints/{v1['id']}/promote", {}), ("fingerprints/rollback", {})):
+            r = client.post(f"/api/subjects/{sid}/{url}", json=body)
+            assert r.status_code == 409, r.text
+            assert f"running session {runtime.session.id} follows the personalized filter (fp_ls)" in r.json()["detail"]
+            assert "confirm" in r.json()["detail"]
+        assert client.get(f"/api/subjects/{sid}/fingerprints").json()["active"]["version"] == 2  # nothing changed
+        r = client.post(f"/api/subjects/{sid}/fingerprints/{v2['id']}/promote", json={"confirm": True})
+        assert r.status_code == 200, r.text
+        runtime.estimator.stack.set_primary("phase_ekf")
     finally:
         del client.app.state.ctx.manager.runtimes[runtime.session.id]  # type: ignore[attr-defined]
     listing = client.get(f"/api/subjects/{sid}/fingerprints").json()
