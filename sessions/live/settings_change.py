@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 from gaitscope.sessions import schema
 from gaitscope.sessions.live.extensions import describe
 from gaitscope.sessions.live.torque_rule import RAISING, GaitState, TorqueRaise, assess, raising_fields, refusal
+from gaitscope.sessions.registry import DECLARED
 from gaitscope.sessions.schema import SessionSettings, SettingsChange
 from gaitscope.sessions.stack import OWN_TORQUE
 from gaitscope.sessions.store_writer import Write
@@ -31,7 +32,7 @@ from gaitscope.sessions.store_writer import Write
 if TYPE_CHECKING:
     from gaitscope.sessions.live.runtime import SessionRuntime
 
-__all__ = ["ChangeNotSaved", "SettingRejected", "SettingsChanges", "TorqueRaiseRejected"]
+__all__ = ["ChangeNotSaved", "SettingRejected", "SettingsChanges", "TorqueRaiseRejected", "change_words"]
 
 log = logging.getLogger("gaitscope")
 
@@ -236,7 +237,7 @@ class SettingsChanges:
             {
                 "t": t,
                 "kind": "setting",
-                "text": f"{name} {_shown(getattr(current, name))} -> {_shown(value)}"
+                "text": change_words(name, getattr(current, name), value)
                 + (f", the torque blends over {self.rt.estimator.stack.blend_s:g} s" if name == "primary" else "")
                 + (f" ({reason})" if reason else ""),
                 "field": name,
@@ -335,6 +336,19 @@ class SettingsChanges:
             )
 
 
-def _shown(value: object) -> str:
-    """A setting's value in an event's text: numbers as ``%g``."""
-    return f"{value:g}" if isinstance(value, float) else str(value)
+def change_words(name: str, before: object, after: object) -> str:
+    """A setting's change in an event's text, in the screen's words (issue #23: one vocabulary): the setting's
+    name and unit from :data:`~gaitscope.sessions.schema.SETTING_NAMES`, an estimator by its label, numbers as
+    ``%g`` ("Maximum torque 30 N·m → 35 N·m", "Torque follows Phase EKF (seed 000) → Timing-based estimate")."""
+    label, unit = schema.SETTING_NAMES.get(name, (name, ""))
+    return f"{label} {_shown(name, before, unit)} → {_shown(name, after, unit)}"
+
+
+def _shown(name: str, value: object, unit: str) -> str:
+    if name == "primary" and isinstance(value, str) and value in DECLARED:
+        return DECLARED[value].label
+    if not isinstance(value, float):
+        return str(value)
+    if unit == "×":
+        return f"{value:g}×"
+    return f"{value:g} {unit}" if unit in ("N·m", "m/s", "deg") else f"{value:g}"

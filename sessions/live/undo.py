@@ -6,6 +6,7 @@ from collections.abc import Callable
 
 from gaitscope.sessions import schema
 from gaitscope.sessions.live.runtime import SessionRuntime, SettingRejected
+from gaitscope.sessions.live.settings_change import change_words
 
 #: The fields a settings change may set (and so an undo may set back).
 UNDOABLE = (*schema.SETTING_LIMITS, "primary")
@@ -56,7 +57,7 @@ def undo_change(
                 f"the last change cannot be undone: {e.field} is now {now}, not the {e.after} it set "
                 "(it has changed since)"
             )
-    undone = ", ".join(f"{e.field} {e.before} -> {e.after}" for e in group)
+    undone = ", ".join(change_words(e.field, e.before, e.after) for e in group if e.field)
     return schema.SettingsChange.model_validate(
         {
             **{e.field: e.before for e in group if e.field},

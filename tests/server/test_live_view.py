@@ -90,7 +90,7 @@ def test_undo_sets_back_the_last_change_and_is_logged(client: TestClient) -> Non
         ("torque_gain", 1.3, 1.0, "local"),
         ("max_torque_Nm", 35.0, 30.0, "local"),
     ]
-    assert "(undo of torque_gain 1.0 -> 1.3, max_torque_Nm 30.0 -> 35.0 by local)" in events[-2]["text"]
+    assert "(undo of Torque gain 1× → 1.3×, Maximum torque 30 N·m → 35 N·m by local)" in events[-2]["text"]
     r = client.post(f"/api/sessions/{sid}/settings/undo", json={"actor": "clinician", "confirm": True})
     assert r.status_code == 409  # undoing the undo raises the torque: the undo was a change too, its own 0.6 s
     assert "torque_gain changed" in r.json()["detail"]

@@ -423,7 +423,9 @@ def test_a_running_session_records_streams_and_reports_every_estimator(
     )
     [change] = [e for e in events if e.kind == "setting"]
     assert (change.field, change.before, change.after) == ("primary", "phase_ekf", "tbe")
-    assert change.text == "primary phase_ekf -> tbe, the torque blends over 0.5 s (compare)"
+    # in the screen's words (issue #23), the machine names in field, before and after
+    follows = "Torque follows Phase EKF (seed 000) → Timing-based estimate"
+    assert change.text == f"{follows}, the torque blends over 0.5 s (compare)"
     path = ctx.settings.data_dir / trial.path
     recorded = {name: [m for _, _, m in read_messages(path, [f"/estimators/{name}"])] for name in ("tbe", "broken")}
     assert len(recorded["tbe"]) == len(frames) and recorded["tbe"][0]["values"].keys() == {"phase", "phase_rate"}
