@@ -6,18 +6,25 @@
 // long until the field may change again), never by narrowing the slider. Lowering the torque gain, the maximum
 // torque or the intent boost is never held back (gaitscope.sessions.live.torque_rule).
 
-import { SETTING_LIMITS as WIRE_LIMITS, TORQUE_RULE } from "./wire.js";
+import { SETTING_LIMITS as WIRE_LIMITS, SETTING_NAMES, TORQUE_RULE } from "./wire.js";
 import { fmt, h, ValidationError } from "./ui.js";
 
-/** How each setting is shown; its bounds come from the schema. */
+/** How each setting is stepped and shown; its name and unit come from the schema (SETTING_NAMES), its bounds too. */
 const PRESENTATION = {
-  torque_gain: { label: "Torque gain", unit: "×", step: 0.05, digits: 2 },
-  max_torque_Nm: { label: "Maximum torque", unit: "N·m", step: 1, digits: 1 },
-  measurement_noise_scale: { label: "Measurement-noise scale", unit: "×", step: 0.1, digits: 2 },
-  process_noise_scale: { label: "Process-noise scale", unit: "×", step: 0.1, digits: 2 },
+  torque_gain: { step: 0.05, digits: 2 },
+  max_torque_Nm: { step: 1, digits: 1 },
+  measurement_noise_scale: { step: 0.1, digits: 2 },
+  process_noise_scale: { step: 0.1, digits: 2 },
   // sessions/intent_boost.py: gain x (1 ± boost x confidence) while the intent estimator says speeding up / slowing down
-  intent_gain_boost: { label: "Intent gain boost: assistance follows intent, 0 = off", unit: "fraction of gain", step: 0.05, digits: 2 },
+  intent_gain_boost: { step: 0.05, digits: 2, hint: "assistance follows intent, 0 = off" },
 };
+
+/** A setting's name on screen (with its hint, if any) and unit: one table, the schema's. */
+function named(key) {
+  const n = SETTING_NAMES[key];
+  const hint = PRESENTATION[key] && PRESENTATION[key].hint;
+  return n ? { label: hint ? `${n.name}: ${hint}` : n.name, unit: n.unit } : { label: key, unit: "" };
+}
 
 /**
  * Each setting: min, max and largest change per second from SETTING_LIMITS in sessions/schema.py (via the
@@ -25,7 +32,7 @@ const PRESENTATION = {
  * @type {Readonly<Record<string, {label: string, unit: string, step: number, digits: number, min: number, max: number, rate: number}>>}
  */
 export const SETTING_LIMITS = Object.freeze(Object.fromEntries(Object.entries(WIRE_LIMITS).map(
-  ([key, lim]) => [key, Object.freeze({ label: key, unit: "", step: 0.1, digits: 3, ...PRESENTATION[key], ...lim })])));
+  ([key, lim]) => [key, Object.freeze({ step: 0.1, digits: 3, ...PRESENTATION[key], ...named(key), ...lim })])));
 
 export const SETTING_KEYS = Object.keys(SETTING_LIMITS);
 
