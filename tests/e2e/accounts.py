@@ -150,6 +150,22 @@ def call(base: str, method: str, path: str, body: dict[str, Any] | None = None, 
     return client(base, user).call(method, path, body)
 
 
+def simulated_session(
+    base: str, code: str, speed_m_s: float = 1.2, incline_deg: float = 0.0, strides: int = 300, **settings: Any
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """A new subject ``code`` (0.9 m, 70 kg) and a running simulated session of it at 100 Hz walking one
+    protocol step (``settings``: the session's, if any): ``(subject, session)`` as the API answered them."""
+    subject = call(base, "POST", "/api/subjects", {"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
+    step = {"speed_m_s": speed_m_s, "incline_deg": incline_deg, "strides": strides}
+    body: dict[str, Any] = {
+        "subject_id": subject["id"],
+        "source": {"kind": "simulated", "rate_hz": 100.0, "protocol": [step]},
+    }
+    if settings:
+        body["settings"] = settings
+    return subject, call(base, "POST", "/api/sessions", body)
+
+
 def session_time(base: str, session_id: int, at_least: float = -math.inf) -> float:
     """The running session's time (s), once it has reached ``at_least``: :func:`tests.load.session_time` as
     the clinician."""

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from tests.e2e.accounts import call, session_time
+from tests.e2e.accounts import call, session_time, simulated_session
 from tests.e2e.pages import ARTIFACTS, Watched, wait_responsive
 
 if TYPE_CHECKING:
@@ -37,13 +37,7 @@ VIEWPORTS = ((1440, 900), (1024, 768), (390, 844))
 @pytest.fixture(scope="module")
 def recording(server: str) -> Iterator[dict[str, Any]]:
     """A running simulated session (100 Hz) whose first trial is recording."""
-    subject = call(server, "POST", "/api/subjects", {"code": "RV01", "leg_length_m": 0.9, "mass_kg": 70.0})
-    source = {
-        "kind": "simulated",
-        "rate_hz": 100.0,
-        "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 300}],
-    }
-    session = call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
+    _, session = simulated_session(server, "RV01", 1.2, 0.0, 300)
     trial = call(server, "GET", f"/api/trials?session_id={session['id']}")[0]
     assert trial["status"] == "recording"
     try:

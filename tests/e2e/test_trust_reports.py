@@ -26,7 +26,7 @@ import pytest
 from pypdf import PdfReader
 
 from gaitscope.sessions.registry import descriptors
-from tests.e2e.accounts import call, session_time
+from tests.e2e.accounts import call, session_time, simulated_session
 from tests.e2e.pages import ARTIFACTS, Watched
 
 playwright_api = pytest.importorskip("playwright.sync_api")
@@ -47,13 +47,7 @@ def _raw_ids(text: str) -> list[str]:
 def walked(server: str) -> Iterator[dict[str, Any]]:
     """A running simulated session: trial 1 (recorded from the start), ~3 s unrecorded, trial 2 with a switch
     of the primary to the timing-based estimate in it. Stopped by the last test that needs it running."""
-    subject = call(server, "POST", "/api/subjects", {"code": "VOC01", "leg_length_m": 0.9, "mass_kg": 70.0})
-    source = {
-        "kind": "simulated",
-        "rate_hz": 100.0,
-        "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 400}],
-    }
-    session = call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
+    _, session = simulated_session(server, "VOC01", 1.2, 0.0, 400)
     sid = session["id"]
     t = session_time(server, sid, 3.0)
     first: dict[str, Any] = call(server, "POST", f"/api/sessions/{sid}/recording", {"action": "stop"})

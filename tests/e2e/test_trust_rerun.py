@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 
 from gaitscope.sessions import schema
-from tests.e2e.accounts import Refused, call, session_time
+from tests.e2e.accounts import Refused, call, session_time, simulated_session
 from tests.e2e.pages import ARTIFACTS, Watched
 
 playwright_api = pytest.importorskip("playwright.sync_api")
@@ -45,13 +45,7 @@ def _recording(server: str, sid: int, action: str, name: str = "") -> dict[str, 
 
 
 def test_a_mid_session_trial_reruns_as_recorded_with_no_torque_difference(server: str, watched: Watched) -> None:
-    subject = call(server, "POST", "/api/subjects", {"code": "TR01", "leg_length_m": 0.9, "mass_kg": 70.0})
-    source = {
-        "kind": "simulated",
-        "rate_hz": 100.0,
-        "protocol": [{"speed_m_s": 1.2, "incline_deg": 4.0, "strides": 400}],
-    }
-    session = call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
+    _, session = simulated_session(server, "TR01", 1.2, 4.0, 400)
     sid = session["id"]
     try:
         # the first trial (recording since the start): a primary switch, then a gain change

@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 
-from tests.e2e.accounts import call, record
+from tests.e2e.accounts import call, record, simulated_session
 from tests.e2e.pages import Watched, watch
 from tests.e2e.servers import start
 from tests.walks import replay_csv
@@ -33,13 +33,7 @@ WALK_S = 14.0  # about 12 strides at 1.0 m/s: a calibration takes 8
 @pytest.fixture(scope="module")
 def walker(server: str) -> Iterator[dict[str, Any]]:
     """A subject with a running simulated session (recording from its start); stopped at the module's end."""
-    subject = call(server, "POST", "/api/subjects", {"code": "TS01", "leg_length_m": 0.9, "mass_kg": 70.0})
-    source = {
-        "kind": "simulated",
-        "rate_hz": 100.0,
-        "protocol": [{"speed_m_s": 1.0, "incline_deg": 0.0, "strides": 300}],
-    }
-    session = call(server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
+    subject, session = simulated_session(server, "TS01", 1.0, 0.0, 300)
     try:
         yield {"subject": subject, "session": session}
     finally:

@@ -15,24 +15,15 @@ from playwright import sync_api as playwright_api
 
 from gaitscope.sessions.formats.mcap_io import read_messages
 from gaitscope.sessions.schema import GaitState
-from tests.e2e.accounts import call, client, session_time
+from tests.e2e.accounts import call, client, session_time, simulated_session
 from tests.e2e.pages import ARTIFACTS, Watched
 
 expect = playwright_api.expect
 
-SLOPE = {
-    "kind": "simulated",
-    "protocol": [{"speed_m_s": 1.2, "incline_deg": 10.0, "strides": 400}],
-    "rate_hz": 200,
-}
-
 
 def _session(server: str, code: str, estimators: list[str] | None) -> int:
-    subject = call(server, "POST", "/api/subjects", {"code": code, "leg_length_m": 0.9, "mass_kg": 70.0})
-    settings = {"primary": "tbe", "estimators": estimators}
-    session = call(
-        server, "POST", "/api/sessions", {"subject_id": subject["id"], "source": SLOPE, "settings": settings}
-    )
+    """A running simulated session on a +10 deg slope whose torque follows the timing-based estimate."""
+    _, session = simulated_session(server, code, 1.2, 10.0, 400, primary="tbe", estimators=estimators)
     return int(session["id"])
 
 
