@@ -241,7 +241,7 @@ export class Plot {
   /** Follows the container's width (and, enlarged, the window's height). */
   _fit() {
     const w = Math.max(this.container.clientWidth - _padOf(this.container), 300);
-    const hgt = this.large ? Math.max(200, innerHeight - 150) : this.height;
+    const hgt = this.large ? Math.max(200, innerHeight - 120) : this.height; // the head, legend and frame take the rest
     if (w !== this.u.width || hgt !== this.u.height) this.u.setSize({ width: w, height: hgt });
   }
 
