@@ -105,9 +105,9 @@ def test_learning_card_bands_versions_freeze_and_rollback(
 
     # --- the stance phase: in the card, following the walk; not on the gait-phase plot --------------------
     phase_legend = page.get_by_test_id("plot-phase").locator(".u-legend")
-    expect(phase_legend).to_contain_text("tbe")
-    expect(phase_legend).to_contain_text("phase_ekf")
-    expect(phase_legend).not_to_contain_text("gp_ekf")
+    expect(phase_legend).to_contain_text("Timing-based estimate")  # by their labels (issue #23)
+    expect(phase_legend).to_contain_text("Phase EKF (seed 000)")
+    expect(phase_legend).not_to_contain_text("GP-EKF")
     in_stance: list[tuple[float, float]] = []
     for _ in range(6):  # a few stances in the 10 s window (the device streams slower on a loaded machine)
         page.wait_for_timeout(3000)

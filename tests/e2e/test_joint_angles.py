@@ -37,7 +37,7 @@ CHANNELS = [c for seg in ("foot", "shank", "thigh") for c in imu_inputs(seg)]
 STACK = ["imu_foot", "imu_shank", "imu_thigh", "hs_detector", "phase_ekf", "tbe", "sdre_knee"]
 SAMPLES = 24  # mouse positions a plot is read at
 #: the hip and knee plot's legend labels
-HIP, KNEE, SDRE = "hip (thigh from vertical)", "knee (thigh − shank)", "knee, SDRE (sdre_knee)"
+HIP, KNEE, SDRE = "hip (thigh from vertical)", "knee (thigh − shank)", "knee, SDRE from IMUs"
 
 
 @functools.cache
