@@ -1,9 +1,9 @@
 """No invented values on the live screen (issue #23, point 1), in Debian chromium against the real server.
 
-The timing-based estimate drives the torque on a +10 deg slope. With the phase EKF in the stack the incline
-and stride length shown are the phase EKF's, named as such, and the page says what the torque assumes in their
-place; with the timing-based estimate alone they read "not estimated", never 0 deg or the nominal stride. The
-recording says the same: null where nothing estimated, never the nominal values.
+On a +10 deg slope the clinician switches the torque to the timing-based estimate. With the phase EKF in the
+stack the incline and stride length shown are the phase EKF's, named as such, and the page says what the torque
+assumes in their place; with the timing-based estimate alone they read "not estimated", never 0 deg or the
+nominal stride. The recording says the same: null where nothing estimated, never the nominal values.
 """
 
 from __future__ import annotations
@@ -34,12 +34,18 @@ def _tile(page: playwright_api.Page, key: str) -> str:
 def test_a_timing_based_primary_on_a_slope_shows_the_phase_ekf_incline_named_as_its(
     server: str, watched: Watched
 ) -> None:
-    sid = _session(server, "SRC1", None)
+    _, session = simulated_session(server, "SRC1", 1.2, 10.0, 400)  # the phase EKF drives the torque
+    sid = int(session["id"])
     try:
         session_time(server, sid, at_least=12.0)  # the phase EKF has converged on the slope
         page = watched.page
         page.goto(f"{server}/#/sessions/{sid}")
         sources = page.get_by_test_id("summary-sources")
+        expect(sources).to_be_hidden()  # every figure is the primary's own
+        # "Torque follows": the timing-based estimate, confirmed as every switch is
+        page.get_by_test_id("primary-select").select_option("tbe")
+        page.get_by_test_id("primary-apply").click()
+        page.get_by_test_id("confirm-primary").click()
         expect(sources).to_contain_text("Stride length and incline from Phase EKF (seed 000)")
         expect(sources).to_contain_text("The torque assumes a 1.17 m stride and level ground (Timing-based estimate")
         expect(page.get_by_test_id("summary-incline")).not_to_have_text("–", timeout=15_000)
