@@ -148,7 +148,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             on_state=lambda *a: ctx.on_state(*a),
             disk_check=disk.check,
             disk_room=disk.room,
-            gp_trainer=GPTrainer(duty=settings.gp_fit_duty),
+            gp_trainer=GPTrainer(duty=settings.gp_fit_duty, nice=settings.gp_fit_nice),
             node=settings.node,
             writer=writer,
         )

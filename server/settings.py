@@ -11,7 +11,7 @@ from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from gaitscope.server.origin import LOOPBACK_HOSTS, allowed_host, allowed_hosts_for
-from gaitscope.sessions.live.gp_learning import DUTY
+from gaitscope.sessions.live.gp_learning import DUTY, NICE
 from gaitscope.sessions.schema import MAX_FRAME_BYTES
 
 
@@ -74,6 +74,8 @@ class Settings(BaseSettings):
             (:class:`~gaitscope.sessions.live.gp_learning.GPTrainer`): with many learning sessions on few cores,
             each retrains less often than seed 003's every 5 steps, so that the fits leave the cores to
             the sample loops. 1.0: back to back.
+        gp_fit_nice: how much lower the fitting worker's priority is than the server's (a Unix nice increment,
+            0-19, applied after it imported GPy; default 10: 19 starved its fits on a busy machine).
     """
 
     model_config = SettingsConfigDict(env_prefix="GAITSCOPE_", extra="ignore")
@@ -96,6 +98,7 @@ class Settings(BaseSettings):
     disk_warn_mb: int = Field(default=512, ge=1)
     disk_stop_mb: int = Field(default=128, ge=1)
     gp_fit_duty: float = Field(default=DUTY, gt=0.0, le=1.0)
+    gp_fit_nice: int = Field(default=NICE, ge=0, le=19)
     node: str = Field(default="", max_length=128)
     auth: bool = False
     tls_cert: Path | None = None

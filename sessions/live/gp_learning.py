@@ -46,7 +46,7 @@ import time
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from typing import Final, Literal
+from typing import Final, Literal, TypeAlias
 
 import numpy as np
 
@@ -57,7 +57,7 @@ from gaitscope.sessions import schema
 from gaitscope.sessions.gp_models import GP_EKF, arrays_of, gp_ekf_of, rmse_of, window_text
 from gaitscope.sessions.stack import EstimatorStack
 
-__all__ = ["DUTY", "FIT_OPTIONS", "GPLearning", "GPTrainer", "LearningRefused", "Note", "fit_window"]
+__all__ = ["DUTY", "FIT_OPTIONS", "NICE", "GPLearning", "GPTrainer", "LearningRefused", "Note", "fit_window"]
 
 log = logging.getLogger("gaitscope")
 
@@ -66,34 +66,48 @@ FIT_OPTIONS: Final = FitOptions()
 _BAND_PHASE: Final = np.linspace(0.0, 1.0, schema.GP_BAND_POINTS)
 #: The fraction of the fitting worker's time it may spend fitting (:class:`GPTrainer`).
 DUTY: Final = 0.25
+#: How much lower than the server's the fitting worker's priority is (Unix nice increment, :class:`GPTrainer`).
+NICE: Final = 10
+#: What a fit gives back: the model set, the wall time and the CPU time the fit took (s).
+Fitted: TypeAlias = tuple[GPModelSet, float, float]
 _ASK_STALE_S: Final = 1.0  # a session that has not asked for this long (s) loses its place in the queue
 
 
-def fit_window(window: TrainingWindow, options: FitOptions) -> tuple[GPModelSet, float]:
-    """Fit a training window (in the worker): the model set and the seconds the fit took."""
-    t0 = time.perf_counter()
+def fit_window(window: TrainingWindow, options: FitOptions) -> tuple[GPModelSet, float, float]:
+    """Fit a training window (in the worker): the model set, the wall time the fit took and the CPU time it
+    used (s). The CPU time is the worker process's (its BLAS threads included) when the fit runs in a
+    process's main thread, as in :class:`GPTrainer`'s process pool, and the fitting thread's otherwise."""
+    cpu = time.process_time if threading.current_thread() is threading.main_thread() else time.thread_time
+    t0, c0 = time.perf_counter(), cpu()
     models = fit_models(window, options)
-    return models, time.perf_counter() - t0
+    return models, time.perf_counter() - t0, cpu() - c0
 
 
-def _worker_started() -> None:
-    """In the worker process, once: lower its priority, and import what a fit needs (GPy takes a second or
-    two) before the first window comes.
+def _worker_started(nice: int) -> None:
+    """In the worker process, once: import what a fit needs (GPy takes a second or two of a core) before the
+    first window comes, then lower the worker's priority by ``nice``.
 
-    Niced to 19: a fit is a burst of 0.3-0.4 s of one core, and on a machine short of cores it delayed
-    the sample loops and the browsers' streams around it (``gaitscope loadbench --gp-ekf``, 10 sessions on
-    2 cores: p95 64 ms at normal priority, 45-53 ms niced, both with :data:`DUTY`). Alone, niced, its fits
-    starved behind any busy process (8-20 s a fit instead of 0.4-0.7 s under a CI run): the duty budget
-    now bounds how much it asks for, and a slow fit only delays the next one."""
-    os.nice(19)
+    The import runs at normal priority: niced first, on a machine whose cores were busy (a CI run, a browser
+    beside the server) the import alone took minutes and no model came within 150 s. The fits run niced: a fit
+    is a burst of 0.3-0.4 s of one core, and on a machine short of cores it delayed the sample loops and the
+    browsers' streams around it (``gaitscope loadbench --gp-ekf``, 10 sessions on 2 cores: p95 64 ms at normal
+    priority, 45-53 ms niced to 19, both with :data:`DUTY`). Niced to 19 its fits starved behind any busy
+    process (8-20 s a fit instead of 0.4-0.7 s under a CI run; Linux gives a nice-19 process 1.5 % of a core
+    that a nice-0 one wants, a nice-10 one 10 %): the default, :data:`NICE`, is 10, and the duty budget bounds
+    how much it asks for."""
     import GPy  # noqa: F401
+
+    if nice:
+        os.nice(nice)
 
 
 class GPTrainer:
     """The server's background worker for GP fits, shared by its sessions (the session manager's).
 
-    One fit at a time, and at most ``duty`` of the worker's time spent fitting: after a fit of ``d``
-    seconds the next starts no sooner than ``d * (1 / duty - 1)`` seconds later. A session asks before
+    One fit at a time, and at most ``duty`` of the worker's time spent fitting: after a fit that used ``d``
+    seconds of CPU the next starts no sooner than ``d * (1 / duty - 1)`` seconds later. CPU time, not wall
+    time: a niced worker on a busy machine waits for the cores, and charging that wait as fitting (a 0.4 s
+    fit that took 40 s) stopped a session's learning for minutes. A session asks before
     it submits (:meth:`may_submit`); of the sessions with a window ready, the one that has asked longest
     goes first. Seed 003 retrains every 5 steps; with one session a fit (0.3-0.4 s) every 5 steps is
     about 8 % busy and the budget never binds. With many sessions on few cores it does: each retrains
@@ -107,18 +121,27 @@ class GPTrainer:
             single worker thread: for measuring the difference, see the module docstring).
         options: how the GPs are fitted.
         duty: the fraction of the worker's time it may spend fitting, in (0, 1] (1: back to back).
+        nice: the worker process's nice increment after it imported GPy, 0-19 (0: the server's priority; the
+            ``thread`` kind ignores it).
     """
 
     def __init__(
-        self, kind: Literal["process", "thread"] = "process", options: FitOptions = FIT_OPTIONS, duty: float = DUTY
+        self,
+        kind: Literal["process", "thread"] = "process",
+        options: FitOptions = FIT_OPTIONS,
+        duty: float = DUTY,
+        nice: int = NICE,
     ):
         if kind not in ("process", "thread"):
             raise ValueError(f"kind must be 'process' or 'thread', got {kind!r}")
         if not (math.isfinite(duty) and 0.0 < duty <= 1.0):
             raise ValueError(f"duty must be in (0, 1], got {duty!r}")
+        if not 0 <= nice <= 19:
+            raise ValueError(f"nice must be in 0..19, got {nice!r}")
         self.kind = kind
         self.options = options
         self.duty = duty
+        self.nice = nice
         self._pool: Executor | None = None
         self._lock = threading.Lock()  # the fit's done-callback runs in the pool's thread
         self._in_flight = 0
@@ -141,17 +164,18 @@ class GPTrainer:
         del self._asks[key]
         return True
 
-    def _track(self, future: Future[tuple[GPModelSet, float]]) -> Future[tuple[GPModelSet, float]]:
-        """Count ``future`` as the fit under way until it is done; then set when the next may start."""
+    def _track(self, future: Future[Fitted]) -> Future[Fitted]:
+        """Count ``future`` as the fit under way until it is done; then set when the next may start (a fit
+        that failed is charged its wall time)."""
         submitted = time.monotonic()
         with self._lock:
             self._in_flight += 1
 
-        def done(f: Future[tuple[GPModelSet, float]]) -> None:
+        def done(f: Future[Fitted]) -> None:
             now = time.monotonic()
             fit_s = now - submitted
             if not f.cancelled() and f.exception() is None:
-                fit_s = f.result()[1]
+                fit_s = f.result()[2]
             with self._lock:
                 self._in_flight -= 1
                 self._next_start = max(self._next_start, now + fit_s * (1.0 / self.duty - 1.0))
@@ -172,10 +196,12 @@ class GPTrainer:
             return
         method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
         context = multiprocessing.get_context(method)
-        self._pool = ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=_worker_started)
+        self._pool = ProcessPoolExecutor(
+            max_workers=1, mp_context=context, initializer=_worker_started, initargs=(self.nice,)
+        )
         self._pool.submit(int)  # start the worker now: it imports GPy while the first window fills
 
-    def submit(self, window: TrainingWindow) -> Future[tuple[GPModelSet, float]]:
+    def submit(self, window: TrainingWindow) -> Future[Fitted]:
         """Fit ``window`` in the worker (:func:`fit_window`). A pool whose worker died (its fits failed with
         ``BrokenProcessPool``) is replaced here, once, whichever session submits next."""
         self.start()
@@ -222,7 +248,7 @@ class _Fit:
 
     window: TrainingWindow
     submitted: float  # time.monotonic()
-    future: Future[tuple[GPModelSet, float]]
+    future: Future[Fitted]
 
 
 class GPLearning:
@@ -257,7 +283,7 @@ class GPLearning:
         return self.estimator.model_version
 
     @property
-    def fitting(self) -> Future[tuple[GPModelSet, float]] | None:
+    def fitting(self) -> Future[Fitted] | None:
         """The fit under way (None: none), for a caller that must wait for it (tests, benchmarks)."""
         return None if self._fit is None else self._fit.future
 
@@ -306,7 +332,7 @@ class GPLearning:
         w = fit.window
         kept = self.version
         try:
-            models, fit_s = fit.future.result()
+            models, fit_s, _ = fit.future.result()
         except Exception as e:  # a crash in a fit is an event, never the session's end
             if isinstance(e, BrokenProcessPool):  # the next submit() replaces the pool
                 why = "its worker process stopped unexpectedly"

@@ -138,8 +138,20 @@ def client(base: str, name: str = "clinician") -> Client:
 
 def log_in(context: BrowserContext, base: str, name: str = "clinician") -> dict[str, Any]:
     """Logs a browser context in as ``name`` through the API: the cookie lands in the context, and the pages
-    opened after load ``me`` with it (and its CSRF token). Returns the ``Me``."""
-    resp = context.request.post(f"{base}/api/auth/login", data={"name": name, "password": PASSWORDS[name]})
+    opened after load ``me`` with it (and its CSRF token). Returns the ``Me``.
+
+    Sent again once if the connection was reset: the request context reuses an idle connection, and one the
+    server closed at its keep-alive timeout (5 s) just as the login went out is reset (seen on a loaded
+    machine); a browser retries such a request itself, Playwright's request context does not."""
+    from playwright.sync_api import Error
+
+    data = {"name": name, "password": PASSWORDS[name]}
+    try:
+        resp = context.request.post(f"{base}/api/auth/login", data=data)
+    except Error as e:
+        if "ECONNRESET" not in str(e):
+            raise
+        resp = context.request.post(f"{base}/api/auth/login", data=data)
     assert resp.ok, f"login of {name} refused: {resp.status} {resp.text()}"
     me: dict[str, Any] = resp.json()
     return me

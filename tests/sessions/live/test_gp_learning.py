@@ -356,11 +356,11 @@ def test_a_fit_back_after_a_freeze_is_refused_and_said_so(
 
 
 # --- failures --------------------------------------------------------------------------------------------
-def _fails_first(window: TrainingWindow, options: FitOptions) -> tuple[GPModelSet, float]:
+def _fails_first(window: TrainingWindow, options: FitOptions) -> tuple[GPModelSet, float, float]:
     """A fit that raises on the first window (runs in the worker process, which imports this module)."""
     if window.index == 1:
         raise RuntimeError("the fit blew up")
-    return fit_models(window, options), 0.5
+    return fit_models(window, options), 0.5, 0.5
 
 
 def test_a_fit_that_raises_is_an_event_and_the_session_learns_on(

@@ -21,13 +21,14 @@ def clock(monkeypatch: pytest.MonkeyPatch) -> list[float]:
     return now
 
 
-def _fits(monkeypatch: pytest.MonkeyPatch, fit_s: float) -> threading.Event:
-    """Fits that finish when the event is set, each reporting ``fit_s`` seconds of fitting."""
+def _fits(monkeypatch: pytest.MonkeyPatch, fit_s: float, wall_s: float | None = None) -> threading.Event:
+    """Fits that finish when the event is set, each reporting ``fit_s`` seconds of CPU (and ``wall_s`` of wall
+    time: ``fit_s`` when not given)."""
     go = threading.Event()
 
-    def fit(window: Any, options: Any) -> tuple[Any, float]:
+    def fit(window: Any, options: Any) -> tuple[Any, float, float]:
         go.wait(10)
-        return window, fit_s
+        return window, fit_s if wall_s is None else wall_s, fit_s
 
     monkeypatch.setattr(gl, "fit_window", fit)
     return go
@@ -44,13 +45,54 @@ def test_one_fit_at_a_time_then_a_pause_that_keeps_the_worker_within_its_duty(
         fit = trainer.submit("window a")  # type: ignore[arg-type]
         assert not trainer.may_submit(b)  # a fit is under way
         go.set()
-        assert fit.result(10) == ("window a", 2.0)
+        assert fit.result(10) == ("window a", 2.0, 2.0)
         clock[0] += 5.9
         assert not trainer.may_submit(b)  # within the pause
         clock[0] += 0.2
         assert trainer.may_submit(b)
     finally:
         trainer.shutdown()
+
+
+def test_the_pause_counts_the_cpu_a_fit_used_not_the_time_it_waited_for_a_core(
+    monkeypatch: pytest.MonkeyPatch, clock: list[float]
+) -> None:
+    go = _fits(monkeypatch, fit_s=0.5, wall_s=40.0)  # a niced worker on a busy machine: 0.5 s of CPU in 40 s
+    trainer = gl.GPTrainer("thread", duty=0.25)
+    a = object()
+    try:
+        assert trainer.may_submit(a)
+        fit = trainer.submit("window a")  # type: ignore[arg-type]
+        go.set()
+        _finished(fit)
+        clock[0] += 1.4
+        assert not trainer.may_submit(a)  # 3 x 0.5 s of CPU
+        clock[0] += 0.2
+        assert trainer.may_submit(a)  # not 3 x 40 s
+    finally:
+        trainer.shutdown()
+
+
+def _a_window() -> Any:
+    """Five stances of 0.6 s at 100 Hz, smooth joint angles of the phase."""
+    import numpy as np
+
+    from gaitscope.estimators.gp_models import TrainingWindow
+
+    n = 60
+    phase = np.tile(np.arange(n) / n, 5)
+    angle = np.stack([20 * np.cos(np.pi * phase), 10 * np.sin(np.pi * phase), 5 * np.sin(2 * np.pi * phase)], axis=1)
+    return TrainingWindow(
+        index=1, t=np.arange(5 * n) / 100.0, step=np.repeat(np.arange(1, 6), n).astype(np.int64), phase=phase,
+        phase_rate=np.full(5 * n, 1 / 0.6), angle=angle, velocity=np.gradient(angle, 0.01, axis=0),
+    )  # fmt: skip
+
+
+def test_a_real_fit_reports_its_wall_and_cpu_time() -> None:
+    window = _a_window()
+    models, wall_s, cpu_s = gl.fit_window(window, gl.FIT_OPTIONS)
+    assert models.version == window.index
+    assert 0.0 < cpu_s and 0.0 < wall_s
 
 
 def _finished(fit: Any) -> None:
