@@ -11,3 +11,5 @@ fi
 # mypy reads the packages as gaitscope.* through links (it does not follow the editable install's import hook)
 mkdir -p .typecheck/gaitscope
 for d in estimators server sessions; do ln -sfn "../../$d" ".typecheck/gaitscope/$d"; done
+# compile the numba kernels now (about a minute), not in the first server's or replay's first seconds
+.venv/bin/gaitscope warm

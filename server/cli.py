@@ -299,6 +299,7 @@ def _study(a: argparse.Namespace, filename: str, run: Callable[[], str]) -> int:
 def cmd_serve(a: argparse.Namespace) -> int:
     import uvicorn
 
+    from gaitscope.server.announcing import AnnouncingServer
     from gaitscope.server.app import create_app
     from gaitscope.server.settings import Settings
 
@@ -323,11 +324,12 @@ def cmd_serve(a: argparse.Namespace) -> int:
         print("gaitscope: accounts are on, with no user yet: `gaitscope user add --role admin NAME`", file=sys.stderr)
     scheme = "https" if settings.tls_cert is not None else "http"
     print(f"gaitscope: data in {settings.data_dir.resolve()}, database {_safe_url(settings.database_url)}")
-    print(f"gaitscope: serving on {scheme}://{settings.host}:{settings.port}/  (API docs at /docs)", flush=True)
+    print("gaitscope: starting: the estimators' compiled code loads first (the first start after an install "
+          "compiles it, up to a minute; `gaitscope warm` does it ahead)", flush=True)  # fmt: skip
     # No permessage-deflate: compressing every torque command and 30 stream batches a second per browser
     # cost the server more (about 8 % of its time with 25 devices) than their bytes cost loopback or a
     # clinic's network (a browser gets about 100 KB/s uncompressed).
-    uvicorn.run(
+    config = uvicorn.Config(
         create_app(settings),
         host=settings.host,
         port=settings.port,
@@ -340,6 +342,18 @@ def cmd_serve(a: argparse.Namespace) -> int:
         proxy_headers=settings.behind_tls_proxy,
         forwarded_allow_ips="*" if settings.behind_tls_proxy else None,
     )
+    url = f"{scheme}://{settings.host}:{settings.port}/"
+    AnnouncingServer(config, f"gaitscope: serving on {url}  (API docs at /docs)").run()
+    return 0
+
+
+def cmd_warm(a: argparse.Namespace) -> int:
+    from gaitscope.sessions.offline.warm import warm
+
+    t0 = time.perf_counter()
+    took = warm(lambda part: print(f"compiling (or loading): {part}", flush=True))
+    parts = ", ".join(f"{k} {v:.1f} s" for k, v in took.items())
+    print(f"compiled code ready in {time.perf_counter() - t0:.1f} s ({parts})")
     return 0
 
 
@@ -413,6 +427,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-leg-view", action="store_true", help="do not start the viser leg view")
     p.add_argument("--log-level", default="warning", choices=["debug", "info", "warning", "error"])
     p.set_defaults(func=cmd_serve)
+
+    p = sub.add_parser("warm", help="compile the estimators' and the replay's kernels ahead (scripts/setup.sh runs it)")
+    p.set_defaults(func=cmd_warm)
 
     p = sub.add_parser("demo", help="replay the bundled default trial and print a summary")
     p.add_argument("--out-dir", type=Path, default=Path("out"))

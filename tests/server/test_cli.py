@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+import urllib.request
 from pathlib import Path
 
 import numpy as np
@@ -155,10 +156,36 @@ def test_console_script_runs_the_demo(tmp_path: Path) -> None:
 
 
 def test_serve_gives_uvicorn_the_websocket_message_limit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import uvicorn
+    from gaitscope.server.announcing import AnnouncingServer
 
-    calls: list[dict[str, object]] = []
-    monkeypatch.setattr(uvicorn, "run", lambda app, **kw: calls.append(kw))
+    calls: list[AnnouncingServer] = []
+    monkeypatch.setattr(AnnouncingServer, "run", lambda self, sockets=None: calls.append(self))
     monkeypatch.setenv("GAITSCOPE_WS_MAX_KB", "32")
     assert main(["serve", "--no-demo", "--no-leg-view", "--data-dir", str(tmp_path)]) == 0
-    assert calls[0]["ws_max_size"] == 32 * 1024  # a longer message closes the socket (1009) before it is read
+    assert calls[0].config.ws_max_size == 32 * 1024  # a longer message closes the socket (1009) before it is read
+
+
+def test_serve_prints_its_url_once_it_answers_after_saying_it_is_starting(tmp_path: Path) -> None:
+    from gaitscope.server.bench.launch import free_port
+
+    port = free_port()
+    exe = str(Path(sys.executable).with_name("gaitscope"))
+    cmd = [exe, "serve", "--port", str(port), "--data-dir", str(tmp_path), "--no-leg-view"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.append(line)
+            if "serving on" in line:
+                break
+        assert any("serving on" in line for line in lines), "".join(lines)
+        url = f"http://127.0.0.1:{port}/"
+        assert url in lines[-1]
+        with urllib.request.urlopen(f"{url}api/health", timeout=5) as resp:  # at once: no retry
+            assert resp.status == 200
+        said = "".join(lines)
+        assert said.index("gaitscope: starting: the estimators' compiled code loads first") < said.index("serving on")
+    finally:
+        proc.terminate()
+        proc.communicate(timeout=30)  # and its output closed

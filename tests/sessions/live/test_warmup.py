@@ -15,35 +15,26 @@ ROOT = Path(__file__).resolve().parents[3]
 
 SCRIPT = textwrap.dedent(
     """
-    import importlib, json, pkgutil
+    import json
 
-    import numpy as np
-    from numba.core.registry import CPUDispatcher
-
-    from gaitscope import estimators
     from gaitscope.sessions.estimation import FrameEstimator
     from gaitscope.sessions.formats.models import default_model_path, load_model
     from gaitscope.sessions.live.sources import frames_from_table
     from gaitscope.sessions.live.warmup import warm_up
+    from gaitscope.sessions.offline.warm import compiled
     from gaitscope.sessions.registry import channels_of, feeds
     from gaitscope.sessions.schema import SessionSettings
     from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
     from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_walk
     from gaitscope.sessions.synth.trials import sensor_trial
 
-    def compiled():
-        out = {}
-        for m in pkgutil.iter_modules(estimators.__path__):
-            mod = importlib.import_module(f"gaitscope.estimators.{m.name}")
-            for name, v in vars(mod).items():
-                if isinstance(v, CPUDispatcher) and v.__module__ == mod.__name__:
-                    out[f"{mod.__name__}.{name}"] = len(v.signatures)
-        return out
+    def counts():
+        return {k: len(sigs) for k, sigs in compiled().items()}
 
     model = load_model(default_model_path())[0]
-    cold = compiled()
+    cold = counts()
     warm_up(model)
-    warm = compiled()
+    warm = counts()
     sensors, _, _ = sensor_trial([(1.0, 0.0, 6), (0.6, 5.0, 4)], rate_hz=200.0)
     speeds = speed_walk(make_subjects(CohortSpec())[0], SpeedProtocol(walk_s=12.0, standing_s=1.0, rate_hz=200.0))
     ran = set()
@@ -61,7 +52,7 @@ SCRIPT = textwrap.dedent(
                 if k % 97 == 0:  # a dropout now and then: the missing-channel branches
                     frame = frame.model_copy(update={c: None for c in ("foot_angle_deg", "knee_angle_deg")})
                 est.step(frame, 0)
-    print(json.dumps({"cold": cold, "warm": warm, "after": compiled(), "ran": sorted(ran)}))
+    print(json.dumps({"cold": cold, "warm": warm, "after": counts(), "ran": sorted(ran)}))
     """
 )
 
