@@ -10,10 +10,38 @@
 - ``offline/``: training, cross-validation, the replay command, the benchmark.
 """
 
-from gaitscope.sessions.errors import DataFormatError
-from gaitscope.sessions.formats.locohub import read_table, write_table
-from gaitscope.sessions.formats.models import default_model_path, load_model, save_model
-from gaitscope.sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv, write_replay_output
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from gaitscope.sessions.errors import DataFormatError
+    from gaitscope.sessions.formats.locohub import read_table, write_table
+    from gaitscope.sessions.formats.models import default_model_path, load_model, save_model
+    from gaitscope.sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv, write_replay_output
+
+#: Where each name of :data:`__all__` lives: imported on first use (PEP 562), so that importing one
+#: subpackage (``gaitscope.sessions.schema``, say) does not import pandas and the LocoHub reader with it.
+_LAZY = {
+    "DataFormatError": "gaitscope.sessions.errors",
+    "ReplayInput": "gaitscope.sessions.formats.replay_io",
+    "ReplayOutput": "gaitscope.sessions.formats.replay_io",
+    "default_model_path": "gaitscope.sessions.formats.models",
+    "load_model": "gaitscope.sessions.formats.models",
+    "read_replay_csv": "gaitscope.sessions.formats.replay_io",
+    "read_table": "gaitscope.sessions.formats.locohub",
+    "save_model": "gaitscope.sessions.formats.models",
+    "write_replay_output": "gaitscope.sessions.formats.replay_io",
+    "write_table": "gaitscope.sessions.formats.locohub",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'gaitscope.sessions' has no attribute {name!r}")
+
 
 __all__ = [
     "DataFormatError",

@@ -59,14 +59,12 @@ from gaitscope.estimators.sdre_estimator import SDREKnee
 from gaitscope.estimators.tbe import TimingBasedEstimator
 from gaitscope.sessions.schema import CHANNELS, PRIMARY_BLEND_S, SensorFrame, missing_channels
 from gaitscope.sessions.stack import EstimatorStack
-from gaitscope.sessions.synth.cohort import CohortSpec, generate_cohort
 
 __all__ = [
     "DECLARED",
     "DERIVERS",
     "DESCRIPTORS",
     "ESTIMATORS",
-    "GP_EKF_COHORT",
     "GP_EKF_MODEL_NAME",
     "OPT_IN",
     "Declared",
@@ -127,13 +125,8 @@ def _fingerprint_ekf(c: StackContext, mode: Mode) -> FingerprintEKF:
 
 #: The GP-EKF's default models (seed 003) when shipped: ``default_arrays(*build_default(...))`` of
 #: ``gaitscope.estimators.gp_ekf_estimator`` saved with ``np.savez``. Without it they are fitted on first use to
-#: :data:`GP_EKF_COHORT` (about 3 s with GPy's import, once per process).
+#: :data:`~gaitscope.sessions.synth.cohort.GP_EKF_COHORT` (about 3 s with GPy's import, once per process).
 GP_EKF_MODEL_NAME: Final = "gp_ekf_default.npz"
-#: What the GP-EKF's population model and control surface are fitted to: level walking over seed 003's
-#: speeds (its treadmill ran 0.4-1.2 m/s).
-GP_EKF_COHORT: Final = CohortSpec(
-    n_subjects=6, speeds_m_s=(0.4, 0.6, 0.8, 1.0, 1.2), inclines_deg=(0.0,), strides_per_condition=4
-)
 
 
 @cache
@@ -143,6 +136,8 @@ def gp_ekf_default() -> tuple[GPModelSet, ControlSurface]:
     if path.is_file():
         with resources.as_file(path) as file, np.load(file) as arrays:
             return load_default(dict(arrays))
+    from gaitscope.sessions.synth.cohort import GP_EKF_COHORT, generate_cohort  # here: pandas, the cohort
+
     frame = generate_cohort(GP_EKF_COHORT)
     return build_default({c: frame[c].to_numpy() for c in COHORT_COLUMNS})
 

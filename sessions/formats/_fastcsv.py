@@ -64,7 +64,10 @@ def read_numbers(body: bytes, n_fields: int, columns: dict[str, int]) -> dict[st
         values = table.column(names[j])
         if values.null_count:  # empty, "nan", "NA", ...
             return None
-        array = np.array(values.to_numpy(), dtype=np.float64)  # a writable copy
+        # the float64 chunks' data buffers, copied into one writable array: Arrow's own to_numpy imports
+        # pandas (a third of a second of a replay's start-up); no nulls here, so the buffers are the values
+        parts = [np.frombuffer(c.buffers()[1], np.float64, len(c), c.offset * 8) for c in values.chunks]
+        array = np.concatenate(parts) if parts else np.empty(0)
         if not np.isfinite(array).all():
             return None
         out[column] = array
@@ -81,8 +84,11 @@ def format_rows(columns: Sequence[NDArray[np.generic]]) -> memoryview:
     base = 0
     for c, column in enumerate(columns):
         verbatim[c] = not np.issubdtype(column.dtype, np.floating)
-        values = column.astype(np.int64 if verbatim[c] else np.float64)
-        text = pc.cast(pa.array(values), pa.string())
+        values = np.ascontiguousarray(column, dtype=np.int64 if verbatim[c] else np.float64)
+        # an Arrow array over the values' buffer (pa.array(values) would import pandas: a third of a
+        # second of a replay's start-up), cast to text by Arrow's shortest round-trip formatting
+        arrow = pa.Array.from_buffers(pa.int64() if verbatim[c] else pa.float64(), n, [None, pa.py_buffer(values)])
+        text = pc.cast(arrow, pa.string())
         _, off_buf, data_buf = text.buffers()
         off = np.frombuffer(off_buf, dtype=np.int32, count=n + 1, offset=4 * text.offset).astype(np.int64)
         data = np.frombuffer(data_buf, dtype=np.uint8) if data_buf is not None else np.empty(0, dtype=np.uint8)

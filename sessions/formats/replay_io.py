@@ -22,7 +22,6 @@ from types import TracebackType
 from typing import BinaryIO, Final
 
 import numpy as np
-import pandas as pd
 
 from gaitscope.sessions import schema
 from gaitscope.sessions.errors import DataFormatError
@@ -111,7 +110,8 @@ class ReplayOutput:
     def __enter__(self) -> ReplayOutput:
         with ExitStack() as stack:
             tmp = stack.enter_context(atomic_output(self._path))
-            pd.DataFrame(columns=list(schema.REPLAY_OUTPUT)).to_csv(tmp, index=False, lineterminator="\n")
+            with tmp.open("w", newline="") as header:  # the csv module quotes as pandas does (minimal)
+                csv.writer(header, lineterminator="\n").writerow(schema.REPLAY_OUTPUT)
             self._file = stack.enter_context(tmp.open("ab"))
             self._pool = stack.enter_context(ThreadPoolExecutor(1, thread_name_prefix="replay-output"))
             self._stack = stack.pop_all()

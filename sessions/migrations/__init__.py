@@ -20,13 +20,15 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
-from alembic.config import Config
-from alembic.runtime.environment import EnvironmentContext
-from alembic.runtime.migration import MigrationContext
-from alembic.script import ScriptDirectory
-from sqlalchemy import Connection, inspect
+if TYPE_CHECKING:  # alembic is imported by the functions that use it: every gaitscope command imports this
+    # package (it registers ``gaitscope db``), and alembic takes a noticeable part of a second to import
+    from alembic.config import Config
+    from alembic.runtime.environment import EnvironmentContext
+    from alembic.runtime.migration import MigrationContext
+    from alembic.script import ScriptDirectory
+    from sqlalchemy import Connection
 
 __all__ = [
     "BASELINE",
@@ -57,11 +59,15 @@ LOCK_KEY: Final = int.from_bytes(b"gaitscop", "big", signed=True)
 @functools.cache
 def script_directory() -> ScriptDirectory:
     """The revision scripts, read once per process (Alembic parses them lazily, then keeps the map)."""
+    from alembic.script import ScriptDirectory
+
     return ScriptDirectory(str(SCRIPT_LOCATION))
 
 
 def config(url: str | None = None) -> Config:
     """An Alembic configuration with no ini file: this folder as the scripts, ``url`` as the database."""
+    from alembic.config import Config
+
     cfg = Config()
     cfg.set_main_option("script_location", str(SCRIPT_LOCATION))
     if url is not None:
@@ -86,12 +92,16 @@ def configure(context: EnvironmentContext, connection: Connection, **kwargs: Any
 
 def current(connection: Connection) -> tuple[str, ...]:
     """The revisions the database is at (``()``: unversioned, new or made before migrations)."""
+    from alembic.runtime.migration import MigrationContext
+
     return MigrationContext.configure(connection).get_current_heads()
 
 
 def run(connection: Connection, target: str, *, downgrade: bool = False, cfg: Config | None = None) -> None:
     """Upgrade (or downgrade) the database on ``connection`` to revision ``target``, inside the caller's
     transaction when one is open (then nothing is committed here)."""
+    from alembic.runtime.environment import EnvironmentContext
+
     script = script_directory()
 
     def step(rev: Any, _context: MigrationContext) -> Any:
@@ -116,6 +126,9 @@ def migrate(connection: Connection) -> None:
     The caller holds the database's write lock (SQLite ``BEGIN IMMEDIATE``, PostgreSQL
     :data:`LOCK_KEY`), so two processes opening one new database do not both create it.
     """
+    from alembic.runtime.migration import MigrationContext
+    from sqlalchemy import inspect
+
     script = script_directory()
     heads = current(connection)
     if set(heads) == set(script.get_heads()):

@@ -14,12 +14,6 @@ import argparse
 import sys
 from typing import Any
 
-from alembic.util.exc import CommandError
-from sqlalchemy.engine import make_url
-from sqlalchemy.exc import SQLAlchemyError
-
-from gaitscope.sessions import migrations
-
 __all__ = ["register"]
 
 EXIT_ERROR = 2
@@ -39,6 +33,13 @@ def _heads_label(revision: str, current: tuple[str, ...], heads: tuple[str, ...]
 
 
 def cmd_db(a: argparse.Namespace) -> int:
+    # imported here, not with the module: every gaitscope command registers ``db``, and alembic takes a
+    # noticeable part of a second to import (a replay's start-up)
+    from alembic.util.exc import CommandError
+    from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from gaitscope.sessions import migrations
     from gaitscope.sessions.store import make_engine, write_transaction
 
     url = _url(a)

@@ -48,8 +48,7 @@ from gaitscope.estimators.gp_ekf_estimator import (
     build_default,
 )
 from gaitscope.estimators.gp_models import GPModelSet, fit_models
-from gaitscope.sessions.registry import GP_EKF_COHORT
-from gaitscope.sessions.synth.cohort import CohortSpec, SubjectParams, generate_cohort, make_subjects
+from gaitscope.sessions.synth.cohort import GP_EKF_COHORT, CohortSpec, SubjectParams, generate_cohort, make_subjects
 from gaitscope.sessions.synth.speed_walks import SpeedProtocol, speed_walk
 
 __all__ = ["GPStudy", "SubjectRun", "run_study", "to_markdown", "write_figure"]
@@ -200,7 +199,7 @@ def run_study(
     """Every subject of ``cohort`` through the protocol (see the module docstring).
 
     ``population``: what the first model is fitted to, less the subject; default the GP-EKF's own
-    conditions (:data:`gaitscope.sessions.registry.GP_EKF_COHORT`) for every subject of ``cohort``.
+    conditions (:data:`gaitscope.sessions.synth.cohort.GP_EKF_COHORT`) for every subject of ``cohort``.
     """
     protocol = protocol or SpeedProtocol()
     cohort = cohort or CohortSpec()

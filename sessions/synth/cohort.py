@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Final
 
 import numpy as np
 import pandas as pd
@@ -38,6 +39,7 @@ from gaitscope.sessions.synth.normative import ANKLE, HIP, KNEE, MOMENT, PELVIS,
 from gaitscope.sessions.synth.sensors import SensorNoise, resample_walk, simulate_sensors
 
 __all__ = [
+    "GP_EKF_COHORT",
     "CohortSpec",
     "SensorNoise",
     "SubjectParams",
@@ -88,6 +90,13 @@ class CohortSpec:
     strides_per_condition: int = 20
     samples_per_stride: int = 150
     seed: int = 20230101
+
+
+#: What the GP-EKF's population model and control surface are fitted to (``sessions/registry.py``'s
+#: ``gp_ekf_default``): level walking over seed 003's speeds (its treadmill ran 0.4-1.2 m/s).
+GP_EKF_COHORT: Final = CohortSpec(
+    n_subjects=6, speeds_m_s=(0.4, 0.6, 0.8, 1.0, 1.2), inclines_deg=(0.0,), strides_per_condition=4
+)
 
 
 @dataclass(frozen=True)

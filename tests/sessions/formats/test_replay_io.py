@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import csv
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -215,14 +217,18 @@ def test_output_rejects_unequal_lengths(tmp_path: Path) -> None:
 
 
 def test_failed_write_leaves_no_file_and_keeps_the_old_one(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    def write_half_then_fail(self: pd.DataFrame, path: Path, **kwargs: object) -> None:
-        Path(path).write_text("time_s,pha")
-        raise OSError("disk full")
+    class HalfThenFail:  # a csv writer on a disk that fills up in the middle of the header
+        def __init__(self, file: Any, **kwargs: object) -> None:
+            self.file = file
+
+        def writerow(self, row: object) -> None:
+            self.file.write("time_s,pha")
+            raise OSError("disk full")
 
     old, new = tmp_path / "old.csv", tmp_path / "new.csv"
     write_replay_output(old, _output())
     before = old.read_bytes()
-    monkeypatch.setattr(pd.DataFrame, "to_csv", write_half_then_fail)
+    monkeypatch.setattr(csv, "writer", HalfThenFail)
     for path in (old, new):
         with pytest.raises(OSError, match="disk full"):
             write_replay_output(path, _output())
