@@ -208,7 +208,7 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     # --- review: timeline, scrubbing, re-run ---------------------------------------------------------
     expect(page.get_by_test_id("trial-info")).to_contain_text("uploaded")
     expect(page.get_by_test_id("timeline").locator("canvas")).to_be_visible()
-    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
+    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides", timeout=30_000)  # the trial loaded
     # a replay CSV has no centre of mass: the intent card names what is missing instead of an empty plot
     expect(page.get_by_test_id("review-intent-note")).to_contain_text("does not record com_forward_m, com_up_m")
     expect(page.get_by_test_id("review-plot-intent")).to_be_hidden()
@@ -220,7 +220,7 @@ def test_clinician_flow(server: str, watched: Watched, tmp_path: Path) -> None:
     page.get_by_test_id("zoom-from").fill("5")
     page.get_by_test_id("zoom-to").fill("10")
     page.get_by_test_id("zoom-apply").click()
-    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
+    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides", timeout=30_000)  # the trial loaded
     page.get_by_test_id("rerun-torque_gain").fill("1.5")
     page.get_by_test_id("rerun-submit").click()
     expect(page.get_by_test_id("rerun-ok")).to_contain_text("Overlaid: Torque gain 1.50", timeout=60_000)

@@ -122,7 +122,7 @@ def test_hip_and_knee_from_raw_imus_live_and_in_review(
     page.goto(f"{server}/#/trials/{trial['id']}")
     review_plot = page.get_by_test_id("review-plot-joints")
     expect(review_plot.locator(".u-title")).to_contain_text("Hip and knee flexion")
-    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
+    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides", timeout=30_000)  # the trial loaded
     expect(page.get_by_test_id("review-knee-note")).to_be_hidden()  # 500 samples: every one is shown
     readings = sweep(page, review_plot, np.linspace(0.02, 0.98, SAMPLES))
     _follows(device, readings, HIP, "thigh", 0.8)

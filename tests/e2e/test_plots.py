@@ -476,7 +476,7 @@ def test_live_and_review_plots_at_200_hz(server: str, watched: Watched, streamin
     page.set_viewport_size({"width": 1440, "height": 900})
     page.goto(f"{server}/#/trials/{trial['id']}")
     plot = page.get_by_test_id("review-plot-torque")
-    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
+    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides", timeout=30_000)  # the trial loaded
     wait_responsive(page)  # the review page's first drawing done
     plot.scroll_into_view_if_needed()
     box = plot.locator(".u-over").bounding_box()

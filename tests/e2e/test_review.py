@@ -91,7 +91,7 @@ def test_review(server: str, watched: Watched, recording: dict[str, Any]) -> Non
     # the page opens the review by itself
     expect(page.get_by_test_id("review-recording")).to_be_hidden(timeout=10_000)
     expect(page.get_by_test_id("trial-info")).to_contain_text("finished")
-    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides")
+    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides", timeout=30_000)  # the trial loaded
     _leg_view_started(page)
 
     # --- 1. the re-run starts from what ran; the recorded change in words, on the timeline too ------------
