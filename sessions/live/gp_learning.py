@@ -73,7 +73,7 @@ Fitted: TypeAlias = tuple[GPModelSet, float, float]
 _ASK_STALE_S: Final = 1.0  # a session that has not asked for this long (s) loses its place in the queue
 
 
-def fit_window(window: TrainingWindow, options: FitOptions) -> tuple[GPModelSet, float, float]:
+def fit_window(window: TrainingWindow, options: FitOptions) -> Fitted:
     """Fit a training window (in the worker): the model set, the wall time the fit took and the CPU time it
     used (s). The CPU time is the worker process's (its BLAS threads included) when the fit runs in a
     process's main thread, as in :class:`GPTrainer`'s process pool, and the fitting thread's otherwise."""
@@ -87,8 +87,9 @@ def _worker_started(nice: int) -> None:
     """In the worker process, once: import what a fit needs (GPy takes a second or two of a core) before the
     first window comes, then lower the worker's priority by ``nice``.
 
-    The import runs at normal priority: niced first, on a machine whose cores were busy (a CI run, a browser
-    beside the server) the import alone took minutes and no model came within 150 s. The fits run niced: a fit
+    The import runs at normal priority, so that a worker niced on a machine whose cores are busy does not
+    spend its first minute importing (a precaution: the CI failure that prompted it had another cause, a
+    test device that timed out). The fits run niced: a fit
     is a burst of 0.3-0.4 s of one core, and on a machine short of cores it delayed the sample loops and the
     browsers' streams around it (``gaitscope loadbench --gp-ekf``, 10 sessions on 2 cores: p95 64 ms at normal
     priority, 45-53 ms niced to 19, both with :data:`DUTY`). Niced to 19 its fits starved behind any busy
