@@ -30,6 +30,8 @@ from gaitscope.sessions import schema
 from gaitscope.sessions.accounts import Accounts
 from gaitscope.sessions.audit import AuditLog
 from gaitscope.sessions.audit.key import settings_key
+from gaitscope.sessions.cluster.membership import keep_membership
+from gaitscope.sessions.cluster.nodes import Nodes
 from gaitscope.sessions.formats.models import gaitscope_version
 from gaitscope.sessions.live.disk import DiskGuard
 from gaitscope.sessions.live.gp_learning import GPTrainer
@@ -58,6 +60,8 @@ class AppContext:
     #: the thread that makes the event loop's database writes (sessions' events and trials, async routes' audit)
     writer: StoreWriter
     leg_view: LegView | None = None
+    #: this node's membership of a cluster (Settings.cluster), else None
+    nodes: Nodes | None = None
     focus: int | None = None
     _last_view: float = 0.0
 
@@ -181,9 +185,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         gc.freeze()
         if settings.demo:
             _demo(ctx)
+        membership = None
+        if settings.cluster:
+            ctx.nodes = Nodes(store, settings.node, settings.node_address, settings.node_timeout_s)
+            await writer.run(ctx.nodes.register, "node register")
+            membership = asyncio.create_task(keep_membership(ctx.nodes, manager, writer), name="cluster membership")
         try:
             yield
         finally:
+            if membership is not None:
+                membership.cancel()
             await ctx.manager.stop_all()
             await asyncio.to_thread(writer.close)  # every write the sessions queued is made before the store closes
             ctx.uploads.shutdown()

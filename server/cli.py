@@ -8,6 +8,7 @@ client). Bad input exits with status 2 and a message naming the file, row and co
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -324,6 +325,15 @@ def cmd_serve(a: argparse.Namespace) -> int:
         print("gaitscope: accounts are on, with no user yet: `gaitscope user add --role admin NAME`", file=sys.stderr)
     scheme = "https" if settings.tls_cert is not None else "http"
     print(f"gaitscope: data in {settings.data_dir.resolve()}, database {_safe_url(settings.database_url)}")
+    if a.workers:
+        from gaitscope.server.workers import WorkersError, run_workers
+
+        print(f"gaitscope: starting {a.workers} nodes (each loads the estimators' compiled code first)", flush=True)
+        try:
+            return run_workers(settings, a.workers, a.log_level)
+        except WorkersError as e:
+            print(f"gaitscope: {e}", file=sys.stderr)
+            return 2
     print("gaitscope: starting: the estimators' compiled code loads first (the first start after an install "
           "compiles it, up to a minute; `gaitscope warm` does it ahead)", flush=True)  # fmt: skip
     # No permessage-deflate: compressing every torque command and 30 stream batches a second per browser
@@ -339,8 +349,10 @@ def cmd_serve(a: argparse.Namespace) -> int:
         ws_max_size=settings.ws_max_kb * 1024,  # a device's 5 MB frame is refused by its header, never read
         ssl_certfile=settings.tls_cert,
         ssl_keyfile=settings.tls_key,
-        proxy_headers=settings.behind_tls_proxy,
-        forwarded_allow_ips="*" if settings.behind_tls_proxy else None,
+        # a cluster node is reached through its proxy (nginx on loopback, or compose's): the client's address is
+        # the proxy's X-Forwarded-For (the login throttle counts per address)
+        proxy_headers=settings.behind_tls_proxy or settings.cluster,
+        forwarded_allow_ips="*" if settings.behind_tls_proxy else "127.0.0.1" if settings.cluster else None,
     )
     url = f"{scheme}://{settings.host}:{settings.port}/"
     AnnouncingServer(config, f"gaitscope: serving on {url}  (API docs at /docs)").run()
@@ -383,7 +395,12 @@ def cmd_loadbench(a: argparse.Namespace) -> int:
         return 0 if result["clean"] and not any(r.out_of_bounds for r in result["devices"]) else 1
     from gaitscope.server.bench.load import run_loadbench
 
-    run_loadbench(a.sessions, a.clients, a.rate, a.seconds, a.batch_ms, gp_ekf=a.gp_ekf)
+    if a.nodes and not a.database_url.startswith("postgresql"):
+        need = "gaitscope loadbench --nodes needs a PostgreSQL database: --database-url postgresql+psycopg://..."
+        print(f"{need} (or under `bash scripts/postgres.sh`: GAITSCOPE_TEST_POSTGRES)", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    run_loadbench(a.sessions, a.clients, a.rate, a.seconds, a.batch_ms, gp_ekf=a.gp_ekf, nodes=a.nodes,
+                  database_url=a.database_url)  # fmt: skip
     return 0
 
 
@@ -426,6 +443,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-demo", action="store_true", help="do not create the demo subject and session")
     p.add_argument("--no-leg-view", action="store_true", help="do not start the viser leg view")
     p.add_argument("--log-level", default="warning", choices=["debug", "info", "warning", "error"])
+    p.add_argument(
+        "--workers", type=int, default=0, metavar="N",
+        help="N processes behind nginx on the shared PostgreSQL database (GAITSCOPE_DATABASE_URL), each session "
+        "routed to the one that runs it (docs/deployment.md, Scale-out); default: one process",
+    )  # fmt: skip
     p.set_defaults(func=cmd_serve)
 
     p = sub.add_parser("warm", help="compile the estimators' and the replay's kernels ahead (scripts/setup.sh runs it)")
@@ -497,6 +519,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rate", type=float, default=200.0)
     p.add_argument("--seconds", type=float, default=20.0)
     p.add_argument("--batch-ms", type=float, default=33.0)
+    p.add_argument(
+        "--nodes", type=int, default=0, metavar="N",
+        help="run the server as N nodes behind nginx (serve --workers N) on PostgreSQL; default one process",
+    )  # fmt: skip
+    p.add_argument(
+        "--database-url", default=os.environ.get("GAITSCOPE_TEST_POSTGRES", ""),
+        help="PostgreSQL for --nodes (default GAITSCOPE_TEST_POSTGRES, set by scripts/postgres.sh)",
+    )  # fmt: skip
     p.add_argument(
         "--gp-ekf",
         action="store_true",

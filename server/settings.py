@@ -67,6 +67,12 @@ class Settings(BaseSettings):
             stored with each session it runs; at start-up it recovers only its own sessions after a crash, and
             it refuses to stop another's. Default ``<host name>:<port>``: stable across restarts, distinct for
             processes on other machines or ports.
+        cluster: this process is one node of several behind a routing proxy (``gaitscope serve --workers N``,
+            docker compose; ``sessions/cluster``): it registers in the shared database, beats every second,
+            answers the proxy's ``/api/cluster/route`` and takes over the sessions of a node whose beat stops.
+            Needs PostgreSQL. Off (the default): one process, nothing of this.
+        node_address: ``host:port`` at which the proxy reaches this node (default ``<host>:<port>``).
+        node_timeout_s: seconds without a beat after which a node is gone and another takes its sessions over.
         audit_key: the audit trail's key (``GAITSCOPE_AUDIT_KEY``, at least 32 characters): every entry carries an
             HMAC under it (:mod:`sessions.audit.key`). Unset: the data folder's ``audit.key``, created (0600) at
             first start. Processes sharing one database need the same key: set it on each.
@@ -100,6 +106,9 @@ class Settings(BaseSettings):
     gp_fit_duty: float = Field(default=DUTY, gt=0.0, le=1.0)
     gp_fit_nice: int = Field(default=NICE, ge=0, le=19)
     node: str = Field(default="", max_length=128)
+    cluster: bool = False
+    node_address: str = Field(default="", max_length=256)
+    node_timeout_s: float = Field(default=10.0, gt=2.0, le=600.0)
     auth: bool = False
     tls_cert: Path | None = None
     tls_key: Path | None = None
@@ -125,8 +134,15 @@ class Settings(BaseSettings):
     def _defaults_and_safety(self) -> Settings:
         if not self.node:
             self.node = f"{socket.gethostname()}:{self.port}"
+        if not self.node_address:
+            self.node_address = f"{self.host}:{self.port}"
         if not self.database_url:
             self.database_url = f"sqlite:///{(self.data_dir / 'gaitscope.db').as_posix()}"
+        if self.cluster and not self.database_url.startswith("postgresql"):
+            raise ValueError(
+                "a cluster node (GAITSCOPE_CLUSTER=true, serve --workers) needs the shared PostgreSQL database "
+                "(GAITSCOPE_DATABASE_URL=postgresql+psycopg://...): one SQLite file is not shared by processes"
+            )
         self.allowed_hosts = allowed_hosts_for(self.host, self.allowed_hosts)
         if (self.tls_cert is None) != (self.tls_key is None):
             raise ValueError("tls_cert and tls_key go together: give both (PEM files) or neither")

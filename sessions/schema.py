@@ -426,6 +426,18 @@ class Session(BaseModel):
     )
 
 
+class ClusterNode(BaseModel):
+    """A gaitscope process sharing this database (``GET /api/cluster/nodes``; ``sessions/cluster``)."""
+
+    name: str = Field(description="its node name (GAITSCOPE_NODE)")
+    address: str = Field(description="host:port the proxy reaches it at")
+    state: Literal["up", "gone"] = Field(description="gone: its beat stopped and another node took its sessions over")
+    seen_utc: str = Field(description="its last beat, ISO-8601 UTC")
+    running: int = Field(ge=0, description="sessions it runs")
+    live: bool = Field(description="up, with a beat younger than the timeout")
+    this: bool = Field(description="the node that answered")
+
+
 #: ``recovered``: a crash left the recording unfinished and start-up recovery re-indexed it (the last
 #: half second or so may be missing). ``damaged``: it was left unfinished and its file is missing or
 #: could not be repaired; a system event of its session says why.
@@ -1708,7 +1720,7 @@ class AuditCheckpoint(_Strict):
 #: Every class that crosses a socket or a file, as ``GET /api/schema`` serves them and ``web/wire.js``
 #: types them (the classes they refer to come along in their JSON schemas' ``$defs``).
 WIRE: Final[tuple[type[BaseModel], ...]] = (
-    SubjectCreate, Subject, SessionCreate, Session, SessionSettings, SettingsChange, Trial, Event,
+    SubjectCreate, Subject, SessionCreate, Session, ClusterNode, SessionSettings, SettingsChange, Trial, Event,
     AnnotationCreate, RecordingControl, UploadCreate, Upload, RerunRequest, RerunChoices, ModelInfo, ViewerFocus,
     ViewerShow, SensorFrame, GaitState, TorqueCommand, StreamBatch, Health, EventMessage, SettingsMessage, Hello,
     FoxgloveEvent, ModelProvenance, DeviceNotice, EstimatorOutputs, CalibrationRequest, PersonalizationChange,

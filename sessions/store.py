@@ -45,6 +45,7 @@ from sqlalchemy import (
     Text,
     create_engine,
     event,
+    func,
     make_url,
     orm,
     select,
@@ -86,7 +87,11 @@ class _Base(DeclarativeBase):
 Base = _Base
 
 #: The modules besides this one that declare tables on :data:`Base` (each imported if it exists).
-_TABLE_MODULES: Final = ("gaitscope.sessions.accounts.tables", "gaitscope.sessions.audit.tables")
+_TABLE_MODULES: Final = (
+    "gaitscope.sessions.accounts.tables",
+    "gaitscope.sessions.audit.tables",
+    "gaitscope.sessions.cluster.tables",
+)
 
 
 def all_metadata() -> MetaData:
@@ -551,6 +556,16 @@ class Store:
             query = query.where((_SessionRow.node == node) | _SessionRow.node.is_(None))
         with self._read() as session:
             return [_session(r) for r in session.scalars(query)]
+
+    def running_per_node(self) -> dict[str, int]:
+        """How many sessions each node runs (its ``running`` sessions), by node name."""
+        query = (
+            select(_SessionRow.node, func.count())
+            .where(_SessionRow.state == "running", _SessionRow.node.is_not(None))
+            .group_by(_SessionRow.node)
+        )
+        with self._read() as session:
+            return {str(node): int(n) for node, n in session.execute(query).tuples()}
 
     # --- trials -----------------------------------------------------------------------------------
 

@@ -13,6 +13,7 @@ baseline the loaded numbers are compared with.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import math
 import multiprocessing
@@ -20,6 +21,7 @@ import os
 import tempfile
 import time
 import urllib.request
+from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -65,14 +67,42 @@ def _post(base: str, path: str, body: dict[str, object]) -> dict[str, object]:
         return json.loads(r.read())
 
 
+def _tree(pid: int) -> list[int]:
+    """``pid`` and its descendants now (a cluster's supervisor: its nodes, nginx, their GP workers)."""
+    parents: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue  # ended meanwhile
+        parents.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    found, todo = [], [pid]
+    while todo:
+        found.append(p := todo.pop())
+        todo += parents.get(p, [])
+    return found
+
+
 def _proc_cpu_s(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    """CPU seconds of ``pid`` and its descendants (user + system)."""
+    total = 0.0
+    for p in _tree(pid):
+        with contextlib.suppress(OSError):
+            fields = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
+            total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    return total
 
 
 def _proc_mem_mb(pid: int) -> tuple[float, float]:
-    status = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines() if ":" in line)
-    return int(status["VmRSS"].split()[0]) / 1024, int(status["VmHWM"].split()[0]) / 1024
+    """Resident and peak resident MB of ``pid`` and its descendants, summed."""
+    rss = peak = 0.0
+    for p in _tree(pid):
+        with contextlib.suppress(OSError, KeyError):
+            lines = Path(f"/proc/{p}/status").read_text().splitlines()
+            status = dict(line.split(":", 1) for line in lines if ":" in line)
+            rss += int(status["VmRSS"].split()[0]) / 1024
+            peak += int(status["VmHWM"].split()[0]) / 1024
+    return rss, peak
 
 
 async def _device(
@@ -270,16 +300,25 @@ def run_loadbench(
     seconds: float = 20.0,
     batch_ms: float = 33.0,
     gp_ekf: bool = False,
+    nodes: int = 0,
+    database_url: str = "",
 ) -> dict[str, dict[str, float]]:
     """Start a server, measure the single-stream baseline, then the full load; print and return both.
-    ``gp_ekf``: every session also runs the GP-EKF, retraining as it walks (:func:`_run`)."""
+    ``gp_ekf``: every session also runs the GP-EKF, retraining as it walks (:func:`_run`). ``nodes``: the
+    server is ``serve --workers nodes`` on ``database_url`` (PostgreSQL), every client goes through its nginx,
+    and the server's CPU and memory are those of the supervisor, the nodes and nginx together."""
     with tempfile.TemporaryDirectory() as d:
-        server = start_server(d, "--no-demo", "--no-leg-view", timeout=60)
+        env, flags = None, ["--no-demo", "--no-leg-view"]
+        if nodes:
+            env = {**os.environ, "GAITSCOPE_DATABASE_URL": database_url}
+            flags += ["--workers", str(nodes)]
+        server = start_server(d, *flags, env=env, timeout=60 + 60 * nodes)
         proc, base = server.proc, server.base
         try:
             print(
                 f"server pid {proc.pid} on {base}; {os.cpu_count()} cores; batch_ms={batch_ms}; {seconds:.0f} s each"
                 + ("; every session runs the GP-EKF too" if gp_ekf else "")
+                + (f"; {nodes} nodes behind nginx (serve --workers {nodes})" if nodes else "; one process")
             )
             results = {}
             for label, n, m in (
@@ -290,6 +329,11 @@ def run_loadbench(
                 result = _run(base, n, m, rate, seconds, batch_ms, gp_ekf)
                 cpu, wall = _proc_cpu_s(proc.pid) - cpu0, time.monotonic() - t0
                 results[label.split(":")[0]] = _summary(label, result, cpu, wall, _proc_mem_mb(proc.pid))
+                if nodes:
+                    with urllib.request.urlopen(f"{base}/api/sessions", timeout=10) as r:
+                        ran = sorted(json.loads(r.read()), key=lambda x: x["id"])[-n:]
+                    spread = Counter(str(x["node"]) for x in ran)
+                    print(f"{'':<28} sessions per node: {dict(sorted(spread.items()))}")
             load, baseline = results["load"], results["baseline"]
             met = load["p95_ms"] < TARGET_P95_MS and not load["streams_without_samples"]  # NaN compares False
             print(

@@ -10,6 +10,7 @@ from fastapi import APIRouter
 from gaitscope.server.routes import (
     audit,
     auth,
+    cluster,
     devices,
     fingerprints,
     gp_learning,
@@ -30,6 +31,7 @@ from gaitscope.server.routes.uploads import Uploads
 
 ROUTERS: tuple[APIRouter, ...] = (
     meta.router,
+    cluster.router,
     auth.router,
     users.router,
     devices.router,

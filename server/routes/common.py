@@ -207,4 +207,8 @@ def not_running_here(c: AppContext, session_id: int, what: str = "") -> str:
         return f"session {session_id} runs on {session.node}, not on this server ({c.manager.node}): use that one"
     if (unsaved := c.manager.unsaved.get(session_id)) is not None:  # it ended here: say why
         return f"session {session_id} is {session.state} ({unsaved.reason}){what}"
+    if session.state in ("stopped", "failed"):  # ended elsewhere, or by a node that took another's over: say why
+        ended = [e.text for e in c.store.list_events(session_id) if e.kind == "system"]
+        if ended:
+            return f"session {session_id} is not running ({ended[-1]}){what}"
     return f"session {session_id} is not running{what}"

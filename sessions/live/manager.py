@@ -108,11 +108,13 @@ class SessionManager:
         self.unsaved: dict[int, Unsaved] = {}
         self._retrying: asyncio.Task[None] | None = None
 
-    def recover_after_crash(self) -> list[schema.Trial]:
+    def recover_after_crash(self, node: str | None = None) -> list[schema.Trial]:
         """At start-up: end every trial and session that a crash left open; returns the recovered trials.
 
         Only this process's (its :attr:`node`'s, and those of no node): sessions another process runs on the
-        same database, and their recordings, are that process's.
+        same database, and their recordings, are that process's. ``node``: another node's instead, one this
+        process declared gone (:meth:`gaitscope.sessions.cluster.nodes.Nodes.claim_gone`): its sessions and
+        recordings (and not those of no node), with events that say that node stopped answering.
 
         Every trial still ``recording`` ends ``recovered`` when :func:`~gaitscope.sessions.formats.mcap_io.recover`
         re-indexes its file (a kill loses at most the last ~0.5 s, :mod:`gaitscope.sessions.formats.recording`), else
@@ -124,9 +126,16 @@ class SessionManager:
         """
         recovered = []
         last_t: dict[int, float] = {}  # session -> latest session time seen in its recovered trials
-        elsewhere = {s.id for s in self.store.running_sessions() if s.node not in (None, self.node)}
+        mine = node is None or node == self.node
+        owner = self.node if mine else node
+        why = "server restarted" if mine else f"server process {node} stopped answering"
+        running = self.store.running_sessions(owner)
+        if not mine:
+            running = [s for s in running if s.node == node]  # not those of no node: this process's own
+        ids = {s.id for s in running}
+        elsewhere = {s.id for s in self.store.running_sessions() if s.id not in ids}
         for trial in self.store.trials_with_status("recording"):
-            if trial.session_id in elsewhere:
+            if trial.session_id in elsewhere or (not mine and trial.session_id not in ids):
                 continue  # another process's session, recording now: not this one's to recover
             path = self.data_dir / trial.path
             try:
@@ -136,22 +145,22 @@ class SessionManager:
                 expected = isinstance(e, OSError | DataFormatError)  # else a bug: log its traceback
                 log.error("trial %d: could not recover %s: %s", trial.id, path, e, exc_info=not expected)
                 self.store.finish_trial(trial.id, "damaged", trial.samples, trial.duration_s)
-                text = f"server restarted: the recording of {trial.name} is lost: {_damage(e)}"
+                text = f"{why}: the recording of {trial.name} is lost: {_damage(e)}"
                 t = _last_event_t(self.store, trial.session_id)
                 self.store.add_event(trial.session_id, t=t, kind="system", text=text, trial_id=trial.id)
                 continue
             recovered.append(self.store.finish_trial(trial.id, "recovered", samples, duration))
             last_t[trial.session_id] = max(last_t.get(trial.session_id, 0.0), end_t)
             text = (
-                f"server restarted: the recording of {trial.name} was interrupted and has been recovered "
+                f"{why}: the recording of {trial.name} was interrupted and has been recovered "
                 f"({duration:.1f} s kept; the last half second before the interruption may be missing)"
             )
             self.store.add_event(trial.session_id, t=end_t, kind="system", text=text, trial_id=trial.id)
             log.warning("recovered %s (%d messages, %d bytes lost)", path, result.messages, result.lost_bytes)
-        for session in self.store.running_sessions(self.node):
+        for session in running:
             self.store.set_session_state(session.id, "stopped")
             t = max(last_t.get(session.id, 0.0), _last_event_t(self.store, session.id))
-            self.store.add_event(session.id, t=t, kind="system", text="server restarted: session stopped")
+            self.store.add_event(session.id, t=t, kind="system", text=f"{why}: session stopped")
         return recovered
 
     def _source(self, session: schema.Session) -> FrameSource:
