@@ -487,3 +487,58 @@ def highpass_step(b: Array, a: Array, zi_unit: Array, zi: Array, started: bool, 
             break
         started = False
     return started
+
+
+# --- the phase EKF's state in one buffer ------------------------------------------------------------------
+# :class:`~gaitscope.estimators.phase_ekf.PhaseEKF` keeps x, P, y, S, K, z_pred, H, R, its scratch and its
+# constants in one float array, its attributes being views of it, so that a step passes one array to the
+# compiled code instead of thirteen (each array argument costs numba's dispatcher about 50 ns to unbox).
+# Offsets into that buffer:
+EKF_X, EKF_P, EKF_Y, EKF_S, EKF_K, EKF_ZPRED, EKF_H, EKF_R, EKF_TERMS = 0, 4, 20, 26, 62, 86, 92, 116, 152
+#: scalars: leg length, the last update's Mahalanobis distance and log-likelihood, log(2 pi)
+EKF_LEG, EKF_MAHA, EKF_LL, EKF_LOG2PI = 180, 181, 182, 183
+#: process noise: ``q_std`` squared (3), ``q_time_unit``, ``process_noise_scale``, ``no_task`` (1.0 / 0.0)
+EKF_QVAR, EKF_QUNIT, EKF_QSCALE, EKF_NOTASK = 184, 187, 188, 189
+EKF_SIZE = 190
+_FROZEN_VARIANCE = 1e-20  # gaitscope.estimators.phase_ekf.FROZEN_VARIANCE
+
+
+@njit(cache=True)
+def ekf_predict(buf: Array, dt: float) -> None:
+    """:func:`predict` of the state in ``buf`` over ``dt``, with ``Q`` as ``EKFConfig.q_diag`` makes it (the
+    same operations in the same order)."""
+    x = buf[EKF_X : EKF_X + 4]
+    P = buf[EKF_P : EKF_P + 16].reshape((4, 4))
+    c = dt / buf[EKF_QUNIT]
+    scale = buf[EKF_QSCALE]
+    q = np.empty(4)
+    q[0] = 0.0
+    q[1] = buf[EKF_QVAR] * c * scale
+    q[2] = buf[EKF_QVAR + 1] * c * scale
+    q[3] = buf[EKF_QVAR + 2] * c * scale
+    if buf[EKF_NOTASK] != 0.0:
+        q[2] = q[3] = _FROZEN_VARIANCE
+    predict(x, P, dt, q)
+
+
+@njit(cache=True)
+def ekf_update_buffer(coef: Array, bins: Array, buf: Array, z: Array) -> None:
+    """:func:`ekf_update` on the state in ``buf``, then the Mahalanobis distance ``sqrt(y^T S^-1 y)`` and the
+    log-likelihood ``-(y^T S^-1 y + log det S + m log 2 pi) / 2`` (0 with no channel) into ``buf``."""
+    m, maha2, logdet = ekf_update(
+        coef,
+        buf[EKF_X : EKF_X + 4],
+        buf[EKF_P : EKF_P + 16].reshape((4, 4)),
+        z,
+        buf[EKF_LEG],
+        bins,
+        buf[EKF_TERMS : EKF_TERMS + 28].reshape((4, 7)),
+        buf[EKF_ZPRED : EKF_ZPRED + 6],
+        buf[EKF_H : EKF_H + 24].reshape((6, 4)),
+        buf[EKF_R : EKF_R + 36].reshape((6, 6)),
+        buf[EKF_Y : EKF_Y + 6],
+        buf[EKF_S : EKF_S + 36].reshape((6, 6)),
+        buf[EKF_K : EKF_K + 24].reshape((4, 6)),
+    )
+    buf[EKF_MAHA] = np.sqrt(maha2)
+    buf[EKF_LL] = -0.5 * (maha2 + logdet + m * buf[EKF_LOG2PI]) if m else 0.0

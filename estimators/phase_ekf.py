@@ -129,48 +129,64 @@ class PhaseEKF:
         self.leg_length = float(leg_length)
         self._noise = noise
         self._bins = np.ascontiguousarray(noise.bins * self.config.measurement_noise_scale)
-        self.x = self.config.initial_state()
-        self.P = self.config.initial_covariance()
-        self.y = np.full(N_CHANNELS, np.nan)
-        self.S = np.full((N_CHANNELS, N_CHANNELS), np.nan)
-        self.K = np.full((4, N_CHANNELS), np.nan)
-        self.z_pred = np.zeros(N_CHANNELS)
-        self.H = np.zeros((N_CHANNELS, 4))
-        self.R = np.zeros((N_CHANNELS, N_CHANNELS))
-        self.log_likelihood = 0.0
-        self.mahalanobis = 0.0
-        self._terms = np.zeros((N_OUTPUTS, 7))
+        # every array and number of a step in one buffer (_kernels.EKF_*), the attributes views of it
+        self._buf = buf = np.zeros(_kernels.EKF_SIZE)
+        self.x = buf[_kernels.EKF_X : _kernels.EKF_X + 4]
+        self.P = buf[_kernels.EKF_P : _kernels.EKF_P + 16].reshape(4, 4)
+        self.y = buf[_kernels.EKF_Y : _kernels.EKF_Y + N_CHANNELS]
+        self.S = buf[_kernels.EKF_S : _kernels.EKF_S + N_CHANNELS * N_CHANNELS].reshape(N_CHANNELS, N_CHANNELS)
+        self.K = buf[_kernels.EKF_K : _kernels.EKF_K + 4 * N_CHANNELS].reshape(4, N_CHANNELS)
+        self.z_pred = buf[_kernels.EKF_ZPRED : _kernels.EKF_ZPRED + N_CHANNELS]
+        self.H = buf[_kernels.EKF_H : _kernels.EKF_H + N_CHANNELS * 4].reshape(N_CHANNELS, 4)
+        self.R = buf[_kernels.EKF_R : _kernels.EKF_R + N_CHANNELS * N_CHANNELS].reshape(N_CHANNELS, N_CHANNELS)
+        self._terms = buf[_kernels.EKF_TERMS : _kernels.EKF_TERMS + N_OUTPUTS * 7].reshape(N_OUTPUTS, 7)
+        self.x[:] = self.config.initial_state()
+        self.P[:] = self.config.initial_covariance()
+        self.y[:] = np.nan
+        self.S[:] = np.nan
+        self.K[:] = np.nan
+        buf[_kernels.EKF_LEG] = self.leg_length
+        buf[_kernels.EKF_LOG2PI] = math.log(2.0 * math.pi)
+        self._set_q()
+        #: Unused: Q is made inside the compiled predict now. Kept while ``_batch.run`` still resets it.
         self._q_dt = -1.0
-        self._q = np.zeros(4)
+
+    def _set_q(self) -> None:
+        """The process noise's constants into the buffer (``EKFConfig.q_diag`` makes Q from them)."""
+        cfg, buf = self.config, self._buf
+        for i in range(3):
+            buf[_kernels.EKF_QVAR + i] = cfg.q_std[i] * cfg.q_std[i]
+        buf[_kernels.EKF_QUNIT] = cfg.q_time_unit
+        buf[_kernels.EKF_QSCALE] = cfg.process_noise_scale
+        buf[_kernels.EKF_NOTASK] = 1.0 if cfg.no_task else 0.0
+
+    @property
+    def log_likelihood(self) -> float:
+        """Of the last update's innovation (0 before the first, or with no channel)."""
+        return float(self._buf[_kernels.EKF_LL])
+
+    @log_likelihood.setter
+    def log_likelihood(self, value: float) -> None:
+        self._buf[_kernels.EKF_LL] = value
+
+    @property
+    def mahalanobis(self) -> float:
+        """``sqrt(y^T S^-1 y)`` of the last update's innovation."""
+        return float(self._buf[_kernels.EKF_MAHA])
+
+    @mahalanobis.setter
+    def mahalanobis(self, value: float) -> None:
+        self._buf[_kernels.EKF_MAHA] = value
 
     def predict(self, dt: float) -> None:
         """Advance by ``dt`` seconds (eq. 13-14); phase wrapped into [0, 1)."""
-        if dt != self._q_dt:
-            self.config.q_diag(dt, self._q)
-            self._q_dt = dt
-        _kernels.predict(self.x, self.P, dt, self._q)
+        _kernels.ekf_predict(self._buf, dt)
 
     def update(self, z: Array | None) -> None:
         """Correct with measurement ``z`` (6,), NaN for missing channels; ``None`` skips."""
         if z is None:
             return
-        m, maha2, logdet = _kernels.ekf_update(
-            self.coef,
-            self.x,
-            self.P,
-            z,
-            self.leg_length,
-            self._bins,
-            self._terms,
-            self.z_pred,
-            self.H,
-            self.R,
-            self.y,
-            self.S,
-            self.K,
-        )
-        self.mahalanobis = math.sqrt(maha2)
-        self.log_likelihood = -0.5 * (maha2 + logdet + m * math.log(2.0 * math.pi)) if m else 0.0
+        _kernels.ekf_update_buffer(self.coef, self._bins, self._buf, z)
 
     def retune(self, measurement_noise_scale: float, process_noise_scale: float) -> None:
         """Change the noise scales from the next step on (a clinician's tuning); the state is kept."""
@@ -182,7 +198,7 @@ class PhaseEKF:
             process_noise_scale=process_noise_scale,
         )
         self._bins = np.ascontiguousarray(self._noise.bins * measurement_noise_scale)
-        self._q_dt = -1.0
+        self._set_q()
 
     def reset(self, x: Array, P: Array) -> None:
         """Overwrite state and covariance (the heel-strike backup's reset, II-D)."""

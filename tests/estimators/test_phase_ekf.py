@@ -1,8 +1,11 @@
 """The compiled phase EKF against the filterpy reference, and its interface."""
 
+import math
+
 import numpy as np
 import pytest
 
+from gaitscope.estimators import _kernels
 from gaitscope.estimators.basis import n_terms
 from gaitscope.estimators.gait_model import SENSOR_VARIANCE, NoiseModel
 from gaitscope.estimators.phase_ekf import EKFConfig, PhaseEKF, pseudo_from_stride, stride_from_pseudo
@@ -45,6 +48,33 @@ def test_matches_filterpy_reference_to_1e9(config: EKFConfig) -> None:
         worst = max(worst, float(d.max()))
         assert np.abs(fast.P - ref.P).max() < 1e-9
     assert worst < 1e-9
+
+
+@pytest.mark.parametrize(
+    "config", [EKFConfig(), EKFConfig(no_task=True, process_noise_scale=2.5, measurement_noise_scale=0.7)]
+)
+def test_one_buffer_step_equals_the_kernels_called_apart(config: EKFConfig) -> None:
+    """predict / update on the filter's one buffer (one array per compiled call) give the same bits as the
+    kernels called on separate arrays, with Q from ``EKFConfig.q_diag`` and the likelihood in Python."""
+    coef, noise = _model()
+    fast = PhaseEKF(coef, noise, 0.9, config)
+    x, P, q = config.initial_state(), config.initial_covariance(), np.zeros(4)
+    bins = np.ascontiguousarray(noise.bins * config.measurement_noise_scale)
+    terms, h, H, R = np.zeros((4, 7)), np.zeros(6), np.zeros((6, 4)), np.zeros((6, 6))
+    y, S, K = np.zeros(6), np.zeros((6, 6)), np.zeros((4, 6))
+    for k, z in enumerate(_measurements(600)):
+        dt = 0.0075 + 0.001 * (k % 3)
+        fast.predict(dt)
+        fast.update(z)
+        config.q_diag(dt, q)
+        _kernels.predict(x, P, dt, q)
+        m, maha2, logdet = _kernels.ekf_update(fast.coef, x, P, z, 0.9, bins, terms, h, H, R, y, S, K)
+        for mine, theirs in ((fast.x, x), (fast.P, P), (fast.y, y), (fast.S, S), (fast.K, K), (fast.z_pred, h)):
+            np.testing.assert_array_equal(mine, theirs)
+        np.testing.assert_array_equal(fast.H, H)
+        np.testing.assert_array_equal(fast.R, R)
+        assert fast.mahalanobis == math.sqrt(maha2)
+        assert fast.log_likelihood == (-0.5 * (maha2 + logdet + m * math.log(2.0 * math.pi)) if m else 0.0)
 
 
 def test_innovation_and_likelihood_are_reported() -> None:
