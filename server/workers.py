@@ -53,6 +53,12 @@ def find_nginx() -> str:
     raise WorkersError("serve --workers routes through nginx, which is not installed (Debian: apt-get install nginx)")
 
 
+def nginx_command(nginx: str, run_dir: Path, *flags: str) -> list[str]:
+    """nginx on ``run_dir/nginx.conf``, its prefix and start-up error log in ``run_dir`` (not /var/log/nginx)."""
+    conf, errors = run_dir / "nginx.conf", run_dir / "nginx-error.log"
+    return [nginx, "-p", str(run_dir), "-e", str(errors), "-c", str(conf), *flags]
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind((LOOPBACK, 0))
@@ -168,8 +174,8 @@ class Workers:
                 max(s.max_upload_mb, s.upload_chunk_kb // 1024 + 1), tls,
             )  # fmt: skip
             (self.run_dir / "nginx.conf").write_text(conf)
-            self.nginx = _Child("nginx", [nginx, "-c", str(self.run_dir / "nginx.conf")], dict(os.environ),
-                                self.run_dir / "nginx.log")  # fmt: skip
+            command = nginx_command(nginx, self.run_dir)
+            self.nginx = _Child("nginx", command, dict(os.environ), self.run_dir / "nginx.log")
             self.nginx.start()
             scheme = "https" if tls else "http"
             url = f"{scheme}://{s.host}:{s.port}/"

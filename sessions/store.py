@@ -565,7 +565,7 @@ class Store:
             .group_by(_SessionRow.node)
         )
         with self._read() as session:
-            return {str(node): int(n) for node, n in session.execute(query).tuples()}
+            return {str(node): int(n) for node, n in session.execute(query)}
 
     # --- trials -----------------------------------------------------------------------------------
 
