@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The test command: set-up, lint, type check, tests. Run from anywhere: `bash scripts/test.sh`.
-# Installs Debian's chromium for the browser tests when it is missing and this user may use apt-get.
+# Installs Debian's chromium (browser tests) and nginx (scale-out tests) when missing and this user may use apt-get.
 # Runs the tests on SQLite, then all but the browser (e2e) tests again on PostgreSQL (scripts/postgres.sh
 # installs Debian's postgresql when it is missing, starts a throwaway server and stops it afterwards).
 set -euo pipefail
@@ -13,6 +13,17 @@ if ! command -v chromium >/dev/null 2>&1; then
         DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
     else
         echo "== chromium missing and apt-get unavailable: browser tests will be skipped" >&2
+    fi
+fi
+# nginx routes `serve --workers N`'s nodes (tests/server/test_cluster.py, test_proxy.py): Debian's, never started as a
+# service here (the tests run it in the foreground on a configuration of their own).
+if ! command -v nginx >/dev/null 2>&1 && [ ! -x /usr/sbin/nginx ]; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+        echo "== installing Debian nginx for the scale-out tests"
+        apt-get update -qq >/dev/null
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq nginx >/dev/null
+    else
+        echo "== nginx missing and apt-get unavailable: the scale-out tests will be skipped" >&2
     fi
 fi
 if ! command -v npm >/dev/null 2>&1; then

@@ -202,6 +202,17 @@ def _worker(job: _Job) -> tuple[list[int] | list[Stream], float]:
     return done, time.process_time() - cpu0
 
 
+def device_frames(rate: float, gp_ekf: bool = False) -> list[dict[str, object]]:
+    """A simulated device's frames (40 s of walking at 1.2 m/s, ``rate`` Hz) without ``seq``, ``t``, ``sent_ns``:
+    the IMU-derived angles the default stack reads, and with ``gp_ekf`` the joint encoders and heel strikes."""
+    sensors, _, _ = sensor_trial([(1.2, 0.0, 40)], rate_hz=rate)
+    data = replay_input(sensors)
+    signals = dict(data.signals)
+    if gp_ekf:
+        signals |= {c: sensors[c].to_numpy(np.float64) for c in GP_EKF_CHANNELS}
+    return [{"type": "frame", **{k: float(v[i]) for k, v in signals.items()}} for i in range(len(data.time_s))]
+
+
 def _run(
     base: str, sessions: int, clients: int, rate: float, seconds: float, batch_ms: float, gp_ekf: bool = False
 ) -> dict:
@@ -209,12 +220,8 @@ def _run(
     bottleneck it would be in a single Python process. ``gp_ekf``: the devices also send joint encoders and
     heel strikes, and every session runs the GP-EKF (seed 003, opt-in) beside its default stack, learning."""
     ws_base = base.replace("http://", "ws://")
-    sensors, _, _ = sensor_trial([(1.2, 0.0, 40)], rate_hz=rate)
-    data = replay_input(sensors)
-    signals = dict(data.signals)
-    if gp_ekf:
-        signals |= {c: sensors[c].to_numpy(np.float64) for c in GP_EKF_CHANNELS}
-    frames = [{"type": "frame", **{k: float(v[i]) for k, v in signals.items()}} for i in range(len(data.time_s))]
+    frames = device_frames(rate, gp_ekf)
+    signals = {k: np.zeros(1) for k in frames[0] if k != "type"}  # the channels the device sends
     subject = _post(base, "/api/subjects", {"code": f"LB{time.time_ns() % 10**8}", "leg_length_m": 0.9, "mass_kg": 70})
     # the device declares what it sends, as a real one should: its sessions run the estimators those feed
     device = {"kind": "device", "rate_hz": rate, "channels": list(signals)}
