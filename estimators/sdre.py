@@ -25,6 +25,19 @@ measurements ``y = h(x)`` in state-dependent coefficient (SDC) form, ``f = A(x) 
 The integration (both models, and the EKF) is :mod:`gaitscope.estimators._sdre_kernel` (numba);
 :class:`ContinuousFilter` with ``compiled=False`` is the same maths in plain numpy, the test oracle.
 
+Speed (issue #24, what ``sdre_knee`` runs): the estimator has no Riccati *solve* to replace. The thesis's
+SDRE integrates the differential Riccati equation with the estimate (eq. 4.16), and a solve of the
+algebraic equation at each sample (``scipy.linalg.solve_continuous_are``, or a closed form, which the
+thesis does not give and which would exist only for the 1-DOF knee) is another estimator, whose ``P``
+and gain differ from the integrated ones by far more than 1e-9. So the integration stays and is made
+cheaper: the two-link SDRE's RK4 (:func:`~gaitscope.estimators._sdre_kernel.two_link_sdre_rk4`) allocates its
+stages once per sample, not per stage, shares the model's sines between ``f`` and the SDC pair and
+skips the products with ``Am``'s and ``Cm``'s structural zeros and ones; it performs the same
+operations on the same values in the same order as the generic kernel (kept as
+:func:`~gaitscope.estimators._sdre_kernel.rk4`, the reference for it and the path of the knee model and the EKF),
+so its estimates are the generic kernel's to the bit on finite values
+(``tests/estimators/test_sdre.py``: a simulated walk, sample by sample, to 1e-9).
+
 Comparators as published: the **EKF** is the same observer with the Jacobians of ``f`` and ``h`` in place
 of the SDC pair (``jacobian=True``) and ``a = 0`` (a standard continuous EKF; the thesis gives no ``a``
 for it); the **rotation-matrix method** (RMX) takes each IMU's orientation and the knee angle from the
@@ -297,7 +310,9 @@ class ContinuousFilter:
 
     def integrate(self, y: ArrayLike, u: ArrayLike, dt: float) -> Array:
         """Advance by ``dt`` holding the measurement ``y`` and input ``u``; return the estimate."""
-        yy, uu = np.asarray(y, dtype=np.float64), np.atleast_1d(np.asarray(u, dtype=np.float64))
+        yy, uu = np.asarray(y, dtype=np.float64), np.asarray(u, dtype=np.float64)
+        if uu.ndim == 0:
+            uu = uu.reshape(1)
         steps = max(1, math.ceil(dt / self.max_step - 1e-9))
         if self.compiled:
             kernel.integrate(

@@ -34,6 +34,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
+from gaitscope.estimators._sdre_kernel import healthy
 from gaitscope.estimators.descriptor import Descriptor, Tunable, out
 from gaitscope.estimators.protocol import check_params, elapsed
 from gaitscope.estimators.sdre import ContinuousFilter, G, TwoLinkParams
@@ -44,6 +45,8 @@ Array = NDArray[np.float64]
 
 _HIP_FRACTION = 0.530  # Winter (2009): hip height over body height
 _DEFAULTS = {"q_angle": 1e-4, "q_rate": 1000.0, "s_gyro": 1e-3, "s_accel": 4.0}
+_DIVERGED_RAD = 10.0  # a segment angle past this (or anything not finite) has diverged
+_NO_TORQUE = np.zeros(2)  # u: a walking leg has no FES and the joint torques are not measured (read only)
 
 
 class SDREKnee:
@@ -100,23 +103,25 @@ class SDREKnee:
         return self.filter.P
 
     def step(self, t: float, z: Array) -> Array:
-        """One sample: integrate the SDRE from the last good sample to ``t`` holding this one."""
-        w_th, a_th, w_sh, a_sh = (float(v) for v in z[:4])
-        if not all(math.isfinite(v) for v in (w_th, a_th, w_sh, a_sh)):
+        """One sample: integrate the SDRE from the last good sample to ``t`` holding this one.
+
+        Written for its cost (issue #24: the Python around the kernel was a third of the sample): Python
+        floats, one compiled call for the divergence check (:func:`gaitscope.estimators._sdre_kernel.healthy`)."""
+        w_th, a_th, w_sh, a_sh = map(float, z[:4].tolist())
+        if not (math.isfinite(w_th) and math.isfinite(a_th) and math.isfinite(w_sh) and math.isfinite(a_sh)):
             return np.array(self._out)
         dt, restart = elapsed(self._last, t)
         y = np.array([math.radians(w_th), math.radians(w_sh), -a_th, -a_sh])
         if self._last is None or restart:
             self.filter.start([_tilt(a_th), _tilt(a_sh), y[0], y[1]])
         elif dt > 0:
-            x = self.filter.integrate(y, np.zeros(2), dt)
-            if not (np.all(np.isfinite(x)) and np.all(np.isfinite(self.filter.P)) and np.all(np.abs(x[:2]) < 10)):
+            x = self.filter.integrate(y, _NO_TORQUE, dt)
+            if not healthy(x, self.filter.P, _DIVERGED_RAD):
                 self._last = None  # diverged: start again from the next good sample, hold the output
                 return np.array(self._out)
         self._last = t
-        x = self.filter.x
-        knee = math.degrees(math.remainder(x[0] - x[1], 2 * math.pi))
-        self._out = [knee, math.degrees(math.remainder(x[0], 2 * math.pi))]
+        x0, x1 = self.filter.x[:2].tolist()
+        self._out = [math.degrees(math.remainder(x0 - x1, 2 * math.pi)), math.degrees(math.remainder(x0, 2 * math.pi))]
         return np.array(self._out)
 
 
