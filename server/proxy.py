@@ -6,8 +6,9 @@ creation of a session (``/api/sessions``) first asks a node, through nginx's ``a
 answers it (``GET /api/cluster/route``, :meth:`gaitscope.sessions.cluster.nodes.Nodes.route`): the node that
 runs the session, or for a new one the least-loaded node. nginx maps the name it gets back to that node's
 upstream and forwards the request there, websockets included. Everything else (the dashboard's files,
-subjects, review, reports, uploads) goes to any node (least connections): they share the database and the
-data folder.
+subjects, review, reports) goes to any node (least connections): they share the database and the data folder.
+Uploads and report exports live in the memory of the node that began them until they finish, so their
+requests go to one node per client (a consistent hash of the client's address and login cookie).
 
 A node name the configuration does not know (a node of another machine sharing the database) maps to "any
 node", which refuses a session it does not run with the name of the node that does. The route question is
@@ -99,6 +100,11 @@ http {{
 {servers}
         keepalive 16;
     }}
+    upstream gs_sticky {{
+        hash "$remote_addr $cookie_gaitscope_login" consistent;
+{servers}
+        keepalive 16;
+    }}
 {upstreams}
     server {{
         listen {listen}{ssl};
@@ -115,6 +121,12 @@ http {{
         }}
         location = /api/cluster/route {{
             return 404;
+        }}
+        location ~ ^/api/(uploads|exports|sessions/[0-9]+/exports|trials/[0-9]+/exports) {{
+            proxy_pass http://gs_sticky;
+            proxy_set_header Upgrade "";
+            proxy_set_header Connection "";
+            {forwarded}
         }}
         location ~ ^/(api/sessions|ws/sessions/|ws/devices/) {{
             auth_request {ROUTE_LOCATION};

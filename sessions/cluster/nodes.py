@@ -12,8 +12,11 @@ Caddy's ``forward_auth``; ``server/routes/cluster.py``):
   ``/ws/devices/{id}``) go to the node that runs it, when that node is live;
 - a new session (``POST /api/sessions``) and the start of a created one go to the least-loaded live node
   (fewest running sessions; ties to the first name), so that sessions spread over the nodes as they start;
-- everything else, and a session whose node is gone, to the least-loaded live node, which answers for
-  itself (a session that runs elsewhere is refused with its node's name, one that ended says so).
+- a session that runs on no live node (created, ended, or its node gone) to one live node chosen by its id
+  (rendezvous hashing: the same node for every caller while the live nodes stay the same, so that what a
+  node keeps in memory for it, like its summary's progress, is found again), which answers for itself
+  (a session that ended says so);
+- everything else to the least-loaded live node (the proxy does not ask for those: they go to any node).
 
 Takeover (:meth:`Nodes.claim_gone`): a live node that finds another's beat older than the timeout marks it
 ``gone`` (one write transaction, so two survivors never both take the same node) and then recovers it as the
@@ -27,6 +30,7 @@ session is never run by two nodes.
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -147,9 +151,17 @@ class Nodes:
         if (m := _SESSION_PATH.match(uri)) is not None:
             try:
                 session = self.store.get_session(int(m.group(1)))
-            except NotFound:
-                return self._least_loaded(live)
+            except NotFound:  # any node says so; one chosen by the id, like a session that runs nowhere
+                return _by_hash(live, int(m.group(1)))
             owner = next((n for n in live if n.name == session.node), None)
             if session.state == "running" and owner is not None:
                 return owner
+            if not (session.state == "created" and method == "POST" and (m.group(2) or "").rstrip("/") == "/start"):
+                return _by_hash(live, session.id)
         return self._least_loaded(live)
+
+
+def _by_hash(live: list[Node], session_id: int) -> Node:
+    """The node a session that runs nowhere is served by (its summary's progress, the review): the same one for
+    as long as the live nodes stay the same, whoever asks (rendezvous hashing)."""
+    return max(live, key=lambda n: hashlib.sha256(f"{session_id}:{n.name}".encode()).digest())

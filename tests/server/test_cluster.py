@@ -61,6 +61,7 @@ def cluster(tmp_path: Path, database_url: str) -> Iterator[RunningServer]:
         pytest.skip(str(e))
     env = {**os.environ, "GAITSCOPE_DATABASE_URL": database_url, "GAITSCOPE_NODE": "gs"}
     env["GAITSCOPE_NODE_TIMEOUT_S"] = "5"  # the survivor takes over if the restart is slower than that
+    env["GAITSCOPE_UPLOAD_CHUNK_KB"] = "64"  # an upload of a few chunks, each through the proxy
     log = (tmp_path / "supervisor.log").open("wb")
     try:
         server = start_server(tmp_path / "data", "--no-demo", "--no-leg-view", "--workers", "2", env=env, output=log,
@@ -216,6 +217,19 @@ def test_a_killed_node_loses_no_recording_and_the_other_streams_on(cluster: Runn
     assert len(device.replies) > RATE and device.closed_at is None
     for sid in [*survivors, again["id"]]:
         _call(base, "POST", f"/api/sessions/{sid}/stop", {})
+    # an upload's chunks all reach the node that began it (it holds the upload in memory): a recovered
+    # recording, downloaded and uploaded again through the proxy, chunk by chunk
+    with urllib.request.urlopen(f"{base}/api/trials/{trials[0]['id']}/download", timeout=30) as r:
+        data = r.read()
+    body = {"filename": "recovered.mcap", "size": len(data), "subject_id": subject["id"]}
+    up = _call(base, "POST", "/api/uploads", body)
+    assert len(data) > 2 * up["chunk_size"]
+    for offset in range(0, len(data), up["chunk_size"]):
+        chunk = data[offset : offset + up["chunk_size"]]
+        request = urllib.request.Request(f"{base}/api/uploads/{up['id']}?offset={offset}", data=chunk, method="PUT")
+        urllib.request.urlopen(request, timeout=30).close()
+    uploaded = _call(base, "POST", f"/api/uploads/{up['id']}/finish", {})
+    assert uploaded["status"] == "uploaded" and uploaded["samples"] == trials[0]["samples"], uploaded
     # the route question is the proxy's own: not reachable from outside
     with pytest.raises(urllib.error.HTTPError) as refused:
         _call(base, "GET", "/api/cluster/route")

@@ -88,15 +88,14 @@ def test_requests_go_to_the_node_that_runs_the_session_and_new_ones_to_the_least
     for uri in (f"/ws/devices/{on_b}?token=x", f"/ws/sessions/{on_b}", f"/api/sessions/{on_b}/settings"):
         assert a.route("GET", uri).name == "b", uri
     assert a.route("POST", f"/api/sessions/{on_a[0]}/stop").address == "127.0.0.1:9000"
-    # new sessions, a created one's start, an ended one and everything else: the node with fewest sessions
-    for method, uri in (
-        ("POST", "/api/sessions"),
-        ("POST", f"/api/sessions/{created}/start"),
-        ("GET", f"/api/sessions/{stopped_on_b}/events"),
-        ("GET", "/api/sessions/99999"),
-        ("GET", "/api/subjects"),
-    ):
+    # new sessions, a created one's start and everything else: the node with fewest sessions
+    for method, uri in (("POST", "/api/sessions"), ("POST", f"/api/sessions/{created}/start"), ("GET", "/api/x")):
         assert b.route(method, uri).name == "c", uri
+    # a session that runs nowhere: one node chosen by its id, whoever asks, whatever the path
+    for sid in (stopped_on_b, created, 99999):
+        chosen = {n.route("GET", f"/api/sessions/{sid}{p}").name for n in (a, b) for p in ("", "/summary/progress")}
+        assert len(chosen) == 1, (sid, chosen)
+    assert len({a.route("GET", f"/api/sessions/{sid}").name for sid in range(100, 160)}) == 3  # spread over all
     _session(store, subject, "c")
     _session(store, subject, "c")
     assert a.route("POST", "/api/sessions").name == "b"  # a 2, b 1, c 2
