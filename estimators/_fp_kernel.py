@@ -150,3 +150,56 @@ def fp_step(
     x[2] = min(max(x[2], l_lo), l_hi)
     _model(x, xi_avg, p_map, xi_fixed, gf, xi)
     return _terms(x[0], x[2], xi, order, f, d)[0]
+
+
+#: The layout of :func:`fp_stream_step`'s ``prm``: GF (1.0 / 0.0), R's base variance, the edge phase and the
+#: angle's and velocity's scales there, the phase rate's floor, the stride length's range, the Fourier order.
+PRM_GF, PRM_R, PRM_EDGE, PRM_EDGE_A, PRM_EDGE_V, PRM_PDOT_MIN, PRM_L_LO, PRM_L_HI, PRM_ORDER = range(9)
+PRM_SIZE = 9
+
+
+@njit(cache=True)
+def fp_stream_step(
+    x: Array,
+    P: Array,
+    xi_avg: Array,
+    p_map: Array,
+    xi_fixed: Array,
+    q: Array,
+    prm: Array,
+    dt: float,
+    za: float,
+    zv: float,
+    work: Array,
+) -> Array:
+    """:func:`fp_step` with its constants in ``prm`` (``PRM_*``: one array for the dispatcher to unbox, not
+    twelve numbers), returning the stack estimator's outputs: ``[p, pdot, l, thigh model, g...]`` (``g`` in GF
+    mode only)."""
+    gf = prm[PRM_GF] != 0.0
+    pred = fp_step(
+        x,
+        P,
+        xi_avg,
+        p_map,
+        xi_fixed,
+        gf,
+        q,
+        prm[PRM_R],
+        prm[PRM_EDGE],
+        prm[PRM_EDGE_A],
+        prm[PRM_EDGE_V],
+        prm[PRM_PDOT_MIN],
+        prm[PRM_L_LO],
+        prm[PRM_L_HI],
+        dt,
+        za,
+        zv,
+        int(prm[PRM_ORDER]),
+        work,
+    )
+    n_g = x.size - 3 if gf else 0
+    out = np.empty(4 + n_g)
+    out[0], out[1], out[2], out[3] = x[0], x[1], x[2], pred
+    for i in range(n_g):
+        out[4 + i] = x[3 + i]
+    return out

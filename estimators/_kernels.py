@@ -542,3 +542,75 @@ def ekf_update_buffer(coef: Array, bins: Array, buf: Array, z: Array) -> None:
     )
     buf[EKF_MAHA] = np.sqrt(maha2)
     buf[EKF_LL] = -0.5 * (maha2 + logdet + m * buf[EKF_LOG2PI]) if m else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def backup_update(
+    coef: Array,
+    leg_length: float,
+    phase: float,
+    phase_rate: float,
+    x: Array,
+    P: Array,
+    z: Array,
+    bins: Array,
+    R: Array,
+    own_noise: bool,
+    rbar: Array,
+    ekf_y: Array,
+    work: Array,
+    y: Array,
+    S: Array,
+    K: Array,
+) -> tuple[float, float]:
+    """The heel-strike backup's measurement update in one compiled call (``HeelStrikeBackup.track``).
+
+    ``h`` and the ``[lp, r]`` columns of ``H`` at ``[phase, phase_rate, x]`` (:func:`measurement`), ``R`` made
+    from ``bins`` at ``phase`` first when ``own_noise`` (standalone; coupled it is the EKF's), then
+    :func:`update` of ``x``, ``P`` on ``z``. ``work``: ``(4 + 28 + 6 + 24 + 12,)`` scratch.
+
+    Returns:
+        ``(y^T Rbar^-1 y, ekf_y^T Rbar^-1 ekf_y)``: the backup's and the EKF's weighted innovations
+        (:func:`weighted_sse`; the second is 0 when ``ekf_y`` is empty, standalone).
+    """
+    x4 = work[0:4]
+    terms = work[4:32].reshape((4, 7))
+    h = work[32:38]
+    H = work[38:62].reshape((6, 4))
+    H2 = work[62:74].reshape((6, 2))
+    x4[0], x4[1], x4[2], x4[3] = phase, phase_rate, x[0], x[1]
+    measurement(coef, x4, leg_length, terms, h, H, False)  # the [lp, r] columns need no second derivative
+    for i in range(6):
+        H2[i, 0], H2[i, 1] = H[i, 2], H[i, 3]
+    if own_noise:
+        noise_at(bins, phase, R)
+    update(x, P, z, h, H2, R, y, S, K, False)
+    sse_hp = weighted_sse(y, rbar)
+    sse_ekf = weighted_sse(ekf_y, rbar) if ekf_y.shape[0] == 6 else 0.0
+    return sse_hp, sse_ekf
+
+
+@njit(cache=True)
+def finite_sum(y: Array) -> bool:
+    """Whether the left-to-right sum of ``y`` is finite (Python's ``math.isfinite(sum(y.tolist()))``: every
+    entry finite and no overflow), for the estimator stack's health check."""
+    acc = 0.0
+    for i in range(y.shape[0]):
+        acc += y[i]
+    return np.isfinite(acc)
+
+
+@njit(cache=True)
+def covariance_ok(P: Array, max_variance: float) -> bool:
+    """Whether the row-major sum of ``P`` is finite (as :func:`finite_sum`) and its diagonal in
+    ``[0, max_variance]``, for the estimator stack's health check."""
+    acc = 0.0
+    for i in range(P.shape[0]):
+        for j in range(P.shape[1]):
+            acc += P[i, j]
+    if not np.isfinite(acc):
+        return False
+    for i in range(min(P.shape[0], P.shape[1])):
+        if P[i, i] < 0.0 or P[i, i] > max_variance:
+            return False
+    return True

@@ -38,7 +38,19 @@ from typing import Final, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from gaitscope.estimators._fp_kernel import fp_step
+from gaitscope.estimators._fp_kernel import (
+    PRM_EDGE,
+    PRM_EDGE_A,
+    PRM_EDGE_V,
+    PRM_GF,
+    PRM_L_HI,
+    PRM_L_LO,
+    PRM_ORDER,
+    PRM_PDOT_MIN,
+    PRM_R,
+    PRM_SIZE,
+    fp_stream_step,
+)
 from gaitscope.estimators.channels import positions
 from gaitscope.estimators.descriptor import Descriptor, OutputSpec, Tunable, out
 from gaitscope.estimators.protocol import MAX_GAP_S, Output, check_params, elapsed
@@ -375,6 +387,14 @@ class FingerprintEKF:
         retune, not per sample)."""
         self._q_step = self._q * self._q_scale
         self._r = self.config.r_scale * self.fmap.rbar**2 * self._r_scale
+        c, gf = self.config, self.mode == "gf"
+        prm = np.zeros(PRM_SIZE)  # the compiled step's constants (_fp_kernel.PRM_*)
+        prm[PRM_GF], prm[PRM_R], prm[PRM_EDGE] = 1.0 if gf else 0.0, self._r, c.edge
+        prm[PRM_EDGE_A], prm[PRM_EDGE_V] = c.edge_scale[0], c.edge_scale[1]
+        prm[PRM_PDOT_MIN] = c.pdot_min_gf if gf else c.pdot_min_fixed
+        prm[PRM_L_LO], prm[PRM_L_HI] = c.l_range_gf if gf else c.l_range_fixed
+        prm[PRM_ORDER] = self.fmap.order
+        self._prm = prm
 
     def personalize(self, g: Array) -> None:
         """Run fingerprint ``g`` (mode ``ls``) from the next stride on: it takes over when the phase wraps
@@ -401,32 +421,19 @@ class FingerprintEKF:
         if restart:
             self.reset()
         self._t = t
-        c, gf = self.config, self.mode == "gf"
-        lo, hi = c.l_range_gf if gf else c.l_range_fixed
-        self._pred = fp_step(
+        return fp_stream_step(
             self.x,
             self.P,
             self.fmap.xi_avg,
             self.fmap.p_map,
             self._xi_fixed,
-            gf,
             self._q_step,
-            self._r,
-            c.edge,
-            c.edge_scale[0],
-            c.edge_scale[1],
-            c.pdot_min_gf if gf else c.pdot_min_fixed,
-            lo,
-            hi,
+            self._prm,
             dt,
             float(z[_THIGH]),
             float(z[_THIGH_VEL]),
-            self.fmap.order,
             self._work,
         )
-        x = self.x
-        head = [x[0], x[1], x[2], self._pred]
-        return np.array(head + x[3:].tolist()) if self.mode == "gf" else np.array(head)
 
     # --- filter ---------------------------------------------------------------------------------
     def predict(self, dt: float) -> None:

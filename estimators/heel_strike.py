@@ -127,10 +127,8 @@ class HeelStrikeBackup:
         self._R = np.zeros((N_CHANNELS, N_CHANNELS))
         self._z = np.full(N_CHANNELS, np.nan)
         self._t: float | None = None
-        self._terms = np.zeros((N_OUTPUTS, 7))
-        self._x4 = np.zeros(4)
-        self._h = np.zeros(N_CHANNELS)
-        self._H = np.zeros((N_CHANNELS, 4))
+        self._work = np.zeros(4 + N_OUTPUTS * 7 + N_CHANNELS * 7)  # _kernels.backup_update's scratch
+        self._no_ekf_y = np.zeros(0)
         self._y = np.zeros(N_CHANNELS)
         self._S = np.zeros((N_CHANNELS, N_CHANNELS))
         self._K = np.zeros((2, N_CHANNELS))
@@ -224,19 +222,28 @@ class HeelStrikeBackup:
         self.P[0, 0] += cfg.q_rate[0] * dt
         self.P[1, 1] += cfg.q_rate[1] * dt
         ekf = self.ekf
-        if z is not None:
-            self._x4[:] = (self.phase, self.phase_rate, self.x[0], self.x[1])
-            _kernels.measurement(self._coef, self._x4, self._leg_length, self._terms, self._h, self._H)
-            H2 = np.ascontiguousarray(self._H[:, 2:4])
+        if z is not None:  # h, H, R (standalone: at its own phase), the update and both SSE terms, compiled
+            sse_hp, sse_ekf = _kernels.backup_update(
+                self._coef,
+                self._leg_length,
+                self.phase,
+                self.phase_rate,
+                self.x,
+                self.P,
+                z,
+                self._bins,
+                self._R if ekf is None else ekf.R,
+                ekf is None,
+                self._rbar,
+                self._no_ekf_y if ekf is None else ekf.y,
+                self._work,
+                self._y,
+                self._S,
+                self._K,
+            )
+            self.sse_hp += sse_hp
             if ekf is not None:
-                R = ekf.R
-            else:
-                _kernels.noise_at(self._bins, self.phase, self._R)
-                R = self._R
-            _kernels.update(self.x, self.P, z, self._h, H2, R, self._y, self._S, self._K, False)
-            self.sse_hp += _kernels.weighted_sse(self._y, self._rbar)
-            if ekf is not None:
-                self.sse_ekf += _kernels.weighted_sse(ekf.y, self._rbar)
+                self.sse_ekf += sse_ekf
         reset = False
         if heel_strike:
             if ekf is not None and self.sse_ekf - self.sse_hp > cfg.sse_margin:

@@ -167,6 +167,7 @@ class GaitStatePipeline:
         self._z = np.full(N_CHANNELS, np.nan)
         self._heel = self._z[Z_HEEL_FORWARD : Z_HEEL_UP + 1]  # a view: the high-pass filters it in place
         self._unmodelled = ~model.channel_mask
+        self._any_unmodelled = bool(self._unmodelled.any())
         self._hs = np.ones(1)
         #: Channel values refused as implausible since the start.
         self.implausible = 0
@@ -246,15 +247,13 @@ class GaitStatePipeline:
         self.implausible += implausible
         if not heel_filtered:  # both heel positions, when both are present (restarts rather than stick on NaN)
             self.highpass.step_inplace(self._heel)
-        z[self._unmodelled] = np.nan
+        if self._any_unmodelled:
+            z[self._unmodelled] = np.nan
         if t < self._heel_masked_until:  # after a restart, until the heel high-pass has settled
             z[Z_HEEL_FORWARD : Z_HEEL_UP + 1] = np.nan
         if heel_strike is None:
-            heel_strike = bool(
-                np.isfinite(z[Z_FOOT_ANGLE])
-                and np.isfinite(z[Z_FOOT_VEL])
-                and self.detector.detect(t, dt, float(z[Z_FOOT_ANGLE]), float(z[Z_FOOT_VEL]))
-            )
+            angle, vel = float(z[Z_FOOT_ANGLE]), float(z[Z_FOOT_VEL])
+            heel_strike = math.isfinite(angle) and math.isfinite(vel) and self.detector.detect(t, dt, angle, vel)
         if dt > 0:
             self.ekf.predict(dt)
             self.tbe.predict(dt)

@@ -59,9 +59,8 @@ class TorqueProfile:
         """Scalar :meth:`torque` for the streaming path; 0 for a non-finite state or result."""
         if not p % 1.0 <= self.cutoff_phase:  # NaN phase fails too
             return 0.0
-        coef4, terms = self._workspace
-        _kernels.model_terms(coef4, p, l, r, terms)
-        tau = self.scale * mass_kg * float(terms[0, 0])
+        coef4, _ = self._workspace
+        tau = self.scale * mass_kg * _kernels.model_value(coef4, 0, p, l, r)  # model_terms' h, without derivatives
         if not math.isfinite(tau):
             return 0.0
         return float(min(max(tau, 0.0), max_torque))

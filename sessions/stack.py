@@ -40,6 +40,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
+from gaitscope.estimators import _kernels
 from gaitscope.estimators.phase_ekf import EKFConfig
 from gaitscope.estimators.protocol import HEEL_STRIKE, MAX_GAP_S, Estimator, input_names, output_names
 from gaitscope.estimators.torque import TorqueProfile
@@ -320,6 +321,10 @@ class EstimatorStack:
         names = self.outputs[k]
         if y.shape != (len(names),):
             return f"returned {y.size} values for its {len(names)} outputs"
+        P = self.estimators[k].covariance
+        square = P is not None and P.ndim == 2 and P.shape[0] == P.shape[1]
+        if _kernels.finite_sum(y) and (P is None or (square and _kernels.covariance_ok(P, self.max_variance))):
+            return ""  # healthy, found in compiled code; the reasons below say why not
         # On a handful of numbers, Python's sum of a list is several times cheaper than numpy's
         # reductions; a sum is finite only if every term is (it may also overflow near 1e308: such
         # values count as failed too).
@@ -327,7 +332,6 @@ class EstimatorStack:
         if not math.isfinite(sum(values)):
             bad = [n for n, v in zip(names, values, strict=True) if not math.isfinite(v)] or list(names)
             return f"returned a non-finite {', '.join(bad)}"
-        P = self.estimators[k].covariance
         if P is not None:
             flat = P.ravel().tolist()
             if not math.isfinite(sum(flat)):
