@@ -44,23 +44,33 @@ from gaitscope.estimators.gait_model import N_CHANNELS
 if TYPE_CHECKING:
     from gaitscope.estimators.pipeline import GaitStatePipeline
 
-__all__ = ["FAULTS", "run"]
+__all__ = ["FAULTS", "State", "run", "state", "step", "store"]
+
+
+#: The modules beside this one whose compiled functions compile those of other files into themselves, and
+#: those files: this one (``_kernels.py``) and the supervised replay's (:mod:`gaitscope.estimators._lock_batch`).
+_COMPILED_IN = {"_batch.py": ("_kernels.py",), "_lock_batch.py": ("_kernels.py", "_batch.py")}
 
 
 class _KernelsStampedLocator(InTreeCacheLocator):
-    """numba's cache beside the source (``__pycache__``), for this module only, stamped with the contents
-    of ``_kernels.py`` as well as of this file. With ``NUMBA_CACHE_DIR`` set or a read-only folder
-    numba's own locators apply (then delete ``_batch*`` from the cache after editing ``_kernels.py``)."""
+    """numba's cache beside the source (``__pycache__``), for the modules of :data:`_COMPILED_IN` only, stamped
+    with the contents of the files they compile in as well as of their own. With ``NUMBA_CACHE_DIR`` set or a
+    read-only folder numba's own locators apply (then delete ``_batch*`` and ``_lock_batch*`` from the cache
+    after editing ``_kernels.py`` or ``_batch.py``)."""
 
     @classmethod
     def from_function(cls, py_func: Any, py_file: str) -> Any:
-        if getattr(numba_config, "CACHE_DIR", "") or Path(py_file).resolve() != Path(__file__).resolve():
+        path = Path(py_file).resolve()
+        if getattr(numba_config, "CACHE_DIR", "") or path.parent != Path(__file__).resolve().parent:
+            return None
+        if path.name not in _COMPILED_IN:
             return None
         return super().from_function(py_func, py_file)
 
     def get_source_stamp(self) -> Any:
-        kernels = hashlib.sha256(Path(_kernels.__file__).read_bytes()).digest()
-        return (super().get_source_stamp(), kernels)
+        here = Path(__file__).resolve().parent
+        names = _COMPILED_IN[Path(self._py_file).name]
+        return (super().get_source_stamp(), *(hashlib.sha256((here / n).read_bytes()).digest() for n in names))
 
 
 CacheImpl._locator_classes.insert(0, _KernelsStampedLocator)
@@ -69,11 +79,13 @@ CacheImpl._locator_classes.insert(0, _KernelsStampedLocator)
 FAULTS = ("", "gap", "diverged", "torque")
 _OK, _GAP, _DIVERGED, _TORQUE = range(len(FAULTS))
 
-# float state: last time; backup; TBE; detector; the EKF's last likelihood terms
+# float state: last time; backup; TBE; detector; the EKF's last likelihood terms; the heel positions' settling
+# after a restart (GaitStatePipeline._heel_settle, _heel_masked_until)
 (
     _F_T, _F_BK_PHASE, _F_BK_RATE, _F_BK_SSE_EKF, _F_BK_SSE_HP, _F_BK_LAST_HS, _F_TBE_PERIOD, _F_TBE_T,
     _F_TBE_LAST_HS, _F_TBE_MIN, _F_TBE_MAX, _F_DET_LAST_HS, _F_DET_PREV_VEL, _F_LOG_LIKELIHOOD, _F_MAHALANOBIS,
-) = range(15)  # fmt: skip
+    _F_HEEL_SETTLE, _F_HEEL_MASKED_UNTIL,
+) = range(17)  # fmt: skip
 # integer state: flags and counters
 (
     _I_HAS_T, _I_IMPLAUSIBLE, _I_RESTARTS, _I_RESETS, _I_BK_RESETS, _I_BK_HAS_LAST_HS, _I_TBE_SEEN_HS,
@@ -288,6 +300,121 @@ def _torque_at(prm: _Params, coef4: Array, p: float, l: float, r: float) -> floa
     return tau
 
 
+@njit(cache=True)
+def _scratch(model: tuple) -> tuple:
+    """The work arrays of :func:`step`, and the backup's R factor (``model[3]``) for when all channels are there."""
+    rbar, rbar_L = model[2], model[3]
+    all_used = np.ones(N_CHANNELS, dtype=np.bool_)
+    work = (
+        np.zeros((4, 7)),
+        np.zeros(4),
+        np.zeros(N_CHANNELS),
+        np.zeros((N_CHANNELS, 4)),
+        np.empty((N_CHANNELS, 2)),
+        all_used,
+    )
+    _kernels.cholesky_used(rbar, all_used, rbar_L)
+    q = np.zeros(5)  # EKFConfig.q_diag of the last dt, and that dt (q[4], -1 before any)
+    q[4] = -1.0
+    return np.empty(N_CHANNELS), np.zeros((4, 7)), work, q
+
+
+@njit(cache=True)
+def step(
+    tk: float,
+    zk: Array,
+    given: int,
+    prm: _Params,
+    model: tuple,
+    start: tuple,
+    fs: Array,
+    ns: NDArray[np.int64],
+    ekf: tuple,
+    bk: tuple,
+    tbe_x: Array,
+    hp_zi: Array,
+    scratch: tuple,
+) -> tuple[bool, bool, int, int, float, float]:
+    """``GaitStatePipeline.step(tk, zk, heel_strike)`` on the state arrays of :func:`run` (see :func:`_run`);
+    ``given``: the heel strike, 1 or 0, or -1 to detect it (``heel_strike=None``).
+
+    Returns:
+        ``(heel strike, backup reset, fault index, implausible count, stride length (m), torque)``; the phase,
+        phase rate and incline are ``ekf[0]``'s.
+    """
+    coef, bins, coef4, lo, hi, unmodelled, hp_b, hp_a, hp_zi_unit = (
+        model[0], model[1], model[4], model[5], model[6], model[7], model[8], model[9], model[10]
+    )  # fmt: skip
+    ekf_x, ekf_P, ekf_y, ekf_S, ekf_K, ekf_zpred, ekf_H, ekf_R = ekf
+    z, terms, work, q = scratch
+    dt = tk - fs[_F_T] if ns[_I_HAS_T] else 0.0
+    fault = _OK
+    if dt > prm.max_gap_s:
+        _restart(prm, fs, ns, start, ekf, bk, tbe_x)
+        ns[_I_RESTARTS] += 1
+        fault, dt = _GAP, 0.0
+    if not ns[_I_HAS_T] and fs[_F_HEEL_SETTLE] > 0.0:
+        fs[_F_HEEL_MASKED_UNTIL], fs[_F_HEEL_SETTLE] = tk + fs[_F_HEEL_SETTLE], 0.0
+    fs[_F_T] = tk
+    ns[_I_HAS_T] = 1
+    z[:] = zk
+    implausible = _kernels.screen(z, lo, hi)
+    ns[_I_IMPLAUSIBLE] += implausible
+    if not prm.heel_filtered:
+        ns[_I_HP_STARTED] = _kernels.highpass_step(hp_b, hp_a, hp_zi_unit, hp_zi, ns[_I_HP_STARTED] != 0, z[4:6])
+    for i in range(N_CHANNELS):
+        if unmodelled[i]:
+            z[i] = np.nan
+    if tk < fs[_F_HEEL_MASKED_UNTIL]:  # after a restart, until the heel high-pass has settled
+        z[4] = z[5] = np.nan
+    if given < 0:
+        hs = np.isfinite(z[0]) and np.isfinite(z[1]) and _detect(prm, fs, ns, tk, z[0], z[1])
+    else:
+        hs = given > 0
+    if dt > 0:
+        if dt != q[4]:  # EKFConfig.q_diag
+            c = dt / prm.q_time_unit
+            q[0] = 0.0 * c * prm.process_noise_scale
+            q[1] = prm.q_var[0] * c * prm.process_noise_scale
+            q[2] = prm.q_var[1] * c * prm.process_noise_scale
+            q[3] = prm.q_var[2] * c * prm.process_noise_scale
+            if prm.no_task:
+                q[2] = q[3] = _FROZEN
+            q[4] = dt
+        _kernels.predict(ekf_x, ekf_P, dt, q)
+        fs[_F_TBE_T] += dt
+        _tbe_refresh(fs, tbe_x)
+    m, maha2, logdet = _kernels.ekf_update(
+        coef, ekf_x, ekf_P, z, prm.ekf_leg_length, bins, terms, ekf_zpred, ekf_H, ekf_R, ekf_y, ekf_S, ekf_K
+    )
+    fs[_F_MAHALANOBIS] = np.sqrt(maha2)
+    fs[_F_LOG_LIKELIHOOD] = -0.5 * (maha2 + logdet + m * prm.log_2pi) if m else 0.0
+    reset = prm.use_backup and _backup_track(prm, fs, ns, tk, dt, z, hs, model, ekf, bk, work)
+    if hs:  # TimingBasedEstimator.update([1])
+        if ns[_I_TBE_SEEN_HS]:
+            period = fs[_F_TBE_T] - fs[_F_TBE_LAST_HS]
+            if fs[_F_TBE_MIN] <= period <= fs[_F_TBE_MAX]:
+                fs[_F_TBE_PERIOD] = period
+        ns[_I_TBE_SEEN_HS] = 1
+        fs[_F_TBE_LAST_HS] = fs[_F_TBE_T]
+        _tbe_refresh(fs, tbe_x)
+    if not _kernels.healthy(
+        ekf_x, ekf_P, prm.min_phase_rate, prm.max_phase_rate, prm.max_abs_incline, prm.max_variance
+    ):
+        _reset_diverged(prm, fs, ns, start, ekf, bk, tbe_x)
+        fault = _DIVERGED
+    l_norm = _kernels.stride_from_pseudo(ekf_x[2])[0]
+    stride_m = l_norm * prm.leg_length
+    torque = 0.0
+    if fault != _DIVERGED:  # the stack's rule: the stride in metres over the leg length (bit for bit)
+        torque = _torque_at(prm, coef4, ekf_x[0], stride_m / prm.leg_length, ekf_x[3])
+        if not 0.0 <= torque <= prm.max_torque:
+            torque = 0.0
+            if fault == _OK:
+                fault = _TORQUE
+    return hs, reset, fault, implausible, stride_m, torque
+
+
 @njit(cache=True, nogil=True)
 def _run(
     t: Array,
@@ -305,7 +432,7 @@ def _run(
     out: Array,
     out_flags: NDArray[np.int64],
 ) -> None:
-    """``GaitStatePipeline.step`` for every row of ``Z``.
+    """``GaitStatePipeline.step`` for every row of ``Z`` (:func:`step`).
 
     ``model``: gait-model coefficients, ``Sigma_R`` bins, the backup's R and its Cholesky factor (filled
     here), torque coefficients, channel bounds low and high, unmodelled channels, high-pass b, a and
@@ -313,85 +440,13 @@ def _run(
     ``bk``: the backup's x, P, y, S, K. ``out`` columns: phase, phase rate, stride length (m), incline,
     torque, TBE phase; ``out_flags``: heel strike, backup reset, fault index, implausible count.
     """
-    coef, bins, rbar, rbar_L, coef4, lo, hi, unmodelled, hp_b, hp_a, hp_zi_unit = model
-    ekf_x, ekf_P, ekf_y, ekf_S, ekf_K, ekf_zpred, ekf_H, ekf_R = ekf
-    z = np.empty(N_CHANNELS)
-    terms = np.zeros((4, 7))
-    all_used = np.ones(N_CHANNELS, dtype=np.bool_)
-    work = (
-        np.zeros((4, 7)),
-        np.zeros(4),
-        np.zeros(N_CHANNELS),
-        np.zeros((N_CHANNELS, 4)),
-        np.empty((N_CHANNELS, 2)),
-        all_used,
-    )
-    q = np.zeros(4)
-    q_dt = -1.0
-    _kernels.cholesky_used(rbar, all_used, rbar_L)
+    ekf_x = ekf[0]
+    scratch = _scratch(model)
     for k in range(t.shape[0]):
-        tk = t[k]
-        dt = tk - fs[_F_T] if ns[_I_HAS_T] else 0.0
-        fault = _OK
-        if dt > prm.max_gap_s:
-            _restart(prm, fs, ns, start, ekf, bk, tbe_x)
-            ns[_I_RESTARTS] += 1
-            fault, dt = _GAP, 0.0
-        fs[_F_T] = tk
-        ns[_I_HAS_T] = 1
-        z[:] = Z[k]
-        implausible = _kernels.screen(z, lo, hi)
-        ns[_I_IMPLAUSIBLE] += implausible
-        if not prm.heel_filtered:
-            ns[_I_HP_STARTED] = _kernels.highpass_step(hp_b, hp_a, hp_zi_unit, hp_zi, ns[_I_HP_STARTED] != 0, z[4:6])
-        for i in range(N_CHANNELS):
-            if unmodelled[i]:
-                z[i] = np.nan
-        if prm.detect:
-            hs = np.isfinite(z[0]) and np.isfinite(z[1]) and _detect(prm, fs, ns, tk, z[0], z[1])
-        else:
-            hs = hs_in[k]
-        if dt > 0:
-            if dt != q_dt:  # EKFConfig.q_diag
-                c = dt / prm.q_time_unit
-                q[0] = 0.0 * c * prm.process_noise_scale
-                q[1] = prm.q_var[0] * c * prm.process_noise_scale
-                q[2] = prm.q_var[1] * c * prm.process_noise_scale
-                q[3] = prm.q_var[2] * c * prm.process_noise_scale
-                if prm.no_task:
-                    q[2] = q[3] = _FROZEN
-                q_dt = dt
-            _kernels.predict(ekf_x, ekf_P, dt, q)
-            fs[_F_TBE_T] += dt
-            _tbe_refresh(fs, tbe_x)
-        m, maha2, logdet = _kernels.ekf_update(
-            coef, ekf_x, ekf_P, z, prm.ekf_leg_length, bins, terms, ekf_zpred, ekf_H, ekf_R, ekf_y, ekf_S, ekf_K
+        given = -1 if prm.detect else (1 if hs_in[k] else 0)
+        hs, reset, fault, implausible, stride_m, torque = step(
+            t[k], Z[k], given, prm, model, start, fs, ns, ekf, bk, tbe_x, hp_zi, scratch
         )
-        fs[_F_MAHALANOBIS] = np.sqrt(maha2)
-        fs[_F_LOG_LIKELIHOOD] = -0.5 * (maha2 + logdet + m * prm.log_2pi) if m else 0.0
-        reset = prm.use_backup and _backup_track(prm, fs, ns, tk, dt, z, hs, model, ekf, bk, work)
-        if hs:  # TimingBasedEstimator.update([1])
-            if ns[_I_TBE_SEEN_HS]:
-                period = fs[_F_TBE_T] - fs[_F_TBE_LAST_HS]
-                if fs[_F_TBE_MIN] <= period <= fs[_F_TBE_MAX]:
-                    fs[_F_TBE_PERIOD] = period
-            ns[_I_TBE_SEEN_HS] = 1
-            fs[_F_TBE_LAST_HS] = fs[_F_TBE_T]
-            _tbe_refresh(fs, tbe_x)
-        if not _kernels.healthy(
-            ekf_x, ekf_P, prm.min_phase_rate, prm.max_phase_rate, prm.max_abs_incline, prm.max_variance
-        ):
-            _reset_diverged(prm, fs, ns, start, ekf, bk, tbe_x)
-            fault = _DIVERGED
-        l_norm = _kernels.stride_from_pseudo(ekf_x[2])[0]
-        stride_m = l_norm * prm.leg_length
-        torque = 0.0
-        if fault != _DIVERGED:  # the stack's rule: the stride in metres over the leg length (bit for bit)
-            torque = _torque_at(prm, coef4, ekf_x[0], stride_m / prm.leg_length, ekf_x[3])
-            if not 0.0 <= torque <= prm.max_torque:
-                torque = 0.0
-                if fault == _OK:
-                    fault = _TORQUE
         out[k, 0] = ekf_x[0]
         out[k, 1] = ekf_x[1]
         out[k, 2] = stride_m
@@ -427,19 +482,23 @@ def _check(pipe: GaitStatePipeline, t: Array, z: Array, heel_strike: NDArray[np.
         raise ValueError(f"time must increase: {float(later[i])} after {float(prev[i])}")
 
 
-def run(
-    pipe: GaitStatePipeline,
-    t: Array,
-    z: Array,
-    heel_strike: NDArray[np.bool_] | None = None,
-    heel_filtered: bool = False,
-) -> dict[str, NDArray[np.generic]]:
-    """Run ``pipe`` over ``len(t)`` samples; see :meth:`GaitStatePipeline.run`."""
-    t = _c(t).reshape(-1)
-    z = _c(z)
-    _check(pipe, t, z, heel_strike)
-    n = t.shape[0]
-    hs_in = np.zeros(n, dtype=np.bool_) if heel_strike is None else np.ascontiguousarray(heel_strike, dtype=np.bool_)
+class State(NamedTuple):
+    """A pipeline's constants and whole state as :func:`step` takes them (see :func:`_run`)."""
+
+    prm: _Params
+    model: tuple
+    start: tuple
+    fs: Array
+    ns: NDArray[np.int64]
+    ekf: tuple
+    bk: tuple
+    tbe_x: Array
+    hp_zi: Array
+
+
+def state(pipe: GaitStatePipeline, detect: bool, heel_filtered: bool) -> State:
+    """``pipe``'s state in arrays (the EKF's own arrays themselves, updated in place by :func:`step`); ``detect``:
+    heel strikes are detected (:func:`_run`; :func:`step` takes them per sample)."""
     cfg = pipe.config
     ekf, bk, tbe, det, hp = pipe.ekf, pipe.backup, pipe.tbe, pipe.detector, pipe.highpass
     bcfg, dcfg, lim, torque = cfg.backup, cfg.detector, cfg.health, pipe.model.torque
@@ -461,7 +520,7 @@ def run(
         backup_max_period=float(bcfg.max_period),
         backup_initial_period=float(bcfg.initial_period),
         backup_p0=float(bcfg.p0),
-        detect=heel_strike is None,
+        detect=bool(detect),
         max_foot_angle_deg=float(dcfg.max_foot_angle_deg),
         refractory_s=float(dcfg.refractory_s),
         accel_threshold_set=dcfg.accel_threshold is not None,
@@ -480,7 +539,8 @@ def run(
         tbe_max_period=float(fresh_tbe.max_period),
     )
 
-    fs = np.zeros(15)
+    fs = np.zeros(17)
+    fs[_F_HEEL_SETTLE], fs[_F_HEEL_MASKED_UNTIL] = pipe._heel_settle, pipe._heel_masked_until
     ns = np.zeros(9, dtype=np.int64)
     if pipe._t is not None:
         fs[_F_T], ns[_I_HAS_T] = pipe._t, 1
@@ -516,13 +576,16 @@ def run(
         _c(pipe._hi), np.ascontiguousarray(pipe._unmodelled, dtype=np.bool_), _c(hp.b), _c(hp.a), _c(hp._zi_unit),
     )  # fmt: skip
     start = (_c(cfg.ekf.initial_state()), _c(cfg.ekf.initial_covariance()))
-    out = np.empty((n, 6))
-    flags = np.empty((n, 4), dtype=np.int64)
-    _run(t, z, hs_in, prm, model, start, fs, ns, ekf_arrays, bk_work, tbe_x, hp_zi, out, flags)
+    return State(prm, model, start, fs, ns, ekf_arrays, bk_work, tbe_x, hp_zi)
 
-    # back into the pipeline's objects
-    if n:
+
+def store(pipe: GaitStatePipeline, st: State) -> None:
+    """Write ``st`` back into ``pipe``'s objects (:func:`state`'s inverse)."""
+    fs, ns, ekf_arrays, bk_work, tbe_x, hp_zi = st.fs, st.ns, st.ekf, st.bk, st.tbe_x, st.hp_zi
+    ekf, bk, tbe, det, hp = pipe.ekf, pipe.backup, pipe.tbe, pipe.detector, pipe.highpass
+    if ns[_I_HAS_T]:
         pipe._t = float(fs[_F_T])
+    pipe._heel_settle, pipe._heel_masked_until = float(fs[_F_HEEL_SETTLE]), float(fs[_F_HEEL_MASKED_UNTIL])
     restarted = int(ns[_I_RESTARTS]) != pipe.restarts
     pipe.implausible, pipe.restarts, pipe.resets = int(ns[_I_IMPLAUSIBLE]), int(ns[_I_RESTARTS]), int(ns[_I_RESETS])
     for mine, theirs in zip(ekf_arrays, (ekf.x, ekf.P, ekf.y, ekf.S, ekf.K, ekf.z_pred, ekf.H, ekf.R), strict=True):
@@ -530,6 +593,7 @@ def run(
     ekf.log_likelihood, ekf.mahalanobis = float(fs[_F_LOG_LIKELIHOOD]), float(fs[_F_MAHALANOBIS])
     ekf._q_dt = -1.0  # its cached Q is recomputed at the next predict
     if bk is not None:
+        bk_arrays = (bk.x, bk.P, bk._y, bk._S, bk._K)
         for mine, theirs in zip(bk_work, bk_arrays, strict=True):
             theirs[...] = mine
         bk.phase, bk.phase_rate = float(fs[_F_BK_PHASE]), float(fs[_F_BK_RATE])
@@ -540,11 +604,31 @@ def run(
     tbe._seen_hs = bool(ns[_I_TBE_SEEN_HS])
     tbe.x[:] = tbe_x
     if restarted:  # a new TBE and a new detector: its acceleration history is gone
-        tbe.initial_period = fresh_tbe.initial_period
+        tbe.initial_period = type(tbe)().initial_period
         det._heel.clear()
         det._acc.clear()
     det._last_hs, det._prev_vel = float(fs[_F_DET_LAST_HS]), float(fs[_F_DET_PREV_VEL])
     hp._zi = hp_zi.copy() if ns[_I_HP_STARTED] else None
+
+
+def run(
+    pipe: GaitStatePipeline,
+    t: Array,
+    z: Array,
+    heel_strike: NDArray[np.bool_] | None = None,
+    heel_filtered: bool = False,
+) -> dict[str, NDArray[np.generic]]:
+    """Run ``pipe`` over ``len(t)`` samples; see :meth:`GaitStatePipeline.run`."""
+    t = _c(t).reshape(-1)
+    z = _c(z)
+    _check(pipe, t, z, heel_strike)
+    n = t.shape[0]
+    hs_in = np.zeros(n, dtype=np.bool_) if heel_strike is None else np.ascontiguousarray(heel_strike, dtype=np.bool_)
+    st = state(pipe, heel_strike is None, heel_filtered)
+    out = np.empty((n, 6))
+    flags = np.empty((n, 4), dtype=np.int64)
+    _run(t, z, hs_in, *st, out, flags)
+    store(pipe, st)
     return {
         "phase": out[:, 0],
         "phase_rate": out[:, 1],

@@ -10,9 +10,15 @@ stack's, the one sensor-to-torque path of live sessions, re-runs and imports. Th
 ``supervised=True`` (what ``gaitscope replay`` and ``gaitscope demo`` do unless ``--as-published``) runs the phase
 EKF as a live session's ``phase_ekf`` does, with its lock supervisor (:mod:`gaitscope.estimators.lock`: standing
 still, heel strikes from the shank, lock loss; the stack takes the torque to 0 standing and at a lock-loss reset).
-``supervised=False`` is seed 000's filter as published (the supervisor off); the stack then has a fast path,
-``batch=True``: :meth:`GaitStatePipeline.run <gaitscope.estimators.pipeline.GaitStatePipeline.run>`, one compiled
-call per part, whose outputs equal the stack's bit for bit (``tests/sessions/offline/test_replay.py``).
+``supervised=False`` is seed 000's filter as published (the supervisor off). Both have a compiled fast path,
+``batch=True`` (the default), one compiled call per part whose outputs equal stepping the stack bit for bit
+(``tests/sessions/offline/test_replay.py``): supervised, the stack's loop compiled whole
+(:mod:`gaitscope.estimators._lock_batch`: supervisor, pipeline, ``tbe`` and the torque rule); as published,
+:meth:`GaitStatePipeline.run <gaitscope.estimators.pipeline.GaitStatePipeline.run>`. The supervised fast path
+covers the stack :func:`replay_stack` builds (``phase_ekf`` then ``tbe``, any pipeline and supervisor settings);
+it hands over to stepping the stack, from the trial's start, where the stack would mark an estimator failed
+(a non-finite output or covariance: the step path reports it as a session would), and a stack it does not
+cover (other estimators, a primary other than ``phase_ekf``) is stepped throughout.
 
 Not in a replay: a live session's soft start and intent boost (:class:`~gaitscope.sessions.estimation.FrameEstimator`),
 which ramp the assistance a person receives; a replay shows the command at the given gain from the first sample.
@@ -28,6 +34,7 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,10 +44,14 @@ from gaitscope.estimators.lock import LockConfig
 from gaitscope.estimators.phase_ekf_estimator import PhaseEKFEstimator
 from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
 from gaitscope.estimators.protocol import HEEL_STRIKE
+from gaitscope.estimators.tbe import TimingBasedEstimator
 from gaitscope.sessions import schema
 from gaitscope.sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv
 from gaitscope.sessions.registry import ESTIMATORS, StackContext
 from gaitscope.sessions.stack import EstimatorStack
+
+if TYPE_CHECKING:
+    from gaitscope.estimators._lock_batch import LockBatch
 
 _VELOCITY_OF = {"foot_vel_dps": "foot_angle_deg", "shank_vel_dps": "shank_angle_deg"}
 
@@ -175,15 +186,16 @@ def replay_file(
 ) -> ReplaySummary:
     """Replay ``input_path`` into ``output_path``; nothing is written if the input is invalid.
 
-    ``supervised``: the module docstring (``lock``: its thresholds); ``batch``: without the supervisor, the
-    stack's compiled fast path (False steps the stack, the same bytes several times slower: for benchmarks
-    and tests). The output is written in parts of :data:`PART` samples, each formatted while the next is
-    estimated."""
+    ``supervised``: the module docstring (``lock``: its thresholds); ``batch``: the stack's compiled fast path
+    (False steps the stack, the same bytes ten times slower: for benchmarks and tests). The output is written
+    in parts of :data:`PART` samples, each formatted while the next is estimated."""
     start = time.perf_counter()
     data = read_replay_csv(input_path)
     n = data.time_s.size
-    parts: _Stacked | _Compiled
-    if supervised or not batch:
+    parts: _Stacked | _Compiled | _Supervised
+    if supervised and batch:
+        parts = _Supervised(data, model, config, lock)
+    elif not batch:
         parts = _Stacked(data, model, config, lock if supervised else LockConfig(enabled=False))
     else:
         parts = _Compiled(data, model, config)
@@ -196,7 +208,7 @@ def replay_file(
             resets += parts.estimate(out, a, b)
             output.add({k: v[a:b] for k, v in out.items()})
     wall = time.perf_counter() - start
-    stacked = parts if isinstance(parts, _Stacked) else None
+    stacked = parts if isinstance(parts, _Stacked | _Supervised) else None
     return ReplaySummary(
         samples=n,
         duration_s=float(data.time_s[-1] - data.time_s[0]),
@@ -323,3 +335,69 @@ class _Compiled:
         for column in schema.REPLAY_OUTPUT[1:]:
             out[column][a:b] = est[column]
         return int(est["backup_reset"].sum())
+
+
+def compiled_stack(stack: EstimatorStack) -> LockBatch | None:
+    """The compiled loop of a fresh stack of ``phase_ekf`` (primary) then ``tbe``, as :func:`replay_stack` makes
+    it (None for any other stack, which is then stepped)."""
+    from gaitscope.estimators._lock_batch import LockBatch  # numba's compiled code: loaded when replayed
+
+    ekf, *others = stack.estimators
+    if (
+        stack.names != (PhaseEKFEstimator.name, TimingBasedEstimator.name)
+        or type(ekf) is not PhaseEKFEstimator
+        or type(others[0]) is not TimingBasedEstimator
+        or stack.primary != PhaseEKFEstimator.name
+        or stack.failed
+        or stack._t is not None
+    ):
+        return None
+    return LockBatch(
+        ekf, others[0], stack.torque, stack.leg_length, stack.mass_kg, stack.torque_gain, stack.max_torque,
+        stack.max_variance,
+    )  # fmt: skip
+
+
+class _Supervised:
+    """:func:`replay_stack`'s stack with the supervisor on its compiled path (:func:`compiled_stack`), one call per
+    part, equal to :class:`_Stacked` bit for bit; :class:`_Stacked` from the trial's start where the compiled path
+    stops (a sample on which the stack would mark an estimator failed) or for a stack it does not cover."""
+
+    def __init__(self, data: ReplayInput, model: TrainedModel, config: PipelineConfig, lock: LockConfig | None):
+        self.data, self._model, self._config, self._lock = data, model, config, lock
+        self.z = measurements(data, highpass=False)
+        self.batch = compiled_stack(replay_stack(model, config, _period(data), lock))
+        hs_in = data.heel_strike
+        self.given = np.full(data.time_s.size, np.nan) if hs_in is None else hs_in.astype(np.float64)
+        self.stepped: _Stacked | None = None if self.batch is not None else _Stacked(data, model, config, lock)
+
+    @property
+    def standing_s(self) -> float:
+        return self.stepped.standing_s if self.stepped is not None else self.batch.standing_s if self.batch else 0.0
+
+    @property
+    def lost(self) -> int:
+        return self.stepped.lost if self.stepped is not None else self.batch.lost if self.batch else 0
+
+    @property
+    def events(self) -> list[str]:
+        return self.stepped.events if self.stepped is not None else []
+
+    def estimate(self, out: dict[str, Array], a: int, b: int) -> int:
+        """Samples ``a`` to ``b`` into ``out``; returns the primary's backup resets among them."""
+        if self.stepped is None and self.batch is not None:
+            columns, hs = np.empty((b - a, 6)), np.empty(b - a, dtype=np.bool_)
+            resets = self.batch.backup_resets
+            failed = self.batch.run(self.data.time_s[a:b], self.z[a:b], self.given[a:b], columns, hs)
+            if failed < 0:
+                for j, name in enumerate(("phase", "phase_rate", "stride_length_m", "incline_deg", "torque_Nm")):
+                    out[name][a:b] = columns[:, j]
+                out["tbe_phase"][a:b] = columns[:, 5]
+                out["heel_strike"][a:b] = hs
+                return self.batch.backup_resets - resets
+            # the stack marks an estimator failed in this part: step the trial from its start (the same numbers
+            # up to here), so that the failure is handled and reported as the stack does
+            self.stepped = _Stacked(self.data, self._model, self._config, self._lock)
+            self.stepped.estimate({k: np.empty(a) for k in schema.REPLAY_OUTPUT}, 0, a)
+        assert self.stepped is not None
+        return self.stepped.estimate(out, a, b)

@@ -143,3 +143,71 @@ def test_a_replay_is_what_a_live_session_makes_of_the_same_frames(tmp_path: Path
         expected = np.array([float(getattr(s, column)) for s in states])
         assert np.abs(got[column].to_numpy(float) - expected).max() <= TOL, column
     assert got["torque_Nm"].max() > 10.0 and got["heel_strike"].sum() == 18
+
+
+def _real_walk_files(tmp_path: Path) -> list[Path]:
+    """The golden trial (heel strikes given); a real walk (starts, stops, standing) with every channel and no heel
+    strikes, dropouts written as values out of range (a replay file has no NaN cells); and its shank only."""
+    from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
+    from gaitscope.sessions.synth.real_walks import RealWalkSpec, real_walk
+
+    walk = real_walk(make_subjects(CohortSpec())[0], RealWalkSpec(bouts=2, dropouts_per_min=0.0))
+    rng = np.random.default_rng(24)
+    for _ in range(30):
+        a, column = int(rng.integers(0, len(walk) - 40)), str(rng.choice(schema.REPLAY_SIGNALS))
+        walk.loc[a : a + int(rng.integers(1, 40)), column] = 9999.0
+    every, shank = tmp_path / "walk.csv", tmp_path / "shank.csv"
+    walk[[schema.REPLAY_TIME, *schema.REPLAY_SIGNALS]].to_csv(every, index=False)
+    walk[[schema.REPLAY_TIME, "shank_angle_deg", "shank_vel_dps"]].to_csv(shank, index=False)
+    return [TRIAL, every, shank]
+
+
+def test_supervised_compiled_and_stepped_replays_write_the_same_bytes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    model, _ = load_model(default_model_path())
+    config = PipelineConfig(leg_length=0.8778, body_mass_kg=64.37)
+    for trial in _real_walk_files(tmp_path):
+        fast, slow, cut = tmp_path / "fast.csv", tmp_path / "slow.csv", tmp_path / "cut.csv"
+        a = replay.replay_file(trial, fast, model, config, supervised=True)
+        b = replay.replay_file(trial, slow, model, config, supervised=True, batch=False)
+        assert replace(a, wall_s=0.0) == replace(b, wall_s=0.0), trial.name
+        assert fast.read_bytes() == slow.read_bytes(), trial.name
+        if trial != TRIAL:
+            assert a.standing_s > 3.0 and a.heel_strikes > 20 and a.heel_strikes_detected
+        with monkeypatch.context() as m:
+            m.setattr(replay, "PART", 333)
+            replay.replay_file(trial, cut, model, config, supervised=True)
+        assert cut.read_bytes() == fast.read_bytes(), trial.name
+
+
+def test_a_supervised_replay_steps_the_stack_from_where_it_would_fail(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Where the stack marks an estimator failed, the compiled path hands over to stepping, which reports it."""
+    model, _ = load_model(default_model_path())
+    config = PipelineConfig(leg_length=0.8778, body_mass_kg=64.37)
+    built = replay.replay_stack
+
+    def strict(*args: Any, **kwargs: Any) -> Any:
+        stack = built(*args, **kwargs)
+        stack.max_variance = 2e-3  # a covariance bound the filter's own health limit lets through
+        return stack
+
+    monkeypatch.setattr(replay, "replay_stack", strict)
+    monkeypatch.setattr(replay, "PART", 10)  # the stack fails the filter at sample 29
+    fast, slow = tmp_path / "fast.csv", tmp_path / "slow.csv"
+    handed: list[int] = []
+    original = replay._Stacked.estimate
+
+    def spy(self: Any, out: Any, a: int, b: int) -> int:
+        handed.append(a)
+        return original(self, out, a, b)
+
+    monkeypatch.setattr(replay._Stacked, "estimate", spy)
+    a = replay.replay_file(TRIAL, fast, model, config, supervised=True)
+    assert handed[:3] == [0, 20, 30]  # compiled for two parts; the trial's start stepped again, then the rest
+    b = replay.replay_file(TRIAL, slow, model, config, supervised=True, batch=False)
+    assert any("failed" in e for e in a.events)
+    assert repr(replace(a, wall_s=0.0)) == repr(replace(b, wall_s=0.0))  # (NaN means: not estimated)
+    assert fast.read_bytes() == slow.read_bytes()
