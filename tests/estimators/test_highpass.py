@@ -1,10 +1,13 @@
 """Heel-position high-pass filter (seed 000 II-B)."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from scipy import signal
 
-from gaitscope.estimators.highpass import HighPassFilter
+from gaitscope.estimators.highpass import HighPassFilter, design
 
 
 def test_streaming_equals_batch() -> None:
@@ -39,3 +42,30 @@ def test_passes_gait_frequencies_and_matches_the_continuous_response() -> None:
 def test_refuses_non_positive_period() -> None:
     with pytest.raises(ValueError, match="dt must be positive"):
         HighPassFilter(0.0)
+
+
+@pytest.mark.parametrize(("cutoff_hz", "damping"), [(0.5, 0.9), (1.0, 0.7), (0.2, 1.5)])
+def test_design_is_scipys_zoh_discretisation_to_the_bit(cutoff_hz: float, damping: float) -> None:
+    """Issue #24: the design without ``scipy.signal`` gives SciPy's coefficients and steady state exactly,
+    at the usual rates, at a 100 Hz recording's median period as its CSV rounds it, and at random ones."""
+    rng = np.random.default_rng(24)
+    periods = [0.01, 0.005, 1 / 60, 1 / 128, 1e-3, 0.009999999999999787, 0.010000000000000009]
+    for dt in [*periods, *rng.uniform(1e-4, 0.1, 200), *(0.01 + rng.normal(0.0, 1e-12, 50))]:
+        w = 2.0 * np.pi * cutoff_hz
+        bz, az, _ = signal.cont2discrete(([1.0, 0.0, 0.0], [1.0, 2.0 * damping * w, w * w]), dt, method="zoh")
+        b_ref, a_ref = np.asarray(bz, dtype=np.float64).reshape(-1), np.asarray(az, dtype=np.float64).reshape(-1)
+        b, a, zi = design(dt, cutoff_hz, damping)
+        assert b.tobytes() == b_ref.tobytes() and a.tobytes() == a_ref.tobytes(), dt
+        assert zi.tobytes() == np.asarray(signal.lfilter_zi(b_ref, a_ref), dtype=np.float64).tobytes(), dt
+
+
+def test_the_pipeline_imports_without_scipy_signal() -> None:
+    """Issue #24: ``scipy.signal`` (0.4-0.9 s) is imported by :meth:`HighPassFilter.filter`, not by the
+    estimators a replay or a session imports."""
+    code = (
+        "import sys\nimport numpy as np\nimport gaitscope.estimators.pipeline\n"
+        "from gaitscope.estimators.highpass import HighPassFilter\nHighPassFilter(0.01).step(np.zeros(2))\n"
+        "print('scipy.signal' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
