@@ -319,7 +319,7 @@ def _scratch(model: tuple) -> tuple:
     return np.empty(N_CHANNELS), np.zeros((4, 7)), work, q
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def step(
     tk: float,
     zk: Array,
@@ -334,9 +334,11 @@ def step(
     tbe_x: Array,
     hp_zi: Array,
     scratch: tuple,
+    command: bool = True,
 ) -> tuple[bool, bool, int, int, float, float]:
-    """``GaitStatePipeline.step(tk, zk, heel_strike)`` on the state arrays of :func:`run` (see :func:`_run`);
-    ``given``: the heel strike, 1 or 0, or -1 to detect it (``heel_strike=None``).
+    """``GaitStatePipeline.step(tk, zk, heel_strike, command=command)`` on the state arrays of :func:`run` (see
+    :func:`_run`); ``given``: the heel strike, 1 or 0, or -1 to detect it (``heel_strike=None``); without
+    ``command`` the torque is 0 and the fault never ``"torque"`` (a stack commands the torque).
 
     Returns:
         ``(heel strike, backup reset, fault index, implausible count, stride length (m), torque)``; the phase,
@@ -406,7 +408,7 @@ def step(
     l_norm = _kernels.stride_from_pseudo(ekf_x[2])[0]
     stride_m = l_norm * prm.leg_length
     torque = 0.0
-    if fault != _DIVERGED:  # the stack's rule: the stride in metres over the leg length (bit for bit)
+    if command and fault != _DIVERGED:  # the stack's rule: the stride in metres over the leg length (bit for bit)
         torque = _torque_at(prm, coef4, ekf_x[0], stride_m / prm.leg_length, ekf_x[3])
         if not 0.0 <= torque <= prm.max_torque:
             torque = 0.0

@@ -299,7 +299,7 @@ def _run(
                 fs[_batch._F_HEEL_SETTLE] = lp.heel_settle_s
                 _batch._ekf_reset(ekf_x, ekf_P, x0, start[1])
             hs, reset, fault, _, stride_m, _ = _batch.step(
-                tk, zk, given, prm, model, start, fs, ns, ekf, bk, tbe_x, hp_zi, scratch
+                tk, zk, given, prm, model, start, fs, ns, ekf, bk, tbe_x, hp_zi, scratch, False
             )
             code = _RESUMED_CODE if event == _RESUMED else _CODE_OF_FAULT[fault]
             y[2], y[3] = stride_m, ekf_x[3]

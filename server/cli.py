@@ -66,7 +66,7 @@ def _as_published_arg(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="the estimator stack with seed 000's filter as published, on its compiled fast path (default: the "
         "stack as a live session runs it, with the lock supervisor: standing still, heel strikes from the shank, "
-        "lock loss)",
+        "lock loss; compiled too, the same bytes as stepping it)",
     )
 
 

@@ -1,14 +1,15 @@
 """Compile every numba kernel once, at install, so that no server, replay or test compiles one while it works.
 
-The estimators' kernels (``estimators/_kernels.py``, ``_batch.py``, ``_sdre_kernel.py``, ``_fp_kernel.py``,
-the GP filters) and the replay CSV reader's (``sessions/formats/_fastcsv.py``) are ``@njit(cache=True)``:
-compiled at their first call, then loaded from ``__pycache__``. The server compiles the live sessions' kernels
-before it answers (:func:`gaitscope.sessions.live.warmup.warm_up`), but on a fresh install that took about
-40 s of its first start, and the replay's batch path compiled for 30 s inside the first replay. :func:`warm`
-runs both ahead: the server's warm-up, then the replay of a short synthetic walk's CSV supervised (the
-default) and on the batch path (``--as-published``). ``scripts/setup.sh`` runs it (``gaitscope warm``); with
-the cache written it takes a second or two. ``tests/sessions/offline/test_warm.py`` checks that a replay
-after it compiles nothing new (:func:`compiled`), ``tests/sessions/live/test_warmup.py`` the same of sessions.
+The estimators' kernels (``estimators/_kernels.py``, ``_batch.py``, ``_lock_batch.py``, ``_sdre_kernel.py``,
+``_fp_kernel.py``, the GP filters) and the replay CSV reader's (``sessions/formats/_fastcsv.py``) are
+``@njit(cache=True)``: compiled at their first call, then loaded from ``__pycache__``. The server compiles the
+live sessions' kernels before it answers (:func:`gaitscope.sessions.live.warmup.warm_up`), but on a fresh install
+that took about 40 s of its first start, and the replay's batch path compiled for 30 s inside the first replay.
+:func:`warm` runs both ahead: the server's warm-up, then the replay of a short synthetic walk's CSV on both
+compiled paths, supervised (the default) and as published (``--as-published``). ``scripts/setup.sh`` runs it
+(``gaitscope warm``); with the cache written it takes a second or two. ``tests/sessions/offline/test_warm.py``
+checks that a replay after it compiles nothing new (:func:`compiled`), ``tests/sessions/live/test_warmup.py`` the
+same of sessions.
 """
 
 from __future__ import annotations
