@@ -240,88 +240,88 @@ def rk4(
                 pm[j, i] = s
 
 
-@njit(cache=True, inline="always")  # numba IR inlining: ~15 % off the RK4 loop
-def two_link_sdc_derivative(
-    p: Array, a: float, exps: bool, x: Array, pm: Array, q: Array, sinv: Array, y: Array, u: Array, am: Array,
-    dx: Array, dp: Array,
-) -> None:  # fmt: skip
-    """:func:`derivative` of the two-link SDRE (model 2, SDC pair), value for value: the same operations on the
-    same operands in the same order, without the work whose result is known. :func:`evaluate`'s
-    :func:`two_link_rhs` and SDC rows share their sines, cosine and ``det`` (they recompute the same
-    expressions); the passive torque's exponentials are skipped when ``exps`` is False (``d3..d6`` all 0:
-    each term is ``0 * exp(0)``, exactly 0); products with the structural zeros of ``Cm`` (rows
-    ``e3, e4, [c20, 0, 0, 0], [0, c31, 0, 0]``) and of ``Am``'s first two rows (``e3, e4``) are left out,
-    and those with their ones taken as the factor itself. Adding an exact zero changes no finite sum, so
-    for finite ``x`` and ``pm`` the result equals :func:`derivative`'s (a signed zero aside); ``am`` is a
-    (2, 4) workspace for ``Am``'s last two rows."""
-    m11, m22, a1, b2, b3, g = p[0], p[1], p[2], p[3], p[4], p[5]
-    x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
-    d = x0 - x1
-    s, c = math.sin(d), math.cos(d)
-    sin0, sin1 = math.sin(x0), math.sin(x1)
-    tk = p[7] * (d - p[6]) + p[8] * (x2 - x3)
-    if exps:
-        tk = tk + p[9] * math.exp(p[10] * d) - p[11] * math.exp(p[12] * d)
-    r1 = -a1 * x3 * x3 * s - b2 * sin0 + u[0] - u[1] - tk
-    r2 = a1 * x2 * x2 * s - b3 * sin1 + u[1] + tk
-    det = m11 * m22 - a1 * a1 * c * c
-    f2 = (m22 * r1 - a1 * c * r2) / det
-    f3 = (-a1 * c * r1 + m11 * r2) / det
-    sinc0 = 1.0 - x0 * x0 / 6.0 if abs(x0) < 1e-8 else sin0 / x0  # sinc(), with the sine already taken
-    sinc1 = 1.0 - x1 * x1 / 6.0 if abs(x1) < 1e-8 else sin1 / x1
-    w11, w12, w22 = m22 / det, -a1 * c / det, m11 / det
-    w21 = w12
-    am[0, 0], am[0, 1] = -w11 * b2 * sinc0, -w12 * b3 * sinc1
-    am[0, 2], am[0, 3] = w12 * a1 * x2 * s, -w11 * a1 * x3 * s
-    am[1, 0], am[1, 1] = -w21 * b2 * sinc0, -w22 * b3 * sinc1
-    am[1, 2], am[1, 3] = w22 * a1 * x2 * s, -w21 * a1 * x3 * s
-    c20, c31 = -g * sinc0, -g * sinc1
-    e0, e1, e2, e3 = y[0] - x2, y[1] - x3, y[2] - -g * sin0, y[3] - -g * sin1  # y - h
-    for i in range(4):
-        # row i of K = P Cm^T S^-1
-        k0, k1, k2, k3 = pm[i, 2] * sinv[0], pm[i, 3] * sinv[1], pm[i, 0] * c20 * sinv[2], pm[i, 1] * c31 * sinv[3]
-        fi = x2 if i == 0 else x3 if i == 1 else f2 if i == 2 else f3
-        dx[i] = fi + k0 * e0 + k1 * e1 + k2 * e2 + k3 * e3
-        for j in range(4):
-            acc = q[i, j] + 2.0 * a * pm[i, j]
-            for l in range(4):  # + (Am P + P Am^T)[i, j], term by term; Am's rows 0 and 1 are e3 and e4
-                zero_i, zero_j = i < 2 and l != i + 2, j < 2 and l != j + 2  # Am[i, l], Am[j, l] structurally 0
-                if zero_i and zero_j:
-                    continue
-                if zero_i:
-                    acc += pm[i, l] * (1.0 if j < 2 else am[j - 2, l])
-                elif zero_j:
-                    acc += (1.0 if i < 2 else am[i - 2, l]) * pm[l, j]
-                else:
-                    acc += (1.0 if i < 2 else am[i - 2, l]) * pm[l, j] + pm[i, l] * (1.0 if j < 2 else am[j - 2, l])
-            # - (K Cm P)[i, j]; Cm P's rows are P's rows 2 and 3, c20 P's row 0, c31 P's row 1
-            acc -= k0 * pm[2, j]
-            acc -= k1 * pm[3, j]
-            acc -= k2 * (c20 * pm[0, j])
-            acc -= k3 * (c31 * pm[1, j])
-            dp[i, j] = acc
-
-
 @njit(cache=True)
 def two_link_sdre_rk4(
     p: Array, a: float, x: Array, pm: Array, q: Array, sinv: Array, y: Array, u: Array, hstep: float, substeps: int
 ) -> None:
-    """:func:`rk4` of the two-link SDRE on :func:`two_link_sdc_derivative`, with its stages in workspace
-    allocated once rather than per stage: the same values as :func:`rk4` (for finite ones; checked in
-    ``tests/estimators/test_sdre.py``), about 8x faster. Issue #24."""
+    """:func:`rk4` of the two-link SDRE (model 2, SDC pair), value for value: the same operations on the same
+    operands in the same order, without the work whose result is known or the allocations. Per step,
+    :func:`derivative` is written out in the stage loop (a function call, inlined or not, cost a fifth
+    more: numba counts references to the arrays it is passed), on workspace allocated once;
+    :func:`evaluate`'s :func:`two_link_rhs` and SDC rows share their sines, cosine and ``det`` (they
+    recompute the same expressions); the passive torque's exponentials are skipped when ``d3..d6`` are
+    all 0 (each term is ``0 * exp(0)``, exactly 0); products with the structural zeros of ``Cm`` (rows
+    ``e3, e4, [c20, 0, 0, 0], [0, c31, 0, 0]``) and of ``Am``'s first two rows (``e3, e4``) are left
+    out, and those with their ones taken as the factor itself. Adding an exact zero changes no finite
+    sum, so for finite values the result is :func:`rk4`'s (a signed zero aside; checked sample by sample
+    in ``tests/estimators/test_sdre.py``), about 7x faster. Issue #24."""
+    m11, m22, a1, b2, b3, g = p[0], p[1], p[2], p[3], p[4], p[5]
     exps = p[9] != 0.0 or p[10] != 0.0 or p[11] != 0.0 or p[12] != 0.0
     kx, kp = np.empty((4, 4)), np.empty((4, 4, 4))  # the four stages' derivatives
     xs, ps, am = np.empty(4), np.empty((4, 4)), np.empty((2, 4))  # a stage's point; Am's last two rows
     half = 0.5 * hstep
     for _ in range(substeps):
-        two_link_sdc_derivative(p, a, exps, x, pm, q, sinv, y, u, am, kx[0], kp[0])
-        for stage in range(1, 4):
-            w = hstep if stage == 3 else half
+        for stage in range(4):  # the stage's point, then the derivative there (eqs. 4.14-4.16, 4.23-4.25)
+            if stage == 0:
+                for i in range(4):
+                    xs[i] = x[i]
+                    for j in range(4):
+                        ps[i, j] = pm[i, j]
+            else:
+                w = hstep if stage == 3 else half
+                for i in range(4):
+                    xs[i] = x[i] + w * kx[stage - 1, i]
+                    for j in range(4):
+                        ps[i, j] = pm[i, j] + w * kp[stage - 1, i, j]
+            x0, x1, x2, x3 = xs[0], xs[1], xs[2], xs[3]
+            d = x0 - x1
+            s, c = math.sin(d), math.cos(d)
+            sin0, sin1 = math.sin(x0), math.sin(x1)
+            tk = p[7] * (d - p[6]) + p[8] * (x2 - x3)
+            if exps:
+                tk = tk + p[9] * math.exp(p[10] * d) - p[11] * math.exp(p[12] * d)
+            r1 = -a1 * x3 * x3 * s - b2 * sin0 + u[0] - u[1] - tk
+            r2 = a1 * x2 * x2 * s - b3 * sin1 + u[1] + tk
+            det = m11 * m22 - a1 * a1 * c * c
+            f2 = (m22 * r1 - a1 * c * r2) / det
+            f3 = (-a1 * c * r1 + m11 * r2) / det
+            sinc0 = 1.0 - x0 * x0 / 6.0 if abs(x0) < 1e-8 else sin0 / x0  # sinc(), the sine already taken
+            sinc1 = 1.0 - x1 * x1 / 6.0 if abs(x1) < 1e-8 else sin1 / x1
+            w11, w12, w22 = m22 / det, -a1 * c / det, m11 / det
+            w21 = w12
+            am[0, 0], am[0, 1] = -w11 * b2 * sinc0, -w12 * b3 * sinc1
+            am[0, 2], am[0, 3] = w12 * a1 * x2 * s, -w11 * a1 * x3 * s
+            am[1, 0], am[1, 1] = -w21 * b2 * sinc0, -w22 * b3 * sinc1
+            am[1, 2], am[1, 3] = w22 * a1 * x2 * s, -w21 * a1 * x3 * s
+            c20, c31 = -g * sinc0, -g * sinc1
+            e0, e1, e2, e3 = y[0] - x2, y[1] - x3, y[2] - -g * sin0, y[3] - -g * sin1  # y - h
             for i in range(4):
-                xs[i] = x[i] + w * kx[stage - 1, i]
+                # row i of K = P Cm^T S^-1
+                k0, k1 = ps[i, 2] * sinv[0], ps[i, 3] * sinv[1]
+                k2, k3 = ps[i, 0] * c20 * sinv[2], ps[i, 1] * c31 * sinv[3]
+                fi = x2 if i == 0 else x3 if i == 1 else f2 if i == 2 else f3
+                kx[stage, i] = fi + k0 * e0 + k1 * e1 + k2 * e2 + k3 * e3
                 for j in range(4):
-                    ps[i, j] = pm[i, j] + w * kp[stage - 1, i, j]
-            two_link_sdc_derivative(p, a, exps, xs, ps, q, sinv, y, u, am, kx[stage], kp[stage])
+                    acc = q[i, j] + 2.0 * a * ps[i, j]
+                    # + (Am P + P Am^T)[i, j], term by term; Am's rows 0 and 1 are e3 and e4
+                    for l in range(4):
+                        zero_i, zero_j = i < 2 and l != i + 2, j < 2 and l != j + 2  # Am[i, l], Am[j, l] are 0
+                        a_il = 1.0 if i < 2 else am[i - 2, l]
+                        a_jl = 1.0 if j < 2 else am[j - 2, l]
+                        if zero_i and zero_j:
+                            continue
+                        if zero_i:
+                            acc += ps[i, l] * a_jl
+                        elif zero_j:
+                            acc += a_il * ps[l, j]
+                        else:
+                            acc += a_il * ps[l, j] + ps[i, l] * a_jl
+                    # - (K Cm P)[i, j]; Cm P's rows are P's rows 2 and 3, c20 P's row 0, c31 P's row 1
+                    acc -= k0 * ps[2, j]
+                    acc -= k1 * ps[3, j]
+                    acc -= k2 * (c20 * ps[0, j])
+                    acc -= k3 * (c31 * ps[1, j])
+                    kp[stage, i, j] = acc
         sixth = hstep / 6.0
         for i in range(4):
             x[i] += sixth * (kx[0, i] + 2.0 * kx[1, i] + 2.0 * kx[2, i] + kx[3, i])
@@ -329,9 +329,9 @@ def two_link_sdre_rk4(
                 pm[i, j] += sixth * (kp[0, i, j] + 2.0 * kp[1, i, j] + 2.0 * kp[2, i, j] + kp[3, i, j])
         for i in range(4):
             for j in range(i + 1, 4):
-                s = 0.5 * (pm[i, j] + pm[j, i])
-                pm[i, j] = s
-                pm[j, i] = s
+                mean = 0.5 * (pm[i, j] + pm[j, i])
+                pm[i, j] = mean
+                pm[j, i] = mean
 
 
 @njit(cache=True)
