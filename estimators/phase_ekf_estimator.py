@@ -133,7 +133,7 @@ class PhaseEKFEstimator:
             if sup.config.backdate_resume and sup.onset is not None:  # walking began when the motion did
                 x0[0] += min(t - sup.onset, sup.config.still_s) * x0[1]
             p.restart(x0, sup.config.heel_settle_s)
-        e = p.step(t, z[_SENSORS], given)
+        e = p.step(t, z[_SENSORS], given, command=False)  # the stack commands the torque
         fault = _RESUMED if event == "resumed" else _FAULT_CODE[e.fault]
         why = sup.lost(t, e.heel_strike, e.phase_rate)
         phase, rate = e.phase, e.phase_rate

@@ -33,8 +33,9 @@ Pure computation (no I/O, no clocks); the torque is always a finite number in ``
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from operator import itemgetter
 from typing import Final
 
 import numpy as np
@@ -69,6 +70,16 @@ _RESUMED: Final = 5.0  # FAULTS.index("resumed"): restarted as walking resumed a
 #: the primary's when it has the output, else the first healthy estimator's in stack order that has it, else
 #: None (not estimated). The phase is the primary's alone (None without a primary).
 REPORTED: Final = ("phase_rate", "stride_length_m", "incline_deg", "foot_pred_deg", "shank_pred_deg")
+
+
+def _reader(names: tuple[str, ...]) -> Callable[[Mapping[str, float]], tuple[float, ...]]:
+    """What reads the values of ``names`` from a mapping holding them all, as a tuple in that order."""
+    if len(names) > 1:
+        return itemgetter(*names)  # a tuple for two names or more
+    if names:
+        (only,) = names
+        return lambda values: (values[only],)
+    return lambda values: ()
 
 
 @dataclass
@@ -167,6 +178,10 @@ class EstimatorStack:
             raise ValueError(f"blend_s must be a number of seconds >= 0, got {blend_s}")
         self.outputs = tuple(output_names(e) for e in self.estimators)
         self._inputs = [input_names(e) for e in self.estimators]
+        #: every input channel missing (NaN), for a sample's values to be laid over; per estimator, what reads
+        #: its ``z`` from them in its order (a tuple)
+        self._blank = dict.fromkeys((c for names in self._inputs for c in names), math.nan)
+        self._read_z = [_reader(names) for names in self._inputs]
         self._index = [{n: i for i, n in enumerate(outs)} for outs in self.outputs]
         self._derived = [[(i, n) for i, n in enumerate(outs) if n in _CHANNELS] for outs in self.outputs]
         self._imu_code = [index.get("imu_code") for index in self._index]  # a front end's problem code
@@ -268,12 +283,14 @@ class EstimatorStack:
         resets: list[str] = []
         primary_failed = False
         primary_code = ""
+        values = self._blank.copy()  # every input: the sample's value, else NaN (missing)
+        values.update(channels)
         for k, est in enumerate(self.estimators):
             name = self.names[k]
             if name in self.failed:
                 outputs.append(None)
                 continue
-            z = np.array([channels.get(c, math.nan) for c in self._inputs[k]], dtype=np.float64)
+            z = np.array(self._read_z[k](values), dtype=np.float64)
             try:
                 y = np.asarray(est.step(t, z), dtype=np.float64)
                 reason = self._unhealthy(k, y)
@@ -289,7 +306,7 @@ class EstimatorStack:
             if code is None or y[code] != _IMU_MISSING:  # a held reading is not a measurement
                 for i, channel in self._derived[k]:
                     if math.isnan(channels.get(channel, math.nan)):
-                        channels[channel] = float(y[i])
+                        channels[channel] = values[channel] = float(y[i])
             fault = self._index[k].get("fault")
             if fault is not None and y[fault] >= _DIVERGED:
                 code = y[fault]

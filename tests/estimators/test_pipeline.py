@@ -1,11 +1,11 @@
 """The streaming estimator stack on simulated walking: tracking, heel-strike backup, torque bounds."""
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
 
-from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
+from gaitscope.estimators.pipeline import GaitEstimate, GaitStatePipeline, PipelineConfig, TrainedModel
 from gaitscope.sessions.offline.crossval import stride_rmse, wrapped
 from gaitscope.sessions.offline.replay import measurements
 from gaitscope.sessions.synth.trials import replay_input, sensor_trial
@@ -125,3 +125,19 @@ def test_a_restart_leaves_the_heel_positions_out_until_their_high_pass_settles(
         ea, eb = a.step(float(t[j]), z[j]), b.step(float(t[j]), no_heel[j])
     assert ea.phase != eb.phase
     assert a.restarts == 1
+
+
+def test_a_step_returns_a_whole_estimate_and_without_a_command_the_same_state(small_model: TrainedModel, trial) -> None:
+    """Every field of the estimate is set (it is made without the dataclass's ``__init__``) and it equals the
+    one the dataclass makes; ``command=False`` changes the torque (0) and nothing else."""
+    _, data, leg, mass = trial
+    z = measurements(data)
+    config = PipelineConfig(leg_length=leg, body_mass_kg=mass)
+    pipe, bare = GaitStatePipeline(small_model, config), GaitStatePipeline(small_model, config)
+    for k, t in enumerate(data.time_s[:600]):
+        e = pipe.step(float(t), z[k], bool(data.heel_strike[k]))
+        b = bare.step(float(t), z[k], bool(data.heel_strike[k]), command=False)
+        assert set(vars(e)) == {f.name for f in fields(GaitEstimate)}
+        assert e == GaitEstimate(**vars(e)) and hash(e) == hash(GaitEstimate(**vars(e)))
+        assert b == replace(e, torque_Nm=0.0) and b.fault == e.fault != "torque"
+    np.testing.assert_array_equal(pipe.ekf.x, bare.ekf.x)
