@@ -107,7 +107,7 @@ class SDREKnee:
 
         Written for its cost (issue #24: the Python around the kernel was a third of the sample): Python
         floats, one compiled call for the divergence check (:func:`gaitscope.estimators._sdre_kernel.healthy`)."""
-        w_th, a_th, w_sh, a_sh = map(float, z[:4].tolist())
+        w_th, a_th, w_sh, a_sh = z[:4].tolist()  # Python numbers (floats from the float64 the stack sends)
         if not (math.isfinite(w_th) and math.isfinite(a_th) and math.isfinite(w_sh) and math.isfinite(a_sh)):
             return np.array(self._out)
         dt, restart = elapsed(self._last, t)
