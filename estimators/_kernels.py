@@ -614,3 +614,9 @@ def covariance_ok(P: Array, max_variance: float) -> bool:
         if P[i, i] < 0.0 or P[i, i] > max_variance:
             return False
     return True
+
+
+@njit(cache=True)
+def outputs_ok(y: Array, P: Array, max_variance: float) -> bool:
+    """:func:`finite_sum` of ``y`` and :func:`covariance_ok` of ``P`` in one call."""
+    return finite_sum(y) and covariance_ok(P, max_variance)

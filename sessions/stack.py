@@ -185,6 +185,8 @@ class EstimatorStack:
         self._index = [{n: i for i, n in enumerate(outs)} for outs in self.outputs]
         self._derived = [[(i, n) for i, n in enumerate(outs) if n in _CHANNELS] for outs in self.outputs]
         self._imu_code = [index.get("imu_code") for index in self._index]  # a front end's problem code
+        self._fault = [index.get("fault") for index in self._index]  # where each one's fault code is
+        self._shape = [(len(outs),) for outs in self.outputs]  # of a step's result
         #: each estimator's own torque command output (``torque_Nm``), None for those without one
         self._own_torque = [idx.get(OWN_TORQUE) for idx in self._index]
         self._position = {n: k for k, n in enumerate(self.names)}
@@ -307,7 +309,7 @@ class EstimatorStack:
                 for i, channel in self._derived[k]:
                     if math.isnan(channels.get(channel, math.nan)):
                         channels[channel] = values[channel] = float(y[i])
-            fault = self._index[k].get("fault")
+            fault = self._fault[k]
             if fault is not None and y[fault] >= _DIVERGED:
                 code = y[fault]
                 if code == _DIVERGED or code == _LOST:
@@ -336,12 +338,14 @@ class EstimatorStack:
     def _unhealthy(self, k: int, y: NDArray[np.float64]) -> str:
         """Why estimator ``k``'s step result or covariance counts as a failure ("" if it does not)."""
         names = self.outputs[k]
-        if y.shape != (len(names),):
+        if y.shape != self._shape[k]:
             return f"returned {y.size} values for its {len(names)} outputs"
         P = self.estimators[k].covariance
-        square = P is not None and P.ndim == 2 and P.shape[0] == P.shape[1]
-        if _kernels.finite_sum(y) and (P is None or (square and _kernels.covariance_ok(P, self.max_variance))):
-            return ""  # healthy, found in compiled code; the reasons below say why not
+        if P is None:
+            if _kernels.finite_sum(y):
+                return ""  # healthy, found in compiled code; the reasons below say why not
+        elif P.ndim == 2 and P.shape[0] == P.shape[1] and _kernels.outputs_ok(y, P, self.max_variance):
+            return ""
         # On a handful of numbers, Python's sum of a list is several times cheaper than numpy's
         # reductions; a sum is finite only if every term is (it may also overflow near 1e308: such
         # values count as failed too).

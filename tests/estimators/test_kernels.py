@@ -39,6 +39,7 @@ def test_the_stack_health_check_decides_as_the_python_rule(n: int) -> None:
             P[np.diag_indices(n)] = 1e308  # a finite diagonal whose sum overflows
         expected = _python_health(y, P, 1e3)
         assert (_kernels.finite_sum(y) and _kernels.covariance_ok(P, 1e3)) == expected
+        assert _kernels.outputs_ok(y, P, 1e3) == expected
         assert _kernels.finite_sum(y) == _python_health(y, None, 1e3)
 
 
