@@ -13,6 +13,7 @@ import { api, apiBytes, query } from "./api.js";
 /** @typedef {import("./wire.js").AuditEntry} AuditEntry */
 /** @typedef {import("./wire.js").AuditVerification} AuditVerification */
 /** @typedef {import("./wire.js").CalibrationRequest} CalibrationRequest */
+/** @typedef {import("./wire.js").ClusterNode} ClusterNode */
 /** @typedef {import("./wire.js").CompareRequest} CompareRequest */
 /** @typedef {import("./wire.js").Comparison} Comparison */
 /** @typedef {import("./wire.js").DeviceToken} DeviceToken */
@@ -92,6 +93,39 @@ export function wireSchemaUrl() {
  */
 export function wireSchema() {
   return api("GET", wireSchemaUrl());
+}
+
+/**
+ * The address of `GET /api/cluster/route`.
+ * @returns {string}
+ */
+export function routeUrl() {
+  return "/api/cluster/route";
+}
+
+/**
+ * `GET /api/cluster/route`: Which node answers ``X-Forwarded-Method X-Forwarded-Uri``: ``X-Gaitscope-
+ * Node``, ``X-Gaitscope-Upstream``.
+ * @returns {Promise<null>}
+ */
+export function route() {
+  return api("GET", routeUrl());
+}
+
+/**
+ * The address of `GET /api/cluster/nodes`.
+ * @returns {string}
+ */
+export function listNodesUrl() {
+  return "/api/cluster/nodes";
+}
+
+/**
+ * `GET /api/cluster/nodes`: Every node of the cluster, live or gone, with the sessions each runs.
+ * @returns {Promise<Array<ClusterNode>>}
+ */
+export function listNodes() {
+  return api("GET", listNodesUrl());
 }
 
 /**

@@ -49,6 +49,18 @@
  */
 
 /**
+ * A gaitscope process sharing this database (``GET /api/cluster/nodes``; ``sessions/cluster``).
+ * @typedef {object} ClusterNode
+ * @property {string} name its node name (GAITSCOPE_NODE)
+ * @property {string} address host:port the proxy reaches it at
+ * @property {"up" | "gone"} state gone: its beat stopped and another node took its sessions over
+ * @property {string} seen_utc its last beat, ISO-8601 UTC
+ * @property {number} running sessions it runs (>= 0)
+ * @property {boolean} live up, with a beat younger than the timeout
+ * @property {boolean} this the node that answered
+ */
+
+/**
  * Assistance and estimator tuning of one session (seed 000's defaults at 1.0).
  * @typedef {object} SessionSettings
  * @property {number} [torque_gain=1.0] x the 1/5-scaled biological moment (0..3)
@@ -1533,6 +1545,7 @@ export const FIELD_LIMITS = deepFreeze({
     notes: { maxLength: 2000 },
   },
   SessionCreate: { subject_id: { min: 1, max: 9.223372036854776e+18 } },
+  ClusterNode: { running: { min: 0 } },
   SessionSettings: {
     torque_gain: { min: 0.0, max: 3.0 },
     max_torque_Nm: { min: 0.0, max: 80.0 },

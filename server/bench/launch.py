@@ -61,13 +61,15 @@ def start_server(
     env: Mapping[str, str] | None = None,
     output: IO[bytes] | int = subprocess.DEVNULL,
     timeout: float = 90.0,
+    port: int | None = None,
 ) -> RunningServer:
-    """``gaitscope serve --port <free> --data-dir data_dir *flags``, returned once ``/api/health`` answers.
+    """``gaitscope serve --port <port> --data-dir data_dir *flags``, returned once ``/api/health`` answers
+    (``port``: a free one by default).
 
     Raises:
         RuntimeError: the process exited, or did not answer within ``timeout`` seconds (it is stopped).
     """
-    port = free_port()
+    port = port or free_port()
     exe = str(Path(sys.executable).with_name("gaitscope"))
     cmd = [exe, "serve", "--port", str(port), "--data-dir", str(data_dir), *flags]
     proc = subprocess.Popen(cmd, env=None if env is None else dict(env), stdout=output, stderr=subprocess.STDOUT)

