@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import json
 import math
+import ssl
 import time
 import urllib.request
 from collections.abc import Callable
@@ -38,6 +39,17 @@ def post(url: str, body: dict[str, Any], headers: dict[str, str] | None = None) 
     all_headers = {"Content-Type": "application/json", **(headers or {})}
     req = urllib.request.Request(url, json.dumps(body).encode(), all_headers, method="POST")
     with urllib.request.urlopen(req, timeout=10) as r:
+        return json.loads(r.read())
+
+
+def call(base: str, method: str, path: str, body: Any = None, context: ssl.SSLContext | None = None) -> Any:
+    """One JSON request to ``base + path`` (``body`` as JSON, if any); the JSON answer (an error status raises
+    ``HTTPError``). ``context``: the TLS context of an ``https`` base."""
+    data = None if body is None else json.dumps(body).encode()
+    request = urllib.request.Request(f"{base}{path}", data=data, method=method)
+    if data is not None:
+        request.add_header("Content-Type", "application/json")
+    with urllib.request.urlopen(request, timeout=30, context=context) as r:
         return json.loads(r.read())
 
 

@@ -10,6 +10,7 @@ Runs only against PostgreSQL (``GAITSCOPE_TEST_POSTGRES``): cluster nodes share 
 from __future__ import annotations
 
 import asyncio
+import functools
 import json
 import os
 import socket
@@ -21,13 +22,13 @@ import urllib.error
 import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
 import websockets
 
 from gaitscope.server.bench.launch import RunningServer, free_port, start_server
 from gaitscope.server.bench.load import device_frames
+from tests.load import call
 from tests.waiting import wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -47,6 +48,7 @@ pytestmark = [
 INSECURE = ssl.create_default_context()
 INSECURE.check_hostname = False
 INSECURE.verify_mode = ssl.CERT_NONE
+_call = functools.partial(call, context=INSECURE)
 
 
 @pytest.fixture
@@ -91,15 +93,6 @@ def proxy(tmp_path: Path, database_url: str) -> Iterator[str]:
             node.stop()
         for log in logs:
             log.close()
-
-
-def _call(base: str, method: str, path: str, body: Any = None) -> Any:
-    data = None if body is None else json.dumps(body).encode()
-    request = urllib.request.Request(f"{base}{path}", data=data, method=method)
-    if data is not None:
-        request.add_header("Content-Type", "application/json")
-    with urllib.request.urlopen(request, timeout=30, context=INSECURE) as r:
-        return json.loads(r.read())
 
 
 async def _torque_replies(ws_base: str, sid: int, token: str, seconds: float) -> int:

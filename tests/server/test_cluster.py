@@ -23,7 +23,6 @@ import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import pytest
 import websockets
@@ -31,6 +30,7 @@ import websockets
 from gaitscope.server.bench.launch import RunningServer, start_server
 from gaitscope.server.bench.load import device_frames
 from gaitscope.server.workers import WorkersError, find_nginx
+from tests.load import call
 from tests.waiting import wait_until
 
 RATE = 100.0
@@ -42,15 +42,6 @@ pytestmark = [
         reason="GAITSCOPE_TEST_POSTGRES is not set (bash scripts/postgres.sh .venv/bin/python -m pytest ...)",
     ),
 ]
-
-
-def _call(base: str, method: str, path: str, body: Any = None) -> Any:
-    data = None if body is None else json.dumps(body).encode()
-    request = urllib.request.Request(f"{base}{path}", data=data, method=method)
-    if data is not None:
-        request.add_header("Content-Type", "application/json")
-    with urllib.request.urlopen(request, timeout=30) as r:
-        return json.loads(r.read())
 
 
 @pytest.fixture
@@ -159,17 +150,17 @@ def test_a_killed_node_loses_no_recording_and_the_other_streams_on(cluster: Runn
     base, ws_base = cluster.base, cluster.base.replace("http://", "ws://")
     frames = device_frames(RATE)
     channels = [k for k in frames[0] if k != "type"]
-    subject = _call(base, "POST", "/api/subjects", {"code": "CL01", "leg_length_m": 0.9, "mass_kg": 70})
+    subject = call(base, "POST", "/api/subjects", {"code": "CL01", "leg_length_m": 0.9, "mass_kg": 70})
     source = {"kind": "device", "rate_hz": RATE, "channels": channels}
-    made = [_call(base, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source}) for _ in range(4)]
+    made = [call(base, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source}) for _ in range(4)]
     nodes = {s["id"]: s["node"] for s in made}
     assert sorted(nodes.values()) == ["gs-1", "gs-1", "gs-2", "gs-2"]  # new sessions to the least-loaded node
-    tokens = {sid: _call(base, "POST", f"/api/sessions/{sid}/device-tokens", {})["token"] for sid in nodes}
+    tokens = {sid: call(base, "POST", f"/api/sessions/{sid}/device-tokens", {})["token"] for sid in nodes}
     victims = [sid for sid, node in nodes.items() if node == "gs-2"]
     survivors = [sid for sid, node in nodes.items() if node == "gs-1"]
     # every session's REST calls reach its node through the proxy (else: 409 "runs on gs-N")
     for sid in nodes:
-        _call(base, "PATCH", f"/api/sessions/{sid}/settings", {"torque_gain": 0.9})
+        call(base, "PATCH", f"/api/sessions/{sid}/settings", {"torque_gain": 0.9})
 
     async def stream() -> tuple[dict[int, Device], dict[int, Browser], float]:
         until = time.monotonic() + 10.0
@@ -192,46 +183,46 @@ def test_a_killed_node_loses_no_recording_and_the_other_streams_on(cluster: Runn
 
     # the killed node's sessions end stopped (its restart or the other node recovers them), nothing recorded lost
     def stopped() -> bool:
-        return all(_call(base, "GET", f"/api/sessions/{sid}")["state"] == "stopped" for sid in victims)
+        return all(call(base, "GET", f"/api/sessions/{sid}")["state"] == "stopped" for sid in victims)
 
     wait_until(stopped, timeout=90, what="the killed node's sessions stopped", interval=0.5)
     for sid in victims:
-        trials = _call(base, "GET", f"/api/trials?session_id={sid}")
+        trials = call(base, "GET", f"/api/trials?session_id={sid}")
         seen = len([t for t, _ in browsers[sid].states if t <= killed])
         assert [t["status"] for t in trials] == ["recovered"], trials
         assert trials[0]["samples"] >= seen - RATE, (trials[0]["samples"], seen)  # at most the last second lost
-        events = [e["text"] for e in _call(base, "GET", f"/api/sessions/{sid}/events")]
+        events = [e["text"] for e in call(base, "GET", f"/api/sessions/{sid}/events")]
         assert events[-1].endswith("session stopped"), events
         code, reason = asyncio.run(_closed_with(ws_base, sid, tokens[sid]))
         assert code == 4404 and f"session {sid} is not running" in reason, (code, reason)
 
     # the supervisor started gs-2 again under its name: both nodes live, and a new session runs and answers
     def both_live() -> bool:
-        return sorted(n["name"] for n in _call(base, "GET", "/api/cluster/nodes") if n["live"]) == ["gs-1", "gs-2"]
+        return sorted(n["name"] for n in call(base, "GET", "/api/cluster/nodes") if n["live"]) == ["gs-1", "gs-2"]
 
     wait_until(both_live, timeout=120, what="gs-2 back after its restart", interval=0.5)
-    again = _call(base, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
+    again = call(base, "POST", "/api/sessions", {"subject_id": subject["id"], "source": source})
     assert again["state"] == "running" and again["node"] == "gs-2"  # the least loaded: gs-1 still runs 2
-    token = _call(base, "POST", f"/api/sessions/{again['id']}/device-tokens", {})["token"]
+    token = call(base, "POST", f"/api/sessions/{again['id']}/device-tokens", {})["token"]
     device = asyncio.run(_device(ws_base, again["id"], token, frames, time.monotonic() + 2.0))
     assert len(device.replies) > RATE and device.closed_at is None
     for sid in [*survivors, again["id"]]:
-        _call(base, "POST", f"/api/sessions/{sid}/stop", {})
+        call(base, "POST", f"/api/sessions/{sid}/stop", {})
     # an upload's chunks all reach the node that began it (it holds the upload in memory): a recovered
     # recording, downloaded and uploaded again through the proxy, chunk by chunk
     with urllib.request.urlopen(f"{base}/api/trials/{trials[0]['id']}/download", timeout=30) as r:
         data = r.read()
     body = {"filename": "recovered.mcap", "size": len(data), "subject_id": subject["id"]}
-    up = _call(base, "POST", "/api/uploads", body)
+    up = call(base, "POST", "/api/uploads", body)
     assert len(data) > 2 * up["chunk_size"]
     for offset in range(0, len(data), up["chunk_size"]):
         chunk = data[offset : offset + up["chunk_size"]]
         request = urllib.request.Request(f"{base}/api/uploads/{up['id']}?offset={offset}", data=chunk, method="PUT")
         urllib.request.urlopen(request, timeout=30).close()
-    uploaded = _call(base, "POST", f"/api/uploads/{up['id']}/finish", {})
+    uploaded = call(base, "POST", f"/api/uploads/{up['id']}/finish", {})
     assert uploaded["status"] == "uploaded" and uploaded["samples"] == trials[0]["samples"], uploaded
     # the route question is the proxy's own: not reachable from outside
     with pytest.raises(urllib.error.HTTPError) as refused:
-        _call(base, "GET", "/api/cluster/route")
+        call(base, "GET", "/api/cluster/route")
     refused.value.close()
     assert refused.value.code == 404

@@ -33,6 +33,8 @@ EXPECTED: dict[tuple[str, str], str] = {
     ("GET", "/docs"): "read",
     ("GET", "/redoc"): "read",
     ("GET", "/api/schema"): "read",
+    ("GET", "/api/cluster/route"): "public",  # the proxy's question: which node runs a session (404 off a cluster)
+    ("GET", "/api/cluster/nodes"): "read",
     ("POST", "/api/auth/login"): "public",
     ("POST", "/api/auth/logout"): "login",
     ("GET", "/api/auth/me"): "login",
