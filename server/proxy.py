@@ -8,7 +8,9 @@ runs the session, or for a new one the least-loaded node. nginx maps the name it
 upstream and forwards the request there, websockets included. Everything else (the dashboard's files,
 subjects, review, reports) goes to any node (least connections): they share the database and the data folder.
 Uploads and report exports live in the memory of the node that began them until they finish, so their
-requests go to one node per client (a consistent hash of the client's address and login cookie).
+requests go to one node per client (a consistent hash of the client's address and login cookie); so does
+``/api/health``, whose ``instance`` the dashboard watches to tell a restarted server from a dropped network
+(from alternating nodes it would see a restart every second).
 
 A node name the configuration does not know (a node of another machine sharing the database) maps to "any
 node", which refuses a session it does not run with the name of the node that does. The route question is
@@ -122,7 +124,7 @@ http {{
         location = /api/cluster/route {{
             return 404;
         }}
-        location ~ ^/api/(uploads|exports|sessions/[0-9]+/exports|trials/[0-9]+/exports) {{
+        location ~ ^/api/(health$|uploads|exports|sessions/[0-9]+/exports|trials/[0-9]+/exports) {{
             proxy_pass http://gs_sticky;
             proxy_set_header Upgrade "";
             proxy_set_header Connection "";

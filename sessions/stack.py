@@ -36,7 +36,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from operator import itemgetter
-from typing import Final
+from typing import Any, Final
 
 import numpy as np
 from numpy.typing import NDArray
@@ -73,7 +73,8 @@ REPORTED: Final = ("phase_rate", "stride_length_m", "incline_deg", "foot_pred_de
 
 
 def _reader(names: tuple[str, ...]) -> Callable[[Mapping[str, float]], tuple[float, ...]]:
-    """What reads the values of ``names`` from a mapping holding them all, as a tuple in that order."""
+    """What reads the values of ``names`` from a mapping holding them all, as a tuple in that order. Not part
+    of a captured state (:meth:`EstimatorStack.__getstate__`): made again from the names when it is loaded."""
     if len(names) > 1:
         return itemgetter(*names)  # a tuple for two names or more
     if names:
@@ -181,7 +182,7 @@ class EstimatorStack:
         #: every input channel missing (NaN), for a sample's values to be laid over; per estimator, what reads
         #: its ``z`` from them in its order (a tuple)
         self._blank = dict.fromkeys((c for names in self._inputs for c in names), math.nan)
-        self._read_z = [_reader(names) for names in self._inputs]
+        self._read_z = [_reader(names) for names in self._inputs]  # made again from _inputs on load (__setstate__)
         self._index = [{n: i for i, n in enumerate(outs)} for outs in self.outputs]
         self._derived = [[(i, n) for i, n in enumerate(outs) if n in _CHANNELS] for outs in self.outputs]
         self._imu_code = [index.get("imu_code") for index in self._index]  # a front end's problem code
@@ -273,6 +274,17 @@ class EstimatorStack:
         self._reading = None
 
     # --- per sample -----------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        """The state a re-run restores (``sessions/formats/stack_state.py``): everything but the input readers,
+        which are functions its loader refuses; :meth:`__setstate__` makes them again from the inputs' names."""
+        state = dict(self.__dict__)
+        del state["_read_z"]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._read_z = [_reader(names) for names in self._inputs]
+
     def step(self, t: float, channels: dict[str, float]) -> StackSample:
         """One sample at session time ``t`` (s, increasing).
 

@@ -131,6 +131,7 @@ def test_caddy_routes_each_sessions_traffic_to_its_node(proxy: str) -> None:
         assert replies > RATE, (s["node"], replies)
     for s in made:
         assert _call(proxy, "POST", f"/api/sessions/{s['id']}/stop", {})["state"] == "stopped"
+    assert len({_call(proxy, "GET", "/api/health")["instance"] for _ in range(10)}) == 1  # one node per client
     with pytest.raises(urllib.error.HTTPError) as refused:
         _call(proxy, "GET", "/api/cluster/route")
     refused.value.close()

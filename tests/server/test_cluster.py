@@ -221,6 +221,8 @@ def test_a_killed_node_loses_no_recording_and_the_other_streams_on(cluster: Runn
         urllib.request.urlopen(request, timeout=30).close()
     uploaded = call(base, "POST", f"/api/uploads/{up['id']}/finish", {})
     assert uploaded["status"] == "uploaded" and uploaded["samples"] == trials[0]["samples"], uploaded
+    # the dashboard's health check stays on one node (its `instance` changes only when that node restarts)
+    assert len({call(base, "GET", "/api/health")["instance"] for _ in range(10)}) == 1
     # the route question is the proxy's own: not reachable from outside
     with pytest.raises(urllib.error.HTTPError) as refused:
         call(base, "GET", "/api/cluster/route")
