@@ -286,21 +286,6 @@ def _reset_diverged(
 
 
 @njit(cache=True)
-def _torque_at(prm: _Params, coef4: Array, p: float, l: float, r: float) -> float:
-    """``TorqueProfile.torque_at`` with the pipeline's mass x gain and bound."""
-    if not p % 1.0 <= prm.cutoff_phase:
-        return 0.0
-    tau = prm.torque_scale * prm.mass_times_gain * _kernels.model_value(coef4, 0, p, l, r)
-    if not np.isfinite(tau):
-        return 0.0
-    if 0.0 > tau:  # max(tau, 0.0), then min(., max_torque), as Python picks between equals
-        tau = 0.0
-    if prm.max_torque < tau:
-        tau = prm.max_torque
-    return tau
-
-
-@njit(cache=True)
 def _scratch(model: tuple) -> tuple:
     """The work arrays of :func:`step`, and the backup's R factor (``model[3]``) for when all channels are there."""
     rbar, rbar_L = model[2], model[3]
@@ -409,7 +394,10 @@ def step(
     stride_m = l_norm * prm.leg_length
     torque = 0.0
     if command and fault != _DIVERGED:  # the stack's rule: the stride in metres over the leg length (bit for bit)
-        torque = _torque_at(prm, coef4, ekf_x[0], stride_m / prm.leg_length, ekf_x[3])
+        torque = _kernels.bounded_torque(
+            coef4, ekf_x[0], stride_m / prm.leg_length, ekf_x[3], prm.cutoff_phase, prm.torque_scale,
+            prm.mass_times_gain, prm.max_torque,
+        )
         if not 0.0 <= torque <= prm.max_torque:
             torque = 0.0
             if fault == _OK:
@@ -593,7 +581,6 @@ def store(pipe: GaitStatePipeline, st: State) -> None:
     for mine, theirs in zip(ekf_arrays, (ekf.x, ekf.P, ekf.y, ekf.S, ekf.K, ekf.z_pred, ekf.H, ekf.R), strict=True):
         theirs[...] = mine
     ekf.log_likelihood, ekf.mahalanobis = float(fs[_F_LOG_LIKELIHOOD]), float(fs[_F_MAHALANOBIS])
-    ekf._q_dt = -1.0  # its cached Q is recomputed at the next predict
     if bk is not None:
         bk_arrays = (bk.x, bk.P, bk._y, bk._S, bk._K)
         for mine, theirs in zip(bk_work, bk_arrays, strict=True):

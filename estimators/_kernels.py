@@ -120,6 +120,24 @@ def model_value(coef: Array, o: int, p: float, l: float, r: float) -> float:
 
 
 @njit(cache=True)
+def bounded_torque(
+    coef4: Array, p: float, l: float, r: float, cutoff: float, scale: float, mass_gain: float, max_torque: float
+) -> float:
+    """``TorqueProfile.torque_at(p, l, r, mass_gain, max_torque)`` scaled by ``scale``, as the compiled loops
+    command it (``_batch``, ``_lock_batch``): 0 after ``cutoff`` or when not finite, else within [0, max]."""
+    if not p % 1.0 <= cutoff:
+        return 0.0
+    tau = scale * mass_gain * model_value(coef4, 0, p, l, r)
+    if not np.isfinite(tau):
+        return 0.0
+    if 0.0 > tau:  # max(tau, 0.0), then min(., max_torque), as Python picks between equals
+        tau = 0.0
+    if max_torque < tau:
+        tau = max_torque
+    return tau
+
+
+@njit(cache=True)
 def measurement(
     coef: Array, x: Array, leg_length: float, terms: Array, h: Array, H: Array, phase_column: bool = True
 ) -> None:

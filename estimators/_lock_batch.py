@@ -192,21 +192,6 @@ def _tbe_step(lp: _LockParams, sfs: Array, sns: NDArray[np.int64], t: float, hee
 
 
 @njit(cache=True)
-def _torque_at(lp: _LockParams, coef4: Array, p: float, l: float, r: float) -> float:
-    """``TorqueProfile.torque_at(p, l, r, mass x gain, max_torque)`` of the stack."""
-    if not p % 1.0 <= lp.cutoff_phase:
-        return 0.0
-    tau = lp.torque_scale * lp.mass_times_gain * _kernels.model_value(coef4, 0, p, l, r)
-    if not np.isfinite(tau):
-        return 0.0
-    if 0.0 > tau:  # max(tau, 0.0), then min(., max_torque), as Python picks between equals
-        tau = 0.0
-    if lp.max_torque < tau:
-        tau = lp.max_torque
-    return tau
-
-
-@njit(cache=True)
 def _finite(v: float) -> float:
     return v if np.isfinite(v) else 0.0
 
@@ -321,7 +306,10 @@ def _run(
         torque = 0.0  # EstimatorStack._command, then its bound
         if not (y[6] == _DIVERGED_CODE or y[6] == _LOST_CODE):
             still = y[9] if 0.0 <= y[9] <= 1.0 else 0.0
-            torque = _torque_at(lp, coef4, y[0], y[2] / lp.leg_length, y[3]) * (1.0 - still)
+            torque = _kernels.bounded_torque(
+                coef4, y[0], y[2] / lp.leg_length, y[3], lp.cutoff_phase, lp.torque_scale, lp.mass_times_gain,
+                lp.max_torque,
+            ) * (1.0 - still)
         if not np.isfinite(torque):
             torque = 0.0
         if 0.0 > torque:

@@ -148,8 +148,6 @@ class PhaseEKF:
         buf[_kernels.EKF_LEG] = self.leg_length
         buf[_kernels.EKF_LOG2PI] = math.log(2.0 * math.pi)
         self._set_q()
-        #: Unused: Q is made inside the compiled predict now. Kept while ``_batch.run`` still resets it.
-        self._q_dt = -1.0
 
     def _set_q(self) -> None:
         """The process noise's constants into the buffer (``EKFConfig.q_diag`` makes Q from them)."""
