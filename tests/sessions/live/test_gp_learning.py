@@ -154,8 +154,8 @@ def test_a_gp_ekf_session_retrains_logs_records_serves_its_bands_and_a_rerun_rep
             "GP model v9 is not kept (kept: v0, v1, v2, v3)"
             in client.get(f"/api/sessions/{sid}/gp-learning?version=9").json()["detail"]
         )
+    path = _stop(client, sid)  # the stop waits for the events the sample path stored without waiting
     events = _gp_events(client, sid)
-    path = _stop(client, sid)
 
     records = [m for _, _, m in read_messages(path, ["/gp_models"])]
     trained = {m["version"]: m for m in records if m["what"] == "trained"}
@@ -277,8 +277,8 @@ def test_freeze_stops_installs_a_rollback_reinstalls_and_both_are_logged_recorde
         assert r.status_code == 200 and not r.json()["frozen"]
         _send(client, sid, device, frames, math.inf)
         state = client.get(url).json()
+    path = _stop(client, sid)  # the stop waits for the events the sample path stored without waiting
     events = _gp_events(client, sid)
-    path = _stop(client, sid)
 
     records = [m for _, _, m in read_messages(path, ["/gp_models"])]
     assert [(m["what"], m["version"], m["actor"]) for m in records] == [
@@ -372,9 +372,9 @@ def test_a_fit_that_raises_is_an_event_and_the_session_learns_on(
     with client.websocket_connect(device_path(client, sid)) as device:
         _send(client, sid, device, frames, 12.0)
         state = client.get(f"/api/sessions/{sid}/gp-learning").json()
-    events = _gp_events(client, sid)
     assert client.get(f"/api/sessions/{sid}").json()["state"] == "running"
-    path = _stop(client, sid)
+    path = _stop(client, sid)  # the stop waits for the events the sample path stored without waiting
+    events = _gp_events(client, sid)
     failed, trained, installed = [m for _, _, m in read_messages(path, ["/gp_models"])]
     assert (failed["what"], failed["version"], failed["steps"], failed["reason"]) == (
         "failed",
@@ -409,8 +409,8 @@ def test_a_worker_that_dies_is_an_event_and_the_next_fit_gets_a_new_one(
         (pid,) = pool._processes  # type: ignore[union-attr]
         os.kill(pid, signal.SIGKILL)
         _send(client, sid, device, frames, 12.0)
+    path = _stop(client, sid)  # the stop waits for the events the sample path stored without waiting
     events = _gp_events(client, sid)
-    path = _stop(client, sid)
     assert events[0]["text"] == (
         "GP model v1 training on steps 1-5 (0.0-5.4 s) failed (its worker process stopped unexpectedly); kept v0"
     )
