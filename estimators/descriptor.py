@@ -117,6 +117,9 @@ class Descriptor:
     inputs: tuple[str, ...]  #: channels it requires (``Estimator.inputs``)
     outputs: tuple[OutputSpec, ...]  #: in the order ``step`` returns them
     optional_inputs: tuple[str, ...] = ()  #: channels it uses when present
+    #: of these optional inputs it needs at least one (a source with none of them cannot run it): an
+    #: estimator that runs on any of several measurements (the phase EKF: a foot or a shank angle)
+    inputs_any: tuple[str, ...] = ()
     #: output name -> the gait-state quantity it estimates (one of :data:`QUANTITIES`)
     quantities: Mapping[str, str] = field(default_factory=dict, hash=False)
     tunables: tuple[Tunable, ...] = ()
@@ -154,6 +157,9 @@ class Descriptor:
         unknown = [o for o in self.live if o not in names]
         if unknown:
             raise ValueError(f"{self.name}: live outputs {unknown} are not outputs {names}")
+        stray = [c for c in self.inputs_any if c not in self.optional_inputs]
+        if stray:
+            raise ValueError(f"{self.name}: inputs_any {stray} are not optional inputs {list(self.optional_inputs)}")
         for t in self.tunables:
             if t.min is not None and t.max is not None and not t.min <= t.max:
                 raise ValueError(f"{self.name}: tunable {t.name} has min {t.min} > max {t.max}")

@@ -31,8 +31,10 @@ __all__ = ["DESCRIPTOR", "PhaseEKFEstimator"]
 #: The pipeline's faults as :data:`~gaitscope.estimators.protocol.FAULTS` codes; its own torque is not an output.
 _FAULT_CODE = {"": 0.0, "gap": 1.0, "diverged": 2.0, "torque": 0.0}
 _LOST, _RESUMED = 4.0, 5.0  # FAULTS.index("lost"), FAULTS.index("resumed")
-_INPUTS: Final = ("foot_angle_deg",)
-_OPTIONAL: Final = (*SENSOR_CHANNELS[1:], HEEL_STRIKE)
+_INPUTS: Final = ()
+_OPTIONAL: Final = (*SENSOR_CHANNELS, HEEL_STRIKE)
+#: It runs on a foot angle or a shank angle, or both (:attr:`PhaseEKFEstimator.inputs_any`).
+_ANY: Final = ("foot_angle_deg", "shank_angle_deg")
 #: Where :meth:`PhaseEKFEstimator.step` finds each channel in ``z`` (its inputs, then its optional inputs),
 #: and the pipeline's measurement vector there (:data:`~gaitscope.estimators.protocol.SENSOR_CHANNELS`).
 _FOOT, _FOOT_VEL, _SHANK_VEL, _HS = positions(
@@ -54,10 +56,13 @@ class PhaseEKFEstimator:
     """
 
     name = "phase_ekf"
-    #: The foot angle drives heel-strike detection and is what every trained model predicts first; the
-    #: EKF uses whatever else is present (measurement subsets, seed 000 II-C3).
+    #: No channel is required alone: it needs a foot angle or a shank angle (:attr:`inputs_any`) and uses
+    #: whatever else is present (measurement subsets, seed 000 II-C3). With the foot angle, heel strikes
+    #: come from it (seed 000); without it, the lock supervisor finds them in the shank angle
+    #: (:mod:`gaitscope.estimators.lock`), as a single shank IMU's device gives them.
     inputs: tuple[str, ...] = _INPUTS
     optional_inputs: tuple[str, ...] = _OPTIONAL
+    inputs_any: tuple[str, ...] = _ANY
     outputs: tuple[Output, ...] = (
         ("phase", "1"),
         ("phase_rate", "1/s"),
@@ -173,6 +178,7 @@ DESCRIPTOR: Final = Descriptor(
     label="Phase EKF (seed 000)",
     inputs=PhaseEKFEstimator.inputs,
     optional_inputs=PhaseEKFEstimator.optional_inputs,
+    inputs_any=PhaseEKFEstimator.inputs_any,
     outputs=(
         out("phase", "1", "gait phase, 0 at heel strike, 1 at the next"),
         out("phase_rate", "1/s", "gait cycles per second"),

@@ -201,6 +201,17 @@ class Declared:
     label: str  #: its name on screen (the registry name is the machine name)
     inputs: tuple[str, ...]  #: channels it requires (``Estimator.inputs``)
     outputs: tuple[Output, ...]  #: ``(name, unit)`` in the order it returns them (``Estimator.outputs``)
+    inputs_any: tuple[str, ...] = ()  #: it needs at least one of these (:attr:`Descriptor.inputs_any`)
+
+    def lacking(self, available: Collection[str]) -> list[str]:
+        """What a source providing ``available`` lacks to run it: each required channel it does not
+        provide, and, when it provides none of :attr:`inputs_any`, those joined by "or" as one entry
+        (``foot_angle_deg or shank_angle_deg``). Empty: it can run. The one rule of what a source can feed,
+        for live sessions, uploads, re-runs and ``gaitscope replay``."""
+        out = missing_channels(self.inputs, available)
+        if self.inputs_any and not any(c in available for c in self.inputs_any):
+            out.append(" or ".join(self.inputs_any))
+        return out
 
 
 class _ByName(Mapping[str, _V]):
@@ -247,7 +258,9 @@ class _Names(AbstractSet[str]):
 ESTIMATORS: Final[Mapping[str, Callable[[StackContext], Estimator]]] = _ByName(lambda d: d.build)
 #: Every registered estimator (same order) as its class declares it, with its name on screen.
 #: ``tests/sessions/test_registry.py`` checks that each built estimator declares the same.
-DECLARED: Final[Mapping[str, Declared]] = _ByName(lambda d: Declared(d.label, d.inputs, d.declared_outputs))
+DECLARED: Final[Mapping[str, Declared]] = _ByName(
+    lambda d: Declared(d.label, d.inputs, d.declared_outputs, d.inputs_any)
+)
 #: Registered but run only when a session names them (:attr:`Descriptor.opt_in`).
 OPT_IN: Final[AbstractSet[str]] = _Names(lambda d: d.opt_in)
 #: Registered to derive channels a source may not send (sensor front ends, :attr:`Descriptor.derives`): a
@@ -330,7 +343,7 @@ def resolve(names: Sequence[str] | None, channels: Collection[str] | None, ctx: 
             if names is not None:
                 cannot.append(f"{name}: {e}")
             continue
-        lacking = [] if available is None else missing_channels(est.inputs, available)
+        lacking = [] if available is None else _lacking(est, available)
         if lacking:
             if names is not None:
                 missing.append(f"{name} needs {', '.join(lacking)}")
@@ -349,6 +362,14 @@ def resolve(names: Sequence[str] | None, channels: Collection[str] | None, ctx: 
             f"the source's channels ({', '.join(sorted(channels or ())) or 'none'}) feed no estimator"
         )
     return stack
+
+
+def _lacking(est: Estimator, available: Collection[str]) -> list[str]:
+    """:meth:`Declared.lacking` of a built estimator (one not registered: its required inputs)."""
+    declared = DECLARED.get(est.name)
+    if declared is None or declared.inputs != est.inputs:
+        return missing_channels(est.inputs, available)
+    return declared.lacking(available)
 
 
 def choose_primary(wanted: str, stack: Sequence[Estimator]) -> str:
@@ -416,8 +437,9 @@ def feeds(channels: Collection[str]) -> dict[str, Feed]:
     derived: dict[str, list[str]] = {}  # channel -> the estimators that derive it
     out: dict[str, Feed] = {}
     for name, d in DECLARED.items():
-        lacking = missing_channels(d.inputs, available)
-        out[name] = Feed(tuple(lacking), {c: tuple(derived[c]) for c in d.inputs if c not in source and c in derived})
+        lacking = d.lacking(available)
+        needed = (*d.inputs, *(c for c in d.inputs_any if c in available))
+        out[name] = Feed(tuple(lacking), {c: tuple(derived[c]) for c in needed if c not in source and c in derived})
         if not lacking:
             for o, _ in d.outputs:
                 if o in _CHANNELS:

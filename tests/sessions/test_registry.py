@@ -89,7 +89,12 @@ def test_feeds_counts_a_channel_an_earlier_estimator_derives() -> None:
     # raw IMUs alone: the front ends derive the angles, the detector the heel strikes
     raw = {c for n in imus for c in DECLARED[n].inputs}
     from_imus = feeds(raw)
-    assert from_imus["phase_ekf"] == Feed((), {"foot_angle_deg": ("imu_foot",)})
+    assert from_imus["phase_ekf"] == Feed((), {"foot_angle_deg": ("imu_foot",), "shank_angle_deg": ("imu_shank",)})
+    # the phase EKF runs on a foot angle or a shank angle: one shank IMU feeds it (issue #25)
+    shank_imu = feeds(set(DECLARED["imu_shank"].inputs))
+    assert shank_imu["phase_ekf"] == Feed((), {"shank_angle_deg": ("imu_shank",)})
+    assert feeds({"shank_angle_deg"})["phase_ekf"] == Feed((), {})
+    assert feeds({"thigh_angle_deg"})["phase_ekf"].missing == ("foot_angle_deg or shank_angle_deg",)
     assert from_imus["com_kin"].missing == ("foot_force_N", "foot_force_contra_N")
     assert feeds(every)["intent"].missing == DECLARED["intent"].inputs
     # no centre of mass sent: the leg kinematics give it (seed 001's way)
@@ -102,7 +107,7 @@ def test_feeds_counts_a_channel_an_earlier_estimator_derives() -> None:
     # heel strikes alone: only the estimators that read nothing else
     strikes = feeds({HS})
     assert strikes["hs_detector"] == Feed(("foot_angle_deg", "foot_vel_dps"), {})
-    assert strikes["phase_ekf"] == Feed(("foot_angle_deg",), {})
+    assert strikes["phase_ekf"] == Feed(("foot_angle_deg or shank_angle_deg",), {})
     assert strikes["tbe"] == strikes["hs_backup"] == Feed((), {})
     assert all(f.missing for f in feeds(set()).values())
 

@@ -84,15 +84,19 @@ def test_the_default_stack_is_every_estimator_the_channels_allow(small_model: Tr
     assert names(None, ["phase_ekf", "hs_backup"]) == ["phase_ekf", "hs_backup"]
     # a foot angle alone: its velocity is derived, heel strikes detected (the detector feeds the TBE)
     assert names({"foot_angle_deg"}) == ["hs_detector", "phase_ekf", "tbe"]
-    assert names({"shank_angle_deg", "heel_strike"}) == ["tbe"]
+    # a shank angle alone feeds the phase EKF (its supervisor finds the heel strikes in it), and the TBE
+    assert names({"shank_angle_deg", "heel_strike"}) == ["phase_ekf", "tbe"]
     assert names({"foot_angle_deg"}, ["tbe", "phase_ekf"]) == ["phase_ekf", "tbe"]  # run in registry order
-    with pytest.raises(MissingChannels, match="phase_ekf needs foot_angle_deg; tbe needs heel_strike"):
-        resolve(["phase_ekf", "tbe"], {"shank_angle_deg"}, ctx)
-    with pytest.raises(MissingChannels, match=r"channels \(shank_angle_deg\) feed no estimator"):
-        resolve(None, {"shank_angle_deg"}, ctx)
+    with pytest.raises(
+        MissingChannels, match="phase_ekf needs foot_angle_deg or shank_angle_deg; tbe needs heel_strike"
+    ):
+        resolve(["phase_ekf", "tbe"], {"thigh_angle_deg"}, ctx)
+    assert names({"shank_angle_deg"}, ["phase_ekf", "tbe"]) == ["phase_ekf", "tbe"]  # its heel strikes feed the TBE
+    with pytest.raises(MissingChannels, match=r"channels \(belt_speed_m_s\) feed no estimator"):
+        resolve(None, {"belt_speed_m_s"}, ctx)
     with pytest.raises(ValueError, match="unknown estimator nope"):
         resolve(["nope"], None, ctx)
-    assert registry.choose_primary("phase_ekf", resolve(None, {"shank_angle_deg", "heel_strike"}, ctx)) == "tbe"
+    assert registry.choose_primary("fp_avg", resolve(None, {"shank_angle_deg", "heel_strike"}, ctx)) == "phase_ekf"
 
 
 def test_the_default_stack_keeps_the_gait_state_of_the_phase_ekf(small_model: TrainedModel, walk) -> None:
@@ -358,19 +362,19 @@ def test_a_session_refuses_an_estimator_its_source_cannot_feed(client: TestClien
     subject = _subject(client)
     trial = upload(client, path, subject)
     source = {"kind": "replay", "trial_id": trial["id"], "speed": 50.0}
-    asked = {"subject_id": subject, "source": source, "settings": {"estimators": ["phase_ekf", "tbe"]}}
+    asked = {"subject_id": subject, "source": source, "settings": {"estimators": ["phase_ekf", "fp_avg"]}}
     r = client.post("/api/sessions", json=asked)
     assert r.status_code == 409, r.text
-    assert "phase_ekf needs foot_angle_deg" in r.json()["detail"] and "tbe" not in r.json()["detail"]
+    assert "fp_avg needs thigh_angle_deg" in r.json()["detail"] and "phase_ekf" not in r.json()["detail"]
     [refused] = [s for s in client.get("/api/sessions").json() if s["settings"]["estimators"]]
     assert refused["state"] == "failed"
     events = client.get(f"/api/sessions/{refused['id']}/events").json()
-    assert any("refused to start" in e["text"] and "foot_angle_deg" in e["text"] for e in events)
-    # By default the session runs what the channels allow, the timing-based phase driving the torque.
+    assert any("refused to start" in e["text"] and "thigh_angle_deg" in e["text"] for e in events)
+    # By default the session runs what the channels allow: the phase EKF on the shank angle drives the torque.
     r = client.post("/api/sessions", json={"subject_id": subject, "source": source})
     assert r.status_code == 201, r.text
     runtime = client.app.state.ctx.manager.get(r.json()["id"])  # type: ignore[attr-defined]
-    assert runtime.estimator.stack.names == ("tbe",) and runtime.estimator.primary == "tbe"
+    assert runtime.estimator.stack.names == ("phase_ekf", "tbe") and runtime.estimator.primary == "phase_ekf"
     client.post(f"/api/sessions/{r.json()['id']}/stop")
 
 
