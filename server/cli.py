@@ -105,8 +105,32 @@ def _load(path: Path | None) -> tuple[TrainedModel, ModelProvenance]:
 def cmd_replay(a: argparse.Namespace) -> int:
     from gaitscope.sessions.offline.replay import replay_file
 
+    if a.estimators is not None:
+        return _replay_estimators(a)
     model, prov = _load(a.model)
     summary = replay_file(a.input, a.out, model, _config(a), supervised=not a.as_published)
+    print(f"replayed {a.input} -> {a.out} (model trained on {prov.source}, {len(prov.subjects)} subjects)")
+    print("\n".join(summary.lines()))
+    return 0
+
+
+def _replay_estimators(a: argparse.Namespace) -> int:
+    """``gaitscope replay --estimators NAME,...``: the named stack, every output as a ``<name>.<output>`` column."""
+    from gaitscope.sessions.offline.replay_stack import replay_estimators
+    from gaitscope.sessions.registry import MissingChannels
+
+    if a.as_published:
+        raise DataFormatError("--as-published is the default stack's (phase_ekf and tbe) only", file="--estimators")
+    config = _config(a)
+    model, prov = _load(a.model)
+    try:
+        summary = replay_estimators(a.input, a.out, model, config, a.estimators.split(","))
+    except MissingChannels as e:
+        raise DataFormatError(str(e), file=str(a.input)) from None
+    except DataFormatError:
+        raise
+    except ValueError as e:
+        raise DataFormatError(str(e), file="--estimators") from None
     print(f"replayed {a.input} -> {a.out} (model trained on {prov.source}, {len(prov.subjects)} subjects)")
     print("\n".join(summary.lines()))
     return 0
@@ -464,6 +488,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True)
     _pipeline_args(p)
     _as_published_arg(p)
+    p.add_argument(
+        "--estimators", metavar="NAME,...",
+        help="run these registered estimators (or 'all' the file's channels feed) as a live session's stack and "
+        "write each one's outputs as NAME.OUTPUT columns, with time_s and torque_Nm (default: phase_ekf and tbe "
+        "into the fixed columns)",
+    )  # fmt: skip
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("train", help="fit gait, noise and torque models")
