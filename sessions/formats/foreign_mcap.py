@@ -311,24 +311,31 @@ def _count(summary: Summary, channels: Sequence[Channel]) -> int | None:
     return sum(summary.statistics.channel_message_counts.get(c.id, 0) for c in channels)
 
 
-def _flatten(value: Any, max_array: int, path: str = "", out: dict[str, Leaf] | None = None) -> dict[str, Leaf]:
-    """Every leaf (number, flag, text) of a decoded JSON, Protobuf or ROS 2 message by its path."""
+def _flatten(
+    value: Any, max_array: int, wanted: frozenset[str] | None = None, path: str = "", out: dict[str, Leaf] | None = None
+) -> dict[str, Leaf]:
+    """Every leaf (number, flag, text) of a decoded JSON, Protobuf or ROS 2 message by its path; with ``wanted``
+    (:func:`_prefixes` of some paths), only the leaves on the way to those (a stream skips the rest)."""
     out = {} if out is None else out
     if isinstance(value, bool | int | float | str):
         out[path] = value
     elif isinstance(value, ProtoMessage):
-        _flatten_fields([(fd.name, getattr(value, fd.name)) for fd in value.DESCRIPTOR.fields], max_array, path, out)
+        items = [(fd.name, getattr(value, fd.name)) for fd in value.DESCRIPTOR.fields]
+        _flatten_fields(items, max_array, wanted, path, out)
     elif isinstance(value, Mapping):  # JSON objects, Protobuf maps
-        _flatten_fields([(str(k), v) for k, v in value.items()], max_array, path, out)
+        _flatten_fields([(str(k), v) for k, v in value.items()], max_array, wanted, path, out)
     elif isinstance(value, SimpleNamespace):  # mcap_ros2's messages: SimpleNamespace classes with __slots__
-        _flatten_fields([(n, getattr(value, n, None)) for n in value.__slots__], max_array, path, out)
+        _flatten_fields([(n, getattr(value, n, None)) for n in value.__slots__], max_array, wanted, path, out)
     elif isinstance(value, Sequence) and not isinstance(value, bytes | bytearray):
         for i, item in enumerate(itertools.islice(value, max_array)):
-            _flatten(item, max_array, f"{path}[{i}]", out)
+            if wanted is None or f"{path}[{i}]" in wanted:
+                _flatten(item, max_array, wanted, f"{path}[{i}]", out)
     return out  # None (JSON null), bytes: no leaf
 
 
-def _flatten_fields(items: list[tuple[str, Any]], max_array: int, path: str, out: dict[str, Leaf]) -> None:
+def _flatten_fields(
+    items: list[tuple[str, Any]], max_array: int, wanted: frozenset[str] | None, path: str, out: dict[str, Leaf]
+) -> None:
     names: list[str] | None = None
     for key, v in items:
         if key in _NAME_LISTS and isinstance(v, Sequence) and not isinstance(v, str) and v:
@@ -336,12 +343,20 @@ def _flatten_fields(items: list[tuple[str, Any]], max_array: int, path: str, out
                 names = list(v)
     for key, v in items:
         p = f"{path}.{key}" if path else key
+        if wanted is not None and p not in wanted:
+            continue
         if names is not None and key not in _NAME_LISTS and isinstance(v, Sequence) and len(v) == len(names):
             if not isinstance(v, str | bytes | bytearray):
                 for n, item in zip(names[:max_array], v, strict=False):
-                    _flatten(item, max_array, f"{p}[{n}]", out)
+                    if wanted is None or f"{p}[{n}]" in wanted:
+                        _flatten(item, max_array, wanted, f"{p}[{n}]", out)
                 continue
-        _flatten(v, max_array, p, out)
+        _flatten(v, max_array, wanted, p, out)
+
+
+def _prefixes(paths: Iterable[str]) -> frozenset[str]:
+    """Every path and each of its parents (cut before each ``.`` and ``[``): what :func:`_flatten` descends into."""
+    return frozenset(itertools.chain.from_iterable([p[:i] for i, c in enumerate(p) if c in ".["] + [p] for p in paths))
 
 
 def _stamp_ns(leaves: Mapping[str, Leaf]) -> int | None:
@@ -655,6 +670,8 @@ def _stream(
     for e in mapping.entries:
         by_topic.setdefault(e.topic, []).append(e)
     clocks = {t: _Clock(mapping.time_source) for t in by_topic}
+    stamps = _STAMP_LEAVES if mapping.time_source == "header" else ()
+    wanted = {t: _prefixes([*(e.field for e in entries), *stamps]) for t, entries in by_topic.items()}
     rows = dict.fromkeys(by_topic, 0)
     reorder_ns = round(reorder_s * _NS) if mapping.time_source == "header" else 0
     pending: list[tuple[int, int, str, list[tuple[str, Leaf]]]] = []  # a heap by time, then arrival
@@ -665,7 +682,7 @@ def _stream(
         for arrival, (_, channel, message, decoded) in enumerate(_decode_errors(messages, name, None)):
             topic = channel.topic
             rows[topic] += 1
-            leaves = _flatten(decoded, max_array)
+            leaves = _flatten(decoded, max_array, wanted[topic])
             values: list[tuple[str, Leaf]] = []
             for e in by_topic[topic]:
                 if isinstance(v := leaves.get(e.field), str):

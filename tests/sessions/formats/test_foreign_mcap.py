@@ -18,6 +18,7 @@ from mcap_ros2.writer import Writer as Ros2Writer
 
 from gaitscope.sessions import schema
 from gaitscope.sessions.errors import DataFormatError
+from gaitscope.sessions.formats import foreign_mcap
 from gaitscope.sessions.formats.foreign_mcap import (
     RAD_TO_DEG,
     ChannelMapping,
@@ -564,3 +565,22 @@ def test_a_message_without_the_field_holds_and_bad_bytes_are_named(tmp_path: Pat
     frames = foreign_frames(path, "bad.mcap", ChannelMapping([MappingEntry("/exo", "knee", "knee_angle_deg")], ""))
     with pytest.raises(DataFormatError, match=r"file bad\.mcap: a message could not be decoded"):
         list(frames)
+
+
+def test_long_arrays_are_cut_and_a_stream_reads_only_the_mapped_leaves(tmp_path: Path) -> None:
+    message = {
+        "cloud": list(range(100)),
+        "name": ["hip", "knee"],
+        "position": [1.0, 2.0],
+        "arm": {"v": [{"a": 1, "b": "x"}, {"a": 2, "b": "y"}], "blob": None},
+    }
+    path = write_json(tmp_path / "a.mcap", [("/t", T0, message)])
+    paths = [f.path for f in inspect_mcap(path)]
+    assert paths == [*(f"cloud[{i}]" for i in range(64)), "position[hip]", "position[knee]", "arm.v[0].a", "arm.v[1].a"]
+    assert len([f for f in inspect_mcap(path, max_array=3) if f.path.startswith("cloud")]) == 3
+    full = foreign_mcap._flatten(message, 64)
+    for wanted in (["position[knee]"], ["arm.v[1].a", "cloud[63]"], ["arm.v[0].b"]):
+        pruned = foreign_mcap._flatten(message, 64, foreign_mcap._prefixes(wanted))
+        assert pruned == {
+            p: v for p, v in full.items() if any(p == w or p.startswith((w + ".", w + "[")) for w in wanted)
+        }
