@@ -367,11 +367,6 @@ def _stamp_ns(leaves: Mapping[str, Leaf]) -> int | None:
     return None
 
 
-def _number(value: Leaf) -> float | None:
-    """A leaf as a number (flags as 0 and 1); None for text."""
-    return None if isinstance(value, str) else float(value)
-
-
 class _Clock:
     """Times one topic's messages (module docstring): its first message decides log time or stamp."""
 
