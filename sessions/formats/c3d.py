@@ -29,10 +29,11 @@ What is computed, in the sagittal plane of the lab (channel conventions: :mod:`g
   and so is every channel that needs it (None).
 - Force plates (``FORCE_PLATFORM``): vertical force |Fz| (channel 3; for type 3, the sum of the four Fz
   channels), the analog samples of a point frame averaged. A foot stands on a plate when its heel or toe
-  marker is over the plate's corners (2 cm margin); a plate under one foot gives that foot's
-  ``foot_force_N`` and ``foot_contact`` (force >= ``strike_threshold_N``); a foot over no plate, or over a
-  plate the other foot is also over, has neither (None). Only one leg's markers mapped: that leg gets the
-  plate's whole force.
+  marker is over the plate's corners (2 cm margin); a plate goes to the foot whose heel or toe is deepest
+  inside it (farthest from its nearest edge: feet near a split treadmill's midline are over both belts,
+  the belt's own foot is deeper in it), and a foot's
+  ``foot_force_N`` is the sum of its plates, ``foot_contact`` that sum >= ``strike_threshold_N``; a foot
+  that has no plate has neither (None). Only one leg's markers mapped: that leg gets the plates' force.
 - ``heel_strike``: the first frame of each ipsilateral plate contact; where the foot is over no plate, the
   peak of ``heel_forward_m`` (Zeni et al. 2008, Gait Posture 27:710: heel strike is the heel's most
   forward position relative to the pelvis), a peak over +/-0.1 s and at least 0.3 s after the last strike.
@@ -446,21 +447,19 @@ def _feet(
 ) -> dict[str, float | bool]:
     """Foot force and contact per side (module doc)."""
     flat = np.eye(3)[np.argsort(np.abs(up))[:2]]  # the two horizontal lab axes
-    over: dict[str, set[int]] = {}
+    owner: dict[int, tuple[float, str]] = {}  # plate -> (depth, side) of the foot deepest over it
     for side in (mapping.side, mapping.contra):
         points = [m[r] @ flat.T for r in (f"{side}HEE", f"{side}TOE") if r in m]
-        if points:
-            over[side] = set()
-            for k, (_, corners) in enumerate(f.plates):
-                c = corners @ flat.T
-                lo, hi = c.min(axis=0) - _MARGIN_M, c.max(axis=0) + _MARGIN_M
-                if any(bool(np.all((q >= lo) & (q <= hi))) for q in points):
-                    over[side].add(k)
+        for k, (_, corners) in enumerate(f.plates):
+            c = corners @ flat.T
+            lo, hi = c.min(axis=0), c.max(axis=0)
+            depth = max((float(min((q - lo).min(), (hi - q).min())) for q in points), default=-math.inf)
+            if depth >= -_MARGIN_M and depth > owner.get(k, (-math.inf, side))[0]:
+                owner[k] = (depth, side)
     out: dict[str, float | bool] = {}
     for side, suffix in ((mapping.side, ""), (mapping.contra, "_contra")):
-        mine = over.get(side, set())
-        shared = any(mine & v for s, v in over.items() if s != side)
-        if mine and not shared:
+        mine = [k for k, (_, s) in owner.items() if s == side]
+        if mine:
             force = sum(abs(float(analog[f.plates[k][0]].mean(axis=1).sum())) for k in mine)
             out[f"foot_force{suffix}_N"] = force
             out[f"foot_contact{suffix}"] = force >= mapping.strike_threshold_N

@@ -153,7 +153,15 @@ def _gait(t: float, phase: float) -> tuple[float, float, float]:
     return thigh, thigh - knee, 12 * math.sin(w + 0.5)
 
 
-def _walk(forward: str, seconds: float = 8.0, speed: float = 1.2, plates: bool = False, hjc: bool = True, psis_up=0.03):
+def _walk(
+    forward: str,
+    seconds: float = 8.0,
+    speed: float = 1.2,
+    plates: bool = False,
+    hjc: bool = True,
+    psis_up=0.03,
+    half_width=0.09,
+):
     """Markers (mm, float32) of a walk along the lab axis ``forward``; ``plates``: in place, on a split treadmill
     centred at the origin."""
     f, u = np.array(_AXES[forward], float), np.array([0.0, 0.0, 1.0])
@@ -172,7 +180,7 @@ def _walk(forward: str, seconds: float = 8.0, speed: float = 1.2, plates: bool =
         }
         for s, phase, sign in (("R", 0.0, 1.0), ("L", 0.5, -1.0)):
             thigh, shank, foot = (math.radians(a) for a in _gait(t, phase))
-            hip = pelvis + sign * 0.09 * right - 0.08 * u
+            hip = pelvis + sign * half_width * right - 0.08 * u
             knee = hip + _THIGH_M * (math.sin(thigh) * f - math.cos(thigh) * u)
             ankle = knee + _SHANK_M * (math.sin(shank) * f - math.cos(shank) * u)
             heel = ankle - 0.05 * f - 0.04 * u
@@ -280,8 +288,9 @@ def test_hip_joint_centre_from_the_pelvis(tmp_path: Path) -> None:
     assert frame.hip_angle_deg == pytest.approx(frame.thigh_angle_deg, abs=1e-9)  # a level pelvis: no tilt
 
 
-def test_split_treadmill_plates_give_force_contact_and_strikes(tmp_path: Path) -> None:
-    labels, points = _walk("-y", seconds=6.0, plates=True)
+@pytest.mark.parametrize("half_width", [0.09, 0.015])  # 0.015: each foot is within the margin of both belts
+def test_split_treadmill_plates_give_force_contact_and_strikes(tmp_path: Path, half_width: float) -> None:
+    labels, points = _walk("-y", seconds=6.0, plates=True, half_width=half_width)
     n = len(points)
     stance = [((i / _RATE) / _STRIDE_S) % 1.0 < 0.6 for i in range(n)]  # right foot loaded 60 % of a stride
     analog = np.zeros((n, 2, 10), np.float32)
