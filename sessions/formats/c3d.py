@@ -217,8 +217,9 @@ class _File:
             self.rate = float(r.point_rate)
             if not self.rate > 0:
                 raise DataFormatError(f"point rate {self.rate} Hz (POINT:RATE) is not positive", file=name)
-            self.labels = _strings(r, "POINT:LABELS")[: r.point_used]
-            self.analog_labels = _strings(r, "ANALOG:LABELS")[: r.analog_used]
+            # Over 255 labels go on in LABELS2 (C3D.org's user guide), which py-c3d's point_labels leaves out.
+            self.labels = (_strings(r, "POINT:LABELS") + _strings(r, "POINT:LABELS2"))[: r.point_used]
+            self.analog_labels = (_strings(r, "ANALOG:LABELS") + _strings(r, "ANALOG:LABELS2"))[: r.analog_used]
             unit = (_strings(r, "POINT:UNITS") or ["mm"])[0].lower()
             if unit not in _UNITS:
                 raise DataFormatError(f"POINT:UNITS {unit!r} is none of {', '.join(_UNITS)}", file=name)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import math
+import tracemalloc
 import warnings
 from importlib import resources
 from pathlib import Path
@@ -321,3 +322,19 @@ def test_truncated_file(tmp_path: Path) -> None:
     (tmp_path / "cut.c3d").write_bytes(data[: len(data) - 60 * len(labels) * 16])
     with pytest.raises(DataFormatError, match=r"file cut\.c3d, row \d+: the file ends at frame \d+ of 200"):
         list(c3d_frames(tmp_path / "cut.c3d", "cut.c3d"))
+
+
+def test_streams_in_bounded_memory(tmp_path: Path) -> None:
+    labels, points = _walk("+x", seconds=30.0)
+    extra = [f"M{k}" for k in range(240)]  # unused markers (py-c3d writes at most 255): a 12 MB file
+    wide = np.concatenate([points, np.full((len(points), len(extra), 3), 100.0, np.float32)], axis=1)
+    _write(tmp_path / "wide.c3d", labels + extra, wide)
+    size = (tmp_path / "wide.c3d").stat().st_size
+    mapping = C3DMapping.from_json('{"markers": {"RHJC": "RHJC", "LHJC": "LHJC"}}')
+    tracemalloc.start()
+    try:
+        count = sum(1 for _ in c3d_frames(tmp_path / "wide.c3d", "wide.c3d", mapping))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert count == 3000 and size > 12e6 and peak < 1e6, peak  # about 0.2 MB
