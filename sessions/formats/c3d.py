@@ -27,8 +27,9 @@ What is computed, in the sagittal plane of the lab (channel conventions: :mod:`g
   ``heel_up_m``: the heel marker relative to the ipsilateral hip joint centre. ``_contra``: the other side.
 - Gaps: a marker whose residual is negative, or that is exactly at (0, 0, 0), is missing in that frame,
   and so is every channel that needs it (None).
-- Force plates (``FORCE_PLATFORM``): vertical force |Fz| (channel 3; for type 3, the sum of the four Fz
-  channels), the analog samples of a point frame averaged. A foot stands on a plate when its heel or toe
+- Force plates (``FORCE_PLATFORM``, types 1 to 3; a type 4 to 7 plate, whose channels need its calibration
+  matrix, is refused): vertical force |Fz| (channel 3; for type 3, the sum of the four Fz channels), the
+  analog samples of a point frame averaged. A foot stands on a plate when its heel or toe
   marker is over the plate's corners (2 cm margin); a plate goes to the foot whose heel or toe is deepest
   inside it (farthest from its nearest edge: feet near a split treadmill's midline are over both belts,
   the belt's own foot is deeper in it), and a foot's
@@ -253,6 +254,12 @@ class _File:
             ) from None
         out = []
         for k in range(min(n, len(kinds), len(chans), len(corners))):
+            if kinds[k] not in (1, 2, 3):
+                raise DataFormatError(
+                    f"force plate {k + 1} is of type {kinds[k]} (raw channels and a calibration matrix), which is"
+                    " not read here: give the mapping force_plates false, or export the plate as type 2",
+                    file=self.name,
+                )
             fz = chans[k][4:8] if kinds[k] == 3 else chans[k][2:3]
             rows = np.asarray(fz, int) - 1
             if len(rows) == 0 or rows.min() < 0 or rows.max() >= r.analog_used:

@@ -191,7 +191,9 @@ def _walk(
     return labels, np.array(frames, np.float32)
 
 
-def _write(path: Path, labels: list[str], points: np.ndarray, analog: np.ndarray | None = None, plates=None) -> None:
+def _write(
+    path: Path, labels: list[str], points: np.ndarray, analog: np.ndarray | None = None, plates=None, kind: int = 2
+) -> None:
     w = c3d.Writer(point_rate=_RATE, analog_rate=_RATE * 10 if analog is not None else 0.0, point_units="mm  ")
     w.set_point_labels(labels)
     if analog is not None:
@@ -207,7 +209,7 @@ def _write(path: Path, labels: list[str], points: np.ndarray, analog: np.ndarray
         g = w.add_group(5, "FORCE_PLATFORM", "plates")
         n = len(plates)
         g.add("USED", "plates", 2, "<h", n)
-        g.add("TYPE", "types", 2, None, np.full(n, 2, "<i2").tobytes(), n)
+        g.add("TYPE", "types", 2, None, np.full(n, kind, "<i2").tobytes(), n)
         channel = np.array([[0, 0, k + 1, 0, 0, 0] for k in range(n)], "<i2")
         g.add("CHANNEL", "channels", 2, None, channel.tobytes(), 6, n)
         g.add("CORNERS", "corners (mm)", 4, None, np.array(plates, "<f4").tobytes(), 3, 4, n)
@@ -304,12 +306,16 @@ def test_split_treadmill_plates_give_force_contact_and_strikes(tmp_path: Path, h
         [[0, 1500, 0], [800, 1500, 0], [800, -1500, 0], [0, -1500, 0]],
     ]
     _write(tmp_path / "tread.c3d", labels, points, analog, plates)
-    mapping = C3DMapping.from_json('{"markers": {"RHJC": "RHJC", "LHJC": "LHJC"}, "strike_threshold_N": 25}')
+    mapping = C3DMapping.from_json(
+        '{"markers": {"RHJC": "RHJC", "LHJC": "LHJC"}, "strike_threshold_N": 25,'
+        ' "analog": {"Force.Fz2": {"channel": "imu_pelvis_accel_z_m_s2", "scale": 0.01}}}'
+    )
     assert inspect_c3d(tmp_path / "tread.c3d", "tread.c3d", mapping).force_plates == 2
     frames = list(c3d_frames(tmp_path / "tread.c3d", "tread.c3d", mapping))
     assert [f.foot_contact for f in frames] == stance
     assert {round(float(f.foot_force_N or 0), 3) for f in frames} == {700.0, 0.5}
     assert {round(float(f.foot_force_contra_N or 0), 3) for f in frames} == {650.0}
+    assert {round(float(f.imu_pelvis_accel_z_m_s2 or 0), 6) for f in frames} == {-6.5}  # analog, scaled
     strikes = [f.seq for f in frames if f.heel_strike]
     assert strikes == [i for i in range(1, n) if stance[i] and not stance[i - 1]]
     assert len(strikes) == 5
@@ -338,3 +344,13 @@ def test_streams_in_bounded_memory(tmp_path: Path) -> None:
     finally:
         tracemalloc.stop()
     assert count == 3000 and size > 12e6 and peak < 1e6, peak  # about 0.2 MB
+
+
+def test_refuses_a_plate_that_needs_its_calibration_matrix(tmp_path: Path) -> None:
+    labels, points = _walk("+x", seconds=0.5)
+    plate = [[[0, 0, 0], [600, 0, 0], [600, 400, 0], [0, 400, 0]]]
+    _write(tmp_path / "t4.c3d", labels, points, np.zeros((len(points), 1, 10), np.float32), plate, kind=4)
+    with pytest.raises(DataFormatError, match=r"file t4\.c3d: force plate 1 is of type 4 .* force_plates false"):
+        inspect_c3d(tmp_path / "t4.c3d", "t4.c3d")
+    no_plates = C3DMapping.from_json('{"force_plates": false}')
+    assert inspect_c3d(tmp_path / "t4.c3d", "t4.c3d", no_plates).force_plates == 0
