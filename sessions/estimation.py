@@ -14,6 +14,8 @@ from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from typing import Final, Literal
 
+import numpy as np
+
 from gaitscope.estimators.pipeline import TrainedModel
 from gaitscope.estimators.protocol import (
     ANGLE_CHANNELS,
@@ -350,13 +352,31 @@ class FrameEstimator:
 
     def _derive_velocities(self, channels: dict[str, float], t: float) -> None:
         """Backward-difference velocities for a device without gyroscopes (``self._prev`` holds the last
-        frame's angles of ``ANGLE_CHANNELS``, foot, shank, thigh, in its order)."""
+        frame's angles of ``ANGLE_CHANNELS``, foot, shank, thigh, in its order); :func:`backward_difference`
+        is the same rule over a whole column (replays and studies of files)."""
         prev = self._prev
         if prev is None or not t > prev[0]:
             return
         for (angle, vel), before in zip(ANGLE_CHANNELS.items(), prev[1:], strict=True):
             if before is not None and math.isnan(channels[vel]) and not math.isnan(channels[angle]):
                 channels[vel] = (channels[angle] - before) / (t - prev[0])
+
+
+def backward_difference(angle: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The velocity a live session derives for an angle a device sends without its rate
+    (:meth:`FrameEstimator._derive_velocities`), over a whole column: ``(a[k] - a[k-1]) / (t[k] - t[k-1])``,
+    NaN at the first sample and wherever either angle is missing (NaN). Not smoothed: a noisy angle gives a
+    noisy rate (white angle noise of sd ``s`` at period ``dt`` gives about ``1.4 s / dt``); send the gyro
+    rate when there is one.
+
+    Args:
+        angle: (n,) degrees, NaN where missing (out of its plausible range included).
+        t: (n,) strictly increasing times (s).
+    """
+    out = np.full(angle.shape, np.nan)
+    with np.errstate(invalid="ignore", over="ignore"):
+        out[1:] = (angle[1:] - angle[:-1]) / (t[1:] - t[:-1])
+    return out
 
 
 def estimate(

@@ -509,6 +509,39 @@ class Upload(BaseModel):
     chunk_size: int
 
 
+class EstimatorFeed(BaseModel):
+    """How a log's channels feed one registered estimator (the registry's rule,
+    :func:`gaitscope.sessions.registry.feeds`): an import's report and its preview."""
+
+    name: str
+    label: str
+    feedable: bool = Field(description="its inputs are in the log, or derived from it by estimators before it")
+    ran: bool = Field(description="the import ran it (opt-in estimators run only in a re-run that names them)")
+    missing: list[str] = Field(default_factory=list, description="what it lacks ('a or b': either)")
+    derived: dict[str, list[str]] = Field(
+        default_factory=dict, description="inputs the log lacks that these estimators derive"
+    )
+
+
+class ImportReport(BaseModel):
+    """What an import read from a file and what it can feed, in the user's terms."""
+
+    format: str = Field(description="mcap, replay_csv, locohub_csv, parquet, c3d, foreign_mcap")
+    channels: list[str] = Field(description="the channels the file sends (SensorFrame field names)")
+    derived: list[str] = Field(
+        default_factory=list, description="channels computed from others (velocities from their angles)"
+    )
+    ignored: list[str] = Field(default_factory=list, description="the file's columns or fields not read")
+    estimators: list[EstimatorFeed] = Field(default_factory=list)
+    warnings: list[str] = Field(default_factory=list, description="implausible values, named in the user's terms")
+
+
+class ImportedTrial(Trial):
+    """A trial an upload made, with what the import read (``POST /api/uploads/{id}/finish``)."""
+
+    report: ImportReport
+
+
 class RerunRequest(_Strict):
     """A re-run of a recorded trial's sensor frames through the estimators (``POST /api/trials/{id}/rerun``).
 

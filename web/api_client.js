@@ -1337,7 +1337,7 @@ export function finishUploadUrl(uploadId, params = {}) {
  * naming its trial).
  * @param {string} uploadId
  * @param {{recover?: boolean, keep_copy?: boolean}} [params]
- * @returns {Promise<Trial>}
+ * @returns {Promise<object>}
  */
 export function finishUpload(uploadId, params = {}) {
   return api("POST", finishUploadUrl(uploadId, params));

@@ -188,7 +188,7 @@ class Uploads:
 
     async def finish(
         self, upload_id: str, c: AppContext, *, recover: bool = False, keep_copy: bool = False
-    ) -> schema.Trial:
+    ) -> schema.ImportedTrial:
         """Import a complete upload as a new session with one trial (422 for a bad file; 409 for a file uploaded
         before, unless ``keep_copy``: see :meth:`_once`).
 
@@ -217,7 +217,7 @@ class Uploads:
             final = c.settings.data_dir / rel
             final.parent.mkdir(parents=True, exist_ok=True)
             try:  # synchronous: a cancelled request must not leave a commit running in a thread
-                return c.store.create_upload_trial(
+                trial = c.store.create_upload_trial(
                     subject.id,
                     info.filename,
                     rel,
@@ -229,6 +229,7 @@ class Uploads:
             except BaseException:
                 final.unlink(missing_ok=True)  # moved, then the commit failed: no rows, so no file
                 raise
+            return schema.ImportedTrial(**trial.model_dump(), report=result.report)
         finally:
             del self._importing[upload_id]
             state.path.unlink(missing_ok=True)
@@ -409,7 +410,7 @@ async def upload_chunk(
 @router.post("/uploads/{upload_id}/finish", status_code=201)
 async def finish_upload(
     upload_id: str, c: Ctx, who: Uploader, recover: bool = False, keep_copy: bool = False
-) -> schema.Trial:
+) -> schema.ImportedTrial:
     """Import the upload; ``recover=true`` first recovers an MCAP recording that was never finished;
     ``keep_copy=true`` stores a file uploaded before again (else 409, naming its trial)."""
     await audited(

@@ -45,11 +45,12 @@ from gaitscope.estimators.pipeline import TrainedModel
 from gaitscope.sessions import schema
 from gaitscope.sessions.errors import DataFormatError
 from gaitscope.sessions.estimation import FrameEstimator, torque_json
-from gaitscope.sessions.formats.locohub import read_table
-from gaitscope.sessions.formats.mcap_io import check_mcap, count_messages, read_messages
-from gaitscope.sessions.formats.recording import ESTIMATORS_KEY, SAMPLE_PERIOD_KEY, Recorder
-from gaitscope.sessions.formats.replay_io import MAX_PERIOD_S, MIN_PERIOD_S, RAW_IMUS, header_columns, parse_cells
-from gaitscope.sessions.registry import channels_of
+from gaitscope.sessions.formats.feeding import Plausibility, report
+from gaitscope.sessions.formats.locohub import CHANNELS_OF, read_table
+from gaitscope.sessions.formats.mcap_io import check_mcap, count_messages, metadata_of, read_messages
+from gaitscope.sessions.formats.recording import ESTIMATORS_KEY, METADATA_NAME, SAMPLE_PERIOD_KEY, Recorder
+from gaitscope.sessions.formats.replay_io import FLAGS, MAX_PERIOD_S, MIN_PERIOD_S, header_columns, parse_cells
+from gaitscope.sessions.registry import MissingChannels, channels_of
 
 __all__ = [
     "BATCH_FRAMES",
@@ -65,8 +66,9 @@ __all__ = [
     "run_import",
 ]
 
-#: LocoHub columns a table needs to be replayed (heel positions are used when present).
-LOCOHUB_REPLAY_COLUMNS: Final = (schema.SUBJECT, schema.TASK_ID, schema.TIME_S, schema.FOOT_ANGLE, schema.SHANK_ANGLE)
+#: LocoHub columns a table needs to be imported; its signals (:data:`~gaitscope.sessions.formats.locohub.CHANNELS_OF`)
+#: must feed an estimator of the gait phase (the registry's rule, as for every file).
+LOCOHUB_REPLAY_COLUMNS: Final = (schema.SUBJECT, schema.TASK_ID, schema.TIME_S)
 #: Frames read, estimated and written per batch: what an import holds in memory at once.
 BATCH_FRAMES: Final = 256
 #: Largest time (s, either sign) a log may hold: a device clock in Unix seconds fits; 1e300 does not.
@@ -108,10 +110,12 @@ class ImportJob:
 
 @dataclass(frozen=True)
 class ImportResult:
-    """What :func:`import_log` wrote: ``samples`` gait states spanning ``duration_s`` seconds."""
+    """What :func:`import_log` wrote: ``samples`` gait states spanning ``duration_s`` seconds, and what it
+    read (the channels, what they feed, the columns ignored, warnings)."""
 
     samples: int
     duration_s: float
+    report: schema.ImportReport
 
 
 class ImportRefused(ValueError):
@@ -145,11 +149,13 @@ def import_log(job: ImportJob) -> ImportResult:
             fmt = detect_format(job.upload, job.filename)
             if fmt == "mcap":
                 return _import_mcap(job)
+            ignored: list[str] = []
             if fmt == "replay_csv":
-                frames = _replay_frames(job.upload, job.filename)
+                frames = _replay_frames(job.upload, job.filename, ignored)
             else:
-                frames = _locohub_frames(job.upload, job.filename, ".csv" if fmt == "locohub_csv" else ".parquet")
-            return _record(job, frames)
+                suffix = ".csv" if fmt == "locohub_csv" else ".parquet"
+                frames = _locohub_frames(job.upload, job.filename, suffix, ignored)
+            return _record(job, frames, fmt, ignored)
     except BaseException:
         job.target.unlink(missing_ok=True)
         raise
@@ -181,16 +187,13 @@ def detect_format(path: Path, filename: str) -> LogFormat:
     if suffix == ".parquet":
         return "parquet"
     names = {h.strip() for h in next(csv.reader(io.StringIO(text)), [])}
-    if schema.REPLAY_TIME in names and (
-        names & set(schema.REPLAY_ANGLES) or any(names.issuperset(c) for c in RAW_IMUS.values())
-    ):
-        return "replay_csv"
     if names.issuperset(LOCOHUB_REPLAY_COLUMNS):
         return "locohub_csv"
-    angles = " or ".join(schema.REPLAY_ANGLES)
+    if schema.REPLAY_TIME in names and names & set(schema.CHANNELS):
+        return "replay_csv"
     raise DataFormatError(
-        f"the CSV header has neither the replay columns ({schema.REPLAY_TIME} and {angles}, or a leg IMU's "
-        "six raw columns) "
+        f"the CSV header has neither {schema.REPLAY_TIME} and a column named as a gaitscope channel (foot_angle_deg, "
+        "shank_angle_deg, thigh_angle_deg, knee_angle_deg, imu_shank_gyro_z_dps, ...: docs/api.md, Channels) "
         f"nor the LocoHub columns ({', '.join(LOCOHUB_REPLAY_COLUMNS)})",
         file=filename,
         row=1,
@@ -333,8 +336,10 @@ def _import_mcap(job: ImportJob) -> ImportResult:
     check_mcap(path, name=name)
     frames = _mcap_messages(path, "/sensor", schema.SensorFrame, name)
     if count_messages(path, "/gait_state", None, None) == 0:
-        return _record(job, frames)
-    if sum(1 for _ in frames) < 2:
+        return _record(job, frames, "mcap")
+    counted = _Counted(frames)
+    channels = channels_of(counted)
+    if counted.n < 2:
         raise DataFormatError("the log holds fewer than 2 sensor frames", file=name)
     samples, first_t, last_t = 0, 0.0, 0.0
     for state in _mcap_messages(path, "/gait_state", schema.GaitState, name):
@@ -344,11 +349,30 @@ def _import_mcap(job: ImportJob) -> ImportResult:
         shutil.copyfileobj(src, dst, 1024 * 1024)
         dst.flush()
         os.fsync(dst.fileno())
-    return ImportResult(samples=samples, duration_s=last_t - first_t)
+    ran = metadata_of(path, METADATA_NAME).get(ESTIMATORS_KEY, "")
+    done = report("mcap", channels, [n for n in ran.split(",") if n])
+    return ImportResult(samples=samples, duration_s=last_t - first_t, report=done)
 
 
-def _record(job: ImportJob, frames: Iterator[schema.SensorFrame]) -> ImportResult:
-    """Estimate ``frames`` batch by batch and write them with their states to ``job.target``."""
+class _Counted:
+    """An iterator's items, counted as they are taken (:attr:`n`)."""
+
+    def __init__(self, items: Iterator[schema.SensorFrame]):
+        self._items = items
+        self.n = 0
+
+    def __iter__(self) -> Iterator[schema.SensorFrame]:
+        for item in self._items:
+            self.n += 1
+            yield item
+
+
+def _record(
+    job: ImportJob, frames: Iterator[schema.SensorFrame], fmt: str, ignored: Sequence[str] = ()
+) -> ImportResult:
+    """Estimate ``frames`` batch by batch and write them with their states to ``job.target``; a file whose
+    channels feed no estimator of the gait phase, or whose values are implausible for their channels
+    (:class:`~gaitscope.sessions.formats.feeding.Plausibility`), is refused."""
     first = collections.deque(itertools.islice(frames, BATCH_FRAMES))
     if len(first) < 2:
         raise DataFormatError("the log holds fewer than 2 sensor frames", file=job.filename)
@@ -361,10 +385,15 @@ def _record(job: ImportJob, frames: Iterator[schema.SensorFrame]) -> ImportResul
         )
     settings = schema.SessionSettings()
     subject = job.subject
+    channels = channels_of(first)
     # every estimator the log's channels allow (those of its first batch of frames)
-    estimator = FrameEstimator(
-        job.model, subject.leg_length_m, subject.mass_kg, settings, period, channels=channels_of(first)
-    )
+    try:
+        estimator = FrameEstimator(
+            job.model, subject.leg_length_m, subject.mass_kg, settings, period, channels=channels
+        )
+    except (MissingChannels, ValueError) as err:  # no estimator, or none of the gait phase
+        raise DataFormatError(_cannot_feed(channels, str(err)), file=job.filename) from None
+    checks = Plausibility(channels)
     metadata = {
         "subject": subject.code,
         "source": f"upload {job.filename}",
@@ -381,6 +410,7 @@ def _record(job: ImportJob, frames: Iterator[schema.SensorFrame]) -> ImportResul
     ) as rec:
         rec.write("/settings", 0.0, settings)
         for frame in itertools.chain(_drain(first), frames):
+            checks.add((frame,))
             if not estimator.accepts(frame):
                 continue
             state = estimator.step(frame, 0)
@@ -388,7 +418,22 @@ def _record(job: ImportJob, frames: Iterator[schema.SensorFrame]) -> ImportResul
             command = torque_json(state.seq, state.t, state.torque_Nm).encode()
             rec.write_json(state.t, estimator.recorded_json(frame, state, command))
             estimator.events.clear()  # estimator failures: their outputs say so (failed), no session to tell
-    return ImportResult(samples=rec.samples, duration_s=rec.duration_s)
+    refused = checks.refusal()
+    if refused is not None:
+        raise DataFormatError(refused[1], file=job.filename, column=refused[0])
+    done = report(fmt, channels, estimator.stack.names, ignored, checks.warnings())
+    return ImportResult(samples=rec.samples, duration_s=rec.duration_s, report=done)
+
+
+def _cannot_feed(channels: set[str], why: str) -> str:
+    """Why a log's ``channels`` cannot be estimated: what each estimator of the gait phase lacks."""
+    from gaitscope.sessions.registry import DECLARED, feeds
+
+    phased = [n for n, d in DECLARED.items() if any(o == "phase" for o, _ in d.outputs)]
+    fed = feeds(channels)
+    lacking = "; ".join(f"{n} needs {', '.join(fed[n].missing)}" for n in phased if fed[n].missing)
+    sent = ", ".join(sorted(channels)) or "none"
+    return f"the file's channels ({sent}) feed no estimator of the gait phase ({why}): {lacking}"
 
 
 def _drain(items: collections.deque[schema.SensorFrame]) -> Iterator[schema.SensorFrame]:
@@ -397,14 +442,15 @@ def _drain(items: collections.deque[schema.SensorFrame]) -> Iterator[schema.Sens
         yield items.popleft()
 
 
-def _replay_frames(path: Path, name: str) -> Iterator[schema.SensorFrame]:
+def _replay_frames(path: Path, name: str, ignored: list[str]) -> Iterator[schema.SensorFrame]:
     """The frames of a replay CSV, read and checked a batch of rows at a time (rules of
-    :func:`~gaitscope.sessions.formats.replay_io.read_replay_csv`; the first bad row of the file is reported)."""
+    :func:`~gaitscope.sessions.formats.replay_io.read_replay_csv`; the first bad row of the file is reported);
+    the header's columns that are not channels are appended to ``ignored``."""
     with path.open(newline="", encoding="utf-8-sig") as file:
         reader = csv.reader(file)
         try:
             header = [h.strip() for h in next(reader, [])]
-            used = _replay_columns(header, name)
+            used = _replay_columns(header, name, ignored)
             batch = _ReplayBatch(name, used)
             rows: list[list[str]] = []
             lines: list[int] = []
@@ -428,11 +474,13 @@ def _replay_frames(path: Path, name: str) -> Iterator[schema.SensorFrame]:
         raise DataFormatError(f"need at least 2 data rows, found {batch.seq}", file=name)
 
 
-def _replay_columns(header: list[str], name: str) -> dict[str, int]:
-    """Position of each used replay column (time first); the header checks of the replay CSV."""
+def _replay_columns(header: list[str], name: str, ignored: list[str]) -> dict[str, int]:
+    """Position of each used replay column (time first); the header checks of the replay CSV (which
+    estimators the channels feed is checked on the frames)."""
     if not any(header):
         raise DataFormatError("the header row is empty", file=name, row=1)
-    where, used = header_columns(header, name, raw_imu=True)
+    where, used, not_read = header_columns(header, name)
+    ignored.extend(not_read)
     return {c: where[c] for c in used}
 
 
@@ -450,7 +498,7 @@ class _ReplayBatch:
         values: dict[str, np.ndarray] = {}
         problems: list[tuple[int, int, str, str]] = []  # (row index, column position, column, message)
         for column, j in self.used.items():
-            values[column], problem = parse_cells([row[j] for row in rows], column == schema.REPLAY_HEEL_STRIKE)
+            values[column], problem = parse_cells([row[j] for row in rows], column in FLAGS)
             if problem is not None:
                 problems.append((problem[0], j, column, problem[1]))
         if problems:
@@ -463,16 +511,20 @@ class _ReplayBatch:
                 raise DataFormatError(late, file=self.name, column=schema.REPLAY_TIME, row=lines[i])
             self._first = t if self._first is None else self._first
             self._previous = t
-            fields: dict[str, Any] = {c: float(values[c][i]) for c in signals}
+            fields: dict[str, Any] = {c: bool(values[c][i]) if c in FLAGS else float(values[c][i]) for c in signals}
             yield schema.SensorFrame(seq=self.seq, t=t, heel_strike=None if heel is None else bool(heel[i]), **fields)
             self.seq += 1
 
 
-def _locohub_frames(path: Path, name: str, suffix: str) -> Iterator[schema.SensorFrame]:
+def _locohub_frames(path: Path, name: str, suffix: str, ignored: list[str]) -> Iterator[schema.SensorFrame]:
     """The frames of a LocoHub table: each (subject, task) in time order, repeated times dropped,
-    one after the other with one median sample period between them; angles in degrees."""
+    one after the other with one median sample period between them; every signal a channel carries
+    (:data:`~gaitscope.sessions.formats.locohub.CHANNELS_OF`), the others appended to ``ignored``."""
     with _suffixed(path, suffix) as readable:
         table = read_table(readable, required=LOCOHUB_REPLAY_COLUMNS)
+    carried = [c for c in CHANNELS_OF if c in table.columns]
+    meta = {*schema.METADATA_COLUMNS, schema.TIME_S}
+    ignored.extend(c for c in table.columns if c not in meta and c not in CHANNELS_OF)
     first_row = 2 if suffix == ".csv" else 1
     offset, seq = 0.0, 0
     for _, g in table.groupby([schema.SUBJECT, schema.TASK_ID], sort=False):
@@ -488,16 +540,10 @@ def _locohub_frames(path: Path, name: str, suffix: str) -> Iterator[schema.Senso
         session_t = t - t[0] + offset
         if session_t[-1] > MAX_SPAN_S:
             raise DataFormatError(f"the log spans {session_t[-1]:g} s (at most {MAX_SPAN_S:g} s)", file=name)
-        columns = {
-            "foot_angle_deg": np.degrees(g[schema.FOOT_ANGLE].to_numpy(np.float64)),
-            "shank_angle_deg": np.degrees(g[schema.SHANK_ANGLE].to_numpy(np.float64)),
-        }
-        for col, field in ((schema.HEEL_FORWARD, "heel_forward_m"), (schema.HEEL_UP, "heel_up_m")):
-            if col in g.columns:
-                columns[field] = g[col].to_numpy(np.float64)
+        columns = {CHANNELS_OF[c][0]: g[c].to_numpy(np.float64) * CHANNELS_OF[c][1] for c in carried}
         heel = g[schema.HEEL_STRIKE].to_numpy(np.float64) > 0.5 if schema.HEEL_STRIKE in g.columns else None
         for k in range(len(t)):
-            fields: dict[str, Any] = {c: float(v[k]) for c, v in columns.items()}
+            fields: dict[str, Any] = {c: float(v[k]) for c, v in columns.items() if math.isfinite(v[k])}
             hs = None if heel is None else bool(heel[k])
             yield schema.SensorFrame(seq=seq, t=float(session_t[k]), heel_strike=hs, **fields)
             seq += 1

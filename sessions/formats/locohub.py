@@ -26,7 +26,7 @@ from gaitscope.sessions import schema
 from gaitscope.sessions.errors import DataFormatError
 from gaitscope.sessions.files import atomic_output
 
-__all__ = ["KNOWN_COLUMNS", "STRING_COLUMNS", "parse_task_info", "read_table", "write_table"]
+__all__ = ["CHANNELS_OF", "KNOWN_COLUMNS", "STRING_COLUMNS", "parse_task_info", "read_table", "write_table"]
 
 #: Columns whose cells are text; every other known column is numeric.
 STRING_COLUMNS: Final = (
@@ -62,7 +62,52 @@ KNOWN_COLUMNS: Final = (
     schema.STRIDE_LENGTH,
     schema.INCLINE,
     schema.SPEED,
+    # both legs, pelvis, ground reaction forces, centre of mass over the stance foot (schema version 2)
+    schema.THIGH_ANGLE_CONTRA,
+    schema.SHANK_ANGLE_CONTRA,
+    schema.FOOT_ANGLE_CONTRA,
+    schema.KNEE_ANGLE_CONTRA,
+    schema.ANKLE_ANGLE_CONTRA,
+    schema.PELVIS_ANGLE,
+    schema.VERTICAL_GRF,
+    schema.VERTICAL_GRF_CONTRA,
+    schema.STEP_LENGTH_CONTRA,
+    *schema.COM_STANCE_POSITION,
 )
+
+_RAD: Final = 180.0 / math.pi
+#: Each LocoHub signal a sensor channel carries: ``column: (channel, scale)``, the channel's value being the
+#: column's times ``scale``. Angles from radians to degrees, both standards (+) the same way (sagittal
+#: angles seen from the subject's right, flexion and dorsiflexion (+)); the centre of mass relative to the
+#: stance foot, lateral (+) to the left in LocoHub and to the right in gaitscope. The centre of mass's velocity
+#: (``com_*_velocity_m_s``) is the channel's on level ground; on a slope the stance foot moves along it with the
+#: belt and the channel differs (not corrected here: the table does not say the belt speed per sample).
+#: The other LocoHub columns carry no sensor channel (the ankle moment, the pelvis tilt, toe-offs, step lengths
+#: per stride, the ground truth: phase, speed, incline) and are listed as not read.
+CHANNELS_OF: Final[dict[str, tuple[str, float]]] = {
+    schema.FOOT_ANGLE: ("foot_angle_deg", _RAD),
+    schema.SHANK_ANGLE: ("shank_angle_deg", _RAD),
+    schema.THIGH_ANGLE: ("thigh_angle_deg", _RAD),
+    schema.FOOT_ANGLE_CONTRA: ("foot_angle_contra_deg", _RAD),
+    schema.SHANK_ANGLE_CONTRA: ("shank_angle_contra_deg", _RAD),
+    schema.THIGH_ANGLE_CONTRA: ("thigh_angle_contra_deg", _RAD),
+    schema.HIP_ANGLE: ("hip_angle_deg", _RAD),
+    schema.KNEE_ANGLE: ("knee_angle_deg", _RAD),
+    schema.ANKLE_ANGLE: ("ankle_angle_deg", _RAD),
+    schema.HIP_ANGLE_CONTRA: ("hip_angle_contra_deg", _RAD),
+    schema.KNEE_ANGLE_CONTRA: ("knee_angle_contra_deg", _RAD),
+    schema.ANKLE_ANGLE_CONTRA: ("ankle_angle_contra_deg", _RAD),
+    schema.HEEL_FORWARD: ("heel_forward_m", 1.0),
+    schema.HEEL_UP: ("heel_up_m", 1.0),
+    schema.VERTICAL_GRF: ("foot_force_N", 1.0),
+    schema.VERTICAL_GRF_CONTRA: ("foot_force_contra_N", 1.0),
+    schema.COM_STANCE_POSITION[0]: ("com_forward_m", 1.0),
+    schema.COM_STANCE_POSITION[1]: ("com_lateral_m", -1.0),
+    schema.COM_STANCE_POSITION[2]: ("com_up_m", 1.0),
+    schema.COM_VELOCITY[0]: ("com_forward_vel_m_s", 1.0),
+    schema.COM_VELOCITY[1]: ("com_lateral_vel_m_s", -1.0),
+    schema.COM_VELOCITY[2]: ("com_up_vel_m_s", 1.0),
+}
 
 _KNOWN_SET: Final = frozenset(KNOWN_COLUMNS)
 _STRING_SET: Final = frozenset(STRING_COLUMNS)

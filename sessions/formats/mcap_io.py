@@ -61,6 +61,7 @@ __all__ = [
     "count_messages",
     "decimate",
     "iter_sensor_frames",
+    "metadata_of",
     "read_estimator_series",
     "read_events",
     "read_messages",
@@ -727,3 +728,19 @@ def _copy_complete_records(src: IO[bytes], dst: IO[bytes]) -> tuple[int, int]:
     writer.finish()
     dst.flush()
     return messages, size - good_end + skipped
+
+
+def metadata_of(path: Path, name: str) -> dict[str, str]:
+    """Key/values of the MCAP file's metadata record ``name`` (empty without one).
+
+    Raises:
+        DataFormatError: the file's metadata cannot be read.
+    """
+    try:
+        with open(path, "rb") as f:
+            for record in make_reader(f).iter_metadata():
+                if record.name == name:
+                    return dict(record.metadata)
+    except _DAMAGE as exc:
+        raise DataFormatError(f"damaged metadata ({exc})", file=str(path)) from exc
+    return {}

@@ -1,8 +1,12 @@
-"""The replay CSV: the input of ``gaitscope replay INPUT.csv`` and the file it writes.
+"""The replay CSV: the input of ``gaitscope replay INPUT.csv`` (and of a CSV upload) and the file it writes.
 
-Input: a header row, then one row per sample. ``time_s`` is required and strictly increasing; any of
-the :data:`~gaitscope.sessions.schema.REPLAY_SIGNALS` may follow, at least one of the angle columns
-(:data:`~gaitscope.sessions.schema.REPLAY_ANGLES`); ``heel_strike`` (0/1) is optional; other columns are ignored.
+Input: a header row, then one row per sample. ``time_s`` is required and strictly increasing; any channel of
+the channel table (:data:`~gaitscope.sessions.schema.CHANNELS`: the ``SensorFrame`` field names, units in the
+name, the table's sign conventions) may follow, flags (``heel_strike``, ``foot_contact``, ...) as 0/1. Columns
+that are not channels are listed back (:attr:`ReplayInput.ignored`), never read. Which estimators the file's
+channels can feed is the registry's one rule (:func:`gaitscope.sessions.registry.feeds`); the reader checks
+that the estimators it is asked for (by default the phase EKF of seed 000's replay) can run, and names what
+they lack.
 
 Every problem raises :class:`~gaitscope.sessions.errors.DataFormatError` naming the file, the line (the header
 is line 1) and, where one is at fault, the column, e.g.
@@ -13,7 +17,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -28,13 +32,27 @@ from gaitscope.sessions.errors import DataFormatError
 from gaitscope.sessions.files import atomic_output
 from gaitscope.sessions.formats import _fastcsv
 
-__all__ = ["ReplayInput", "ReplayOutput", "read_replay_csv", "write_replay_output"]
+__all__ = [
+    "DEFAULT_NEEDS",
+    "FLAGS",
+    "RAW_IMUS",
+    "ReplayInput",
+    "ReplayOutput",
+    "check_feeds",
+    "header_columns",
+    "read_replay_csv",
+    "write_replay_output",
+]
 
 _MIN_ROWS: Final = 2
 #: Median sample periods accepted (s): 10 kHz to 1 Hz. Outside, the times are not in seconds, or
 #: not a gait recording (and the heel filter's discretisation would be meaningless).
 MIN_PERIOD_S = 1e-4
 MAX_PERIOD_S = 1.0
+#: The flag channels (0/1 in a file).
+FLAGS: Final = frozenset(c for c, ch in schema.CHANNELS.items() if ch.unit == "bool")
+#: What ``gaitscope replay`` runs by default needs its file to feed: seed 000's phase EKF.
+DEFAULT_NEEDS: Final = ("phase_ekf",)
 
 
 @dataclass(frozen=True)
@@ -43,33 +61,36 @@ class ReplayInput:
 
     Attributes:
         time_s: (n,) float64 sample times in seconds, strictly increasing.
-        signals: the :data:`~gaitscope.sessions.schema.REPLAY_SIGNALS` columns present in the file, in that
-            order, each (n,) float64.
+        signals: every channel column of the file but ``heel_strike``, in
+            :data:`~gaitscope.sessions.schema.CHANNELS` order, each (n,) float64 (a flag as 0.0/1.0).
         heel_strike: (n,) bool, or None when the file has no ``heel_strike`` column.
     """
 
     time_s: np.ndarray
     signals: dict[str, np.ndarray]
     heel_strike: np.ndarray | None
+    #: the header's columns that are not channels (not read), in file order; ``(column 3)`` for a blank name
+    ignored: tuple[str, ...] = ()
 
 
-def read_replay_csv(path: str | Path) -> ReplayInput:
-    """Read and validate a replay CSV.
+def read_replay_csv(path: str | Path, estimators: Sequence[str] = DEFAULT_NEEDS) -> ReplayInput:
+    """Read and validate a replay CSV whose channels feed ``estimators`` (registry names; empty: any file
+    with a channel).
 
     A plain file (ASCII, unquoted, every cell a finite number, ...) is parsed by Arrow's C++ reader;
     any other, and any file with a problem, by a validating Python reader that finds the earliest bad
     cell. Both return the same arrays for a file both accept (``tests/.../test_replay_io_properties.py``).
 
     Raises:
-        DataFormatError: empty file; missing ``time_s``; no angle column; a repeated column name; a
-            row with the wrong number of fields; an empty, non-numeric, NaN or infinite cell in a
-            used column; ``heel_strike`` other than 0/1; fewer than 2 data rows; time not strictly
-            increasing; a median time step outside [MIN_PERIOD_S, MAX_PERIOD_S]. When several cells are
-            bad, the earliest line is reported.
+        DataFormatError: empty file; missing ``time_s``; no channel column, or none that feeds one of
+            ``estimators`` (the message names what each lacks); a repeated column name; a row with the
+            wrong number of fields; an empty, non-numeric, NaN or infinite cell in a used column; a flag
+            other than 0/1; fewer than 2 data rows; time not strictly increasing; a median time step outside
+            [MIN_PERIOD_S, MAX_PERIOD_S]. When several cells are bad, the earliest line is reported.
     """
     name = str(path)
-    fast = _read_plain(Path(path), name)
-    return fast if fast is not None else _read_validated(Path(path), name)
+    fast = _read_plain(Path(path), name, estimators)
+    return fast if fast is not None else _read_validated(Path(path), name, estimators)
 
 
 def write_replay_output(path: str | Path, columns: Mapping[str, np.ndarray]) -> None:
@@ -151,10 +172,11 @@ class ReplayOutput:
 # --- private helpers -----------------------------------------------------------------------------
 
 
-def _read_validated(path: Path, name: str) -> ReplayInput:
+def _read_validated(path: Path, name: str, estimators: Sequence[str]) -> ReplayInput:
     """The validating reader: Python's ``csv`` module, every cell checked, the earliest problem named."""
     header, rows, lines = _read_rows(path, name)
-    where, used = header_columns(header, name)
+    where, used, ignored = header_columns(header, name)
+    check_feeds(used, estimators, name)
 
     for row, line in zip(rows, lines, strict=True):
         if len(row) != len(header):
@@ -167,7 +189,7 @@ def _read_validated(path: Path, name: str) -> ReplayInput:
     values: dict[str, np.ndarray] = {}
     problems: list[tuple[int, int, str, str]] = []  # (row index, column position, column, message)
     for column in used:
-        column_values, problem = parse_cells(cells[column], column == schema.REPLAY_HEEL_STRIKE)
+        column_values, problem = parse_cells(cells[column], column in FLAGS)
         if problem is not None:
             problems.append((problem[0], where[column], column, problem[1]))
         values[column] = column_values
@@ -198,7 +220,7 @@ def _read_validated(path: Path, name: str) -> ReplayInput:
             column=schema.REPLAY_TIME,
         )
 
-    return _replay_input(values)
+    return _replay_input(values, ignored)
 
 
 def _output_values(columns: Mapping[str, np.ndarray]) -> list[np.ndarray]:
@@ -223,7 +245,7 @@ def _output_values(columns: Mapping[str, np.ndarray]) -> list[np.ndarray]:
     return values
 
 
-#: Raw IMU channels a replay CSV may carry instead of (or beside) angles, by leg IMU: the six of one IMU
+#: Raw IMU channels a file may carry instead of (or beside) angles, by leg IMU: the six of one IMU
 #: (``imu_{seg}_gyro_{x,y,z}_dps``, ``imu_{seg}_accel_{x,y,z}_m_s2``); the stack's IMU front end derives
 #: that segment's angle from them (``docs/api.md``, "Raw IMU input").
 _IMU_KINDS: Final = (("gyro", "dps"), ("accel", "m_s2"))
@@ -233,54 +255,81 @@ RAW_IMUS: Final = {
 }
 
 
-def header_columns(header: list[str], name: str, raw_imu: bool = False) -> tuple[dict[str, int], list[str]]:
-    """Position of each known column, and the used ones (time, signals in schema order, raw IMU channels
-    when ``raw_imu``, heel strike). With ``raw_imu`` a file needs an angle column or one leg IMU's six
-    raw channels; without, an angle column (seed 000's replay format, which ``gaitscope replay`` reads)."""
-    imu = [c for channels in RAW_IMUS.values() for c in channels]
-    known = {schema.REPLAY_TIME, *schema.REPLAY_SIGNALS, schema.REPLAY_HEEL_STRIKE, *(imu if raw_imu else ())}
+def header_columns(header: list[str], name: str) -> tuple[dict[str, int], list[str], list[str]]:
+    """Position of each channel column, the used ones (``time_s``, the channels in
+    :data:`~gaitscope.sessions.schema.CHANNELS` order, ``heel_strike`` last) and the ignored ones (the
+    header's other names, in file order).
+
+    Raises:
+        DataFormatError: no ``time_s``, a name twice, or no channel column at all.
+    """
     where: dict[str, int] = {}
+    ignored: list[str] = []
     for j, column in enumerate(header):
-        if column not in known:
+        if column != schema.REPLAY_TIME and column not in schema.CHANNELS:
+            ignored.append(column or f"(column {j + 1})")
             continue
         if column in where:
             raise DataFormatError("column name appears twice", file=name, column=column, row=1)
         where[column] = j
     if schema.REPLAY_TIME not in where:
         raise DataFormatError("missing required column", file=name, column=schema.REPLAY_TIME, row=1)
-    whole = [seg for seg, channels in RAW_IMUS.items() if all(c in header for c in channels)]
-    if not any(angle in where for angle in schema.REPLAY_ANGLES) and not (raw_imu and whole):
-        expected = " or ".join(repr(a) for a in schema.REPLAY_ANGLES)
-        if whole:  # raw IMU columns where seed 000's format is read
-            raise DataFormatError(
-                f"no angle column; expected {expected}. The file has raw IMU columns ({', '.join(whole)}): "
-                "upload it in the dashboard, where the IMU front end derives the angles",
-                file=name,
-                row=1,
-            )
-        also = " or the six raw columns of a leg IMU (imu_foot_gyro_x_dps, ...)" if raw_imu else ""
-        raise DataFormatError(f"no angle column; expected {expected}{also}", file=name, row=1)
-    used = [schema.REPLAY_TIME, *(s for s in schema.REPLAY_SIGNALS if s in where)]
-    used += [c for c in imu if c in where]
+    channels = [c for c in schema.CHANNELS if c in where and c != schema.REPLAY_HEEL_STRIKE]
+    if not channels and schema.REPLAY_HEEL_STRIKE not in where:
+        near = [c for c in ignored if c.lower().replace(" ", "_") in schema.CHANNELS]
+        hint = f" ({', '.join(near)}: names are lower case, with underscores)" if near else ""
+        raise DataFormatError(
+            f"no sensor channel column{hint}; the columns gaitscope reads are named as its channels, units in the "
+            "name (foot_angle_deg, shank_angle_deg, thigh_angle_deg, knee_angle_deg, imu_shank_gyro_z_dps, ...: "
+            "docs/api.md, Channels)",
+            file=name,
+            row=1,
+        )
+    used = [schema.REPLAY_TIME, *channels]
     if schema.REPLAY_HEEL_STRIKE in where:
         used.append(schema.REPLAY_HEEL_STRIKE)
-    return where, used
+    return where, used, ignored
+
+
+def check_feeds(channels: Sequence[str], estimators: Sequence[str], name: str) -> None:
+    """Refuse a file whose ``channels`` feed none of ``estimators`` (the registry's rule,
+    :meth:`~gaitscope.sessions.registry.Declared.lacking`), naming what each lacks; nothing when
+    ``estimators`` is empty or one of them can run."""
+    if not estimators:
+        return
+    from gaitscope.sessions.registry import feeds  # the estimators' registry: only when a file is read
+
+    fed = feeds([c for c in channels if c != schema.REPLAY_TIME], among=estimators)
+    lacking = {e: fed[e].missing for e in estimators if e in fed}
+    if not lacking or any(not missing for missing in lacking.values()):
+        return
+    what = "; ".join(f"{e} needs {', '.join(missing)}" for e, missing in lacking.items())
+    raws = [seg for seg, imu in RAW_IMUS.items() if set(imu) <= set(channels)]
+    hint = ""
+    if raws:
+        fronts = ",".join(f"imu_{seg}" for seg in raws)
+        hint = (
+            f". The file has raw IMU columns ({', '.join(raws)}): the IMU front ends derive the angles from them "
+            f"(gaitscope replay --estimators {fronts},{','.join(estimators)}, or upload it in the dashboard)"
+        )
+    raise DataFormatError(f"the file's channels cannot feed the estimators asked for: {what}{hint}", file=name, row=1)
 
 
 def _period_ok(period: float) -> bool:
     return MIN_PERIOD_S <= period <= MAX_PERIOD_S
 
 
-def _replay_input(values: dict[str, np.ndarray]) -> ReplayInput:
+def _replay_input(values: dict[str, np.ndarray], ignored: Sequence[str] = ()) -> ReplayInput:
     heel_strike = values.get(schema.REPLAY_HEEL_STRIKE)
     return ReplayInput(
         time_s=values[schema.REPLAY_TIME],
-        signals={s: values[s] for s in schema.REPLAY_SIGNALS if s in values},
+        signals={c: values[c] for c in schema.CHANNELS if c in values and c != schema.REPLAY_HEEL_STRIKE},
         heel_strike=None if heel_strike is None else heel_strike == 1.0,
+        ignored=tuple(ignored),
     )
 
 
-def _read_plain(path: Path, name: str) -> ReplayInput | None:
+def _read_plain(path: Path, name: str, estimators: Sequence[str]) -> ReplayInput | None:
     """The fast path of :func:`read_replay_csv`: the input of a plain, valid file, else None (then the
     validating reader runs and names the problem)."""
     try:
@@ -295,19 +344,20 @@ def _read_plain(path: Path, name: str) -> ReplayInput | None:
     if not any(header):
         return None
     try:
-        where, used = header_columns(header, name)
+        where, used, ignored = header_columns(header, name)
+        check_feeds(used, estimators, name)
     except DataFormatError:
         return None
     values = _fastcsv.read_numbers(body, len(header), {c: where[c] for c in used})
     if values is None or values[schema.REPLAY_TIME].size < _MIN_ROWS:
         return None
-    heel_strike = values.get(schema.REPLAY_HEEL_STRIKE)
-    if heel_strike is not None and not ((heel_strike == 0.0) | (heel_strike == 1.0)).all():
-        return None
+    for flag in FLAGS.intersection(values):
+        if not ((values[flag] == 0.0) | (values[flag] == 1.0)).all():
+            return None
     step = np.diff(values[schema.REPLAY_TIME])
     if not (step > 0.0).all() or not _period_ok(float(np.median(step))):
         return None
-    return _replay_input(values)
+    return _replay_input(values, ignored)
 
 
 def _read_rows(path: Path, name: str) -> tuple[list[str], list[list[str]], list[int]]:

@@ -1,7 +1,8 @@
 """Replay a recorded trial (the replay CSV) through the estimator stack.
 
-Reads the input with full validation (:mod:`gaitscope.sessions.formats.replay_io`), derives missing angular velocities
-from the angles (``numpy.gradient`` in time) and runs the trial through a session's estimator stack
+Reads the input with full validation (:mod:`gaitscope.sessions.formats.replay_io`), derives missing angular
+velocities from the angles as a live session does (:func:`~gaitscope.sessions.estimation.backward_difference`),
+and runs the trial through a session's estimator stack
 (:func:`replay_stack`: :class:`~gaitscope.sessions.stack.EstimatorStack` with the phase EKF ``phase_ekf`` driving
 the torque and the timing-based estimate ``tbe``, as :func:`gaitscope.sessions.registry.build_stack` makes them
 for a live session), sample by sample as a device streams it: the estimates, the torque and its rule are the
@@ -46,6 +47,7 @@ from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, Tra
 from gaitscope.estimators.protocol import HEEL_STRIKE
 from gaitscope.estimators.tbe import TimingBasedEstimator
 from gaitscope.sessions import schema
+from gaitscope.sessions.estimation import backward_difference
 from gaitscope.sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv
 from gaitscope.sessions.registry import ESTIMATORS, StackContext
 from gaitscope.sessions.stack import EstimatorStack
@@ -113,12 +115,10 @@ def measurements(data: ReplayInput, highpass: bool = True) -> Array:
         if name in data.signals:
             v = data.signals[name]
             z[:, i] = np.where((v >= lo) & (v <= hi), v, np.nan)
-        elif name in _VELOCITY_OF and _VELOCITY_OF[name] in data.signals:
+        elif name in _VELOCITY_OF and _VELOCITY_OF[name] in data.signals:  # derived as a live session does
             a_lo, a_hi = schema.SENSOR_LIMITS[_VELOCITY_OF[name]]
             a = data.signals[_VELOCITY_OF[name]]
-            with np.errstate(invalid="ignore", over="ignore"):
-                v = np.gradient(np.where((a >= a_lo) & (a <= a_hi), a, np.nan), data.time_s)
-            z[:, i] = np.where((v >= lo) & (v <= hi), v, np.nan)
+            z[:, i] = backward_difference(np.where((a >= a_lo) & (a <= a_hi), a, np.nan), data.time_s)
     if not highpass:
         return z
     heel = z[:, 4:6]

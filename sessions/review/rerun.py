@@ -61,6 +61,7 @@ from gaitscope.sessions.formats.mcap_io import (
     SeriesBuilder,
     count_messages,
     iter_sensor_frames,
+    metadata_of,
     read_messages,
     series_window,
 )
@@ -462,14 +463,7 @@ def _sample_period(path: Path, first: SensorFrame) -> float:
 
 def _metadata(path: Path) -> dict[str, str]:
     """Key/values of the recording's ``gaitscope`` metadata record (empty without one)."""
-    try:
-        with open(path, "rb") as f:
-            for record in make_reader(f).iter_metadata():
-                if record.name == METADATA_NAME:
-                    return dict(record.metadata)
-    except (McapError, ValueError, struct.error, EOFError) as exc:
-        raise DataFormatError(f"damaged metadata ({exc})", file=str(path)) from exc
-    return {}
+    return metadata_of(path, METADATA_NAME)
 
 
 def _last_frame(path: Path) -> SensorFrame | None:

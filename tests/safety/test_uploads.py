@@ -171,6 +171,22 @@ def test_locohub_tables_import(make_client: Callable[..., TestClient], tmp_path:
     session = client.get(f"/api/sessions/{trial['session_id']}").json()
     source = {"kind": "upload", "filename": f"cohort{suffix}", "sha256": hashlib.sha256(data).hexdigest()}
     assert session["state"] == "stopped" and session["source"] == source
+    # every signal a channel carries is read (issue #25): both legs' segments and joints, the feet's forces,
+    # the centre of mass; what no channel carries is listed as not read
+    report = trial["report"]
+    assert {
+        "thigh_angle_deg", "knee_angle_deg", "hip_angle_contra_deg", "foot_force_N", "com_forward_m", "com_up_vel_m_s"
+    } <= set(report["channels"])  # fmt: skip
+    assert {schema.ANKLE_MOMENT, schema.PELVIS_ANGLE, schema.TOE_OFF, schema.SPEED} <= set(report["ignored"])
+    ran = {e["name"] for e in report["estimators"] if e["ran"]}
+    assert {"phase_ekf", "fp_avg", "fp_gf"} <= ran and "com_kin" not in ran  # the table has the centre of mass
+    path = client.app.state.ctx.settings.data_dir / trial["path"]  # type: ignore[attr-defined]
+    frames = [m for _, _, m in read_messages(path, ["/sensor"])]
+    table = _locohub().drop_duplicates(["subject", "task_id", "time_s"])
+    for column, channel, scale in ((schema.COM_STANCE_POSITION[1], "com_lateral_m", -1.0),
+                                   (schema.KNEE_ANGLE, "knee_angle_deg", 180.0 / math.pi)):  # fmt: skip
+        recorded = sorted(f[channel] for f in frames)
+        np.testing.assert_allclose(recorded, sorted(scale * table[column].to_numpy()), rtol=1e-12, atol=1e-12)
 
 
 def test_replay_csv_and_mcap_import(make_client: Callable[..., TestClient], tmp_path: Path) -> None:
@@ -237,7 +253,7 @@ BAD_FILES: list[tuple[str, Callable[[Path], bytes], str]] = [
     ("text.mcap", lambda _: b"time_s,foot_angle_deg\n0,1\n", "not an MCAP file: the content is CSV text"),
     ("magic.mcap", lambda _: b"\x89MCAP9\r\n" + bytes(64), "not an MCAP file: the content is binary data"),
     ("table.mcap", lambda _: _parquet(pd.DataFrame({"x": [1.0]})), "not an MCAP file: the content is a parquet file"),
-    ("wrong.csv", lambda _: b"a,b\n1,2\n3,4\n", "neither the replay columns"),
+    ("wrong.csv", lambda _: b"a,b\n1,2\n3,4\n", "neither time_s and a column named as a gaitscope channel"),
     ("garbage.csv", lambda _: bytes(range(256)) * 16, "not a CSV file: the content is binary data"),
     ("recording.csv", lambda _: _mcap(_frames()), "not a CSV file: the content is an MCAP file"),
     ("table.csv", lambda _: _parquet(pd.DataFrame({"x": [1.0]})), "not a CSV file: the content is a parquet file"),
@@ -517,7 +533,9 @@ def test_imports_run_in_a_worker_process(tmp_path: Path) -> None:
 
 def _synthetic_csv(path: Path, rows: int) -> int:
     t = np.arange(rows) * 0.01
-    columns = {"time_s": t, **{name: 20 * np.sin(2 * np.pi * t + k) for k, name in enumerate(schema.REPLAY_SIGNALS)}}
+    amplitude = {name: 0.2 if name.endswith("_m") else 20.0 for name in schema.REPLAY_SIGNALS}  # metres, degrees
+    signals = {n: amplitude[n] * np.sin(2 * np.pi * t + k) for k, n in enumerate(schema.REPLAY_SIGNALS)}
+    columns = {"time_s": t, **signals}
     pd.DataFrame(columns).to_csv(path, index=False, float_format="%.6f")
     return path.stat().st_size
 

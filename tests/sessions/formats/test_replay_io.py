@@ -90,7 +90,26 @@ def test_missing_time_column(tmp_path: Path) -> None:
 
 def test_no_angle_column(tmp_path: Path) -> None:
     path = _write(tmp_path, "time_s,foot_vel_dps\n0,1\n1,2\n")
-    assert _error(path) == f"file {path}, row 1: no angle column; expected 'foot_angle_deg' or 'shank_angle_deg'"
+    assert _error(path) == (
+        f"file {path}, row 1: the file's channels cannot feed the estimators asked for: "
+        "phase_ekf needs foot_angle_deg or shank_angle_deg"
+    )
+
+
+def test_no_channel_column_says_how_columns_are_named(tmp_path: Path) -> None:
+    path = _write(tmp_path, "time_s,Knee Angle Deg,force\n0,1,2\n1,2,3\n")
+    assert _error(path).startswith(
+        f"file {path}, row 1: no sensor channel column (Knee Angle Deg: names are lower case, with underscores); "
+    )
+
+
+def test_every_channel_column_is_read_and_the_others_are_listed(tmp_path: Path) -> None:
+    text = "time_s,shank_angle_deg,thigh_angle_deg,knee_angle_deg,foot_contact,notes,\n0,1,2,3,1,4,5\n0.01,2,3,4,0,5,6\n"
+    data = read_replay_csv(_write(tmp_path, text))
+    assert list(data.signals) == ["shank_angle_deg", "thigh_angle_deg", "knee_angle_deg", "foot_contact"]
+    assert data.signals["foot_contact"].tolist() == [1.0, 0.0] and data.ignored == ("notes", "(column 7)")
+    bad = _write(tmp_path, "time_s,shank_angle_deg,foot_contact\n0,1,1\n0.01,2,2\n")
+    assert _error(bad) == f"file {bad}, column 'foot_contact', row 3: must be 0 or 1, got '2'"
 
 
 def test_repeated_column(tmp_path: Path) -> None:

@@ -175,7 +175,7 @@ def test_the_fast_reader_returns_what_the_validating_reader_returns(tmp_path: Pa
     path = tmp_path / "trial.csv"
     path.write_bytes(data)
     try:
-        validated: ReplayInput | DataFormatError = replay_io._read_validated(path, str(path))
+        validated: ReplayInput | DataFormatError = replay_io._read_validated(path, str(path), replay_io.DEFAULT_NEEDS)
     except DataFormatError as err:
         validated = err
     assert _same(_read(path), validated)
@@ -198,7 +198,7 @@ def test_numbers_parse_to_the_same_bits_on_both_paths(tmp_path: Path, values: li
     path = tmp_path / "trial.csv"
     rows = "".join(f"{0.01 * k!r},{fmt.format(v)}\n" for k, v in enumerate(values))
     path.write_text("time_s,foot_angle_deg\n" + rows)
-    fast = replay_io._read_plain(path, str(path))
+    fast = replay_io._read_plain(path, str(path), replay_io.DEFAULT_NEEDS)
     assert fast is not None  # a plain file takes the fast path
     expected = np.array([float(fmt.format(v)) for v in values])
     np.testing.assert_array_equal(fast.signals["foot_angle_deg"].view(np.int64), expected.view(np.int64))
@@ -216,4 +216,4 @@ def test_numbers_parse_to_the_same_bits_on_both_paths(tmp_path: Path, values: li
 def test_files_the_fast_reader_leaves_to_the_validating_one(tmp_path: Path, text: str) -> None:
     path = tmp_path / "trial.csv"
     path.write_bytes(text.encode())
-    assert replay_io._read_plain(path, str(path)) is None
+    assert replay_io._read_plain(path, str(path), replay_io.DEFAULT_NEEDS) is None
