@@ -500,7 +500,7 @@ def c3d_frames(path: str | Path, name: str, mapping: C3DMapping = PLUG_IN_GAIT) 
             )
         up_name = mapping.up_axis or (_strings(f.reader, "POINT:Y_SCREEN") or ["+z"])[0].lower()
         up = _axis(up_name if up_name in _AXES else "+z")
-        fwd = _forward(f, up, mapping)
+        fwd = _forward(f, up, mapping) if f.roles else up  # no marker: only analog channels, no direction
         yield from _stream(f, mapping, names, fwd, up)
     finally:
         f.close()

@@ -354,3 +354,14 @@ def test_refuses_a_plate_that_needs_its_calibration_matrix(tmp_path: Path) -> No
         inspect_c3d(tmp_path / "t4.c3d", "t4.c3d")
     no_plates = C3DMapping.from_json('{"force_plates": false}')
     assert inspect_c3d(tmp_path / "t4.c3d", "t4.c3d", no_plates).force_plates == 0
+
+
+def test_an_imu_only_file_gives_its_mapped_analog_channels(tmp_path: Path) -> None:
+    analog = np.zeros((50, 1, 10), np.float32)
+    analog[:, 0, :] = np.arange(10, dtype=np.float32)  # mean 4.5 in every point frame
+    _write(tmp_path / "imu.c3d", ["M0"], np.ones((50, 1, 3), np.float32), analog)
+    mapping = C3DMapping.from_json('{"analog": {"Force.Fz1": {"channel": "imu_foot_gyro_z_dps", "scale": 2}}}')
+    assert inspect_c3d(tmp_path / "imu.c3d", "imu.c3d", mapping).channels == ("imu_foot_gyro_z_dps",)
+    frames = list(c3d_frames(tmp_path / "imu.c3d", "imu.c3d", mapping))
+    assert len(frames) == 50 and {f.imu_foot_gyro_z_dps for f in frames} == {9.0}
+    assert frames[0].knee_angle_deg is None and frames[0].heel_strike is None
