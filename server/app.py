@@ -37,6 +37,7 @@ from gaitscope.sessions.live.disk import DiskGuard
 from gaitscope.sessions.live.gp_learning import GPTrainer
 from gaitscope.sessions.live.manager import ModelStore, SessionManager
 from gaitscope.sessions.live.warmup import warm_up
+from gaitscope.sessions.mappings.saved import SavedMappings
 from gaitscope.sessions.store import Store
 from gaitscope.sessions.store_writer import StoreWriter
 
@@ -59,9 +60,12 @@ class AppContext:
     audit: AuditLog
     #: the thread that makes the event loop's database writes (sessions' events and trials, async routes' audit)
     writer: StoreWriter
+    #: the channel mappings saved per rig (uploads of other tools' MCAP recordings and of C3D files)
+    mappings: SavedMappings
     leg_view: LegView | None = None
     #: this node's membership of a cluster (Settings.cluster), else None
     nodes: Nodes | None = None
+
     focus: int | None = None
     _last_view: float = 0.0
 
@@ -164,7 +168,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         audit.ensure_keyed()  # a trail from before the key: its keyed part starts here; another key: refused
         ctx = AppContext(
             settings=settings, store=store, models=models, manager=manager, uploads=Uploads(settings),
-            accounts=accounts, audit=audit, writer=writer,
+            accounts=accounts, audit=audit, writer=writer, mappings=SavedMappings(store),
         )  # fmt: skip
         ctx.uploads.clear_leftovers()  # uploads live in memory: a restart ends them
         for trial in ctx.manager.recover_after_crash():
@@ -173,7 +177,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             model = models.get("default")[0]
             logged_in = functools.partial(_cookie_logged_in, accounts) if settings.auth else None
             ctx.leg_view = LegView(
-                settings.host, settings.viser_port, model, allowed_hosts=settings.allowed_hosts, logged_in=logged_in,
+                settings.host,
+                settings.viser_port,
+                model,
+                allowed_hosts=settings.allowed_hosts,
+                logged_in=logged_in,
                 watch=accounts.watch,
             )
         app.state.ctx = ctx

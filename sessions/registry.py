@@ -427,16 +427,19 @@ def build_stack(
     return out
 
 
-def feeds(channels: Collection[str]) -> dict[str, Feed]:
+def feeds(channels: Collection[str], among: Collection[str] | None = None) -> dict[str, Feed]:
     """How a source sending ``channels`` feeds each registered estimator (by name, in :data:`ESTIMATORS`
-    order), reckoned from :data:`DECLARED` as :func:`resolve` would run the whole registry: a channel an
-    estimator derives (``heel_strike``: ``hs_detector``, ``phase_ekf``) feeds those after it."""
+    order), reckoned from :data:`DECLARED` as :func:`resolve` would run the whole registry, or only the
+    estimators ``among`` (a stack asked for by name): a channel an estimator derives (``heel_strike``:
+    ``hs_detector``, ``phase_ekf``) feeds those after it."""
     available = _provided(channels)
     assert available is not None
     source = set(available)
     derived: dict[str, list[str]] = {}  # channel -> the estimators that derive it
     out: dict[str, Feed] = {}
     for name, d in DECLARED.items():
+        if among is not None and name not in among:
+            continue
         lacking = d.lacking(available)
         needed = (*d.inputs, *(c for c in d.inputs_any if c in available))
         out[name] = Feed(tuple(lacking), {c: tuple(derived[c]) for c in needed if c not in source and c in derived})

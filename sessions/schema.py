@@ -495,7 +495,7 @@ class UploadCreate(_Strict):
         # no bidirectional controls ("x\u202egpj.csv" displays as "xvsc.jpg")
         # the extension in any case ("x.CSV"), spelled out: the browser's RegExp has no inline (?i)
         pattern=r"^[^/\\\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069]+"
-        r"\.([Mm][Cc][Aa][Pp]|[Cc][Ss][Vv]|[Pp][Aa][Rr][Qq][Uu][Ee][Tt])$",
+        r"\.([Mm][Cc][Aa][Pp]|[Cc][Ss][Vv]|[Pp][Aa][Rr][Qq][Uu][Ee][Tt]|[Cc]3[Dd])$",
     )
     size: int = Field(ge=1, le=INT64_MAX, description="bytes; refused above the server's limit")
     subject_id: int = Field(ge=1, le=INT64_MAX)
@@ -534,6 +534,90 @@ class ImportReport(BaseModel):
     ignored: list[str] = Field(default_factory=list, description="the file's columns or fields not read")
     estimators: list[EstimatorFeed] = Field(default_factory=list)
     warnings: list[str] = Field(default_factory=list, description="implausible values, named in the user's terms")
+
+
+MappingKind = Literal["mcap", "c3d"]
+
+
+class ImportOptions(_Strict):
+    """How to read an upload (``POST /api/uploads/{id}/preview`` and ``/finish``): the channel mapping of a file
+    whose fields are not named as gaitscope's channels."""
+
+    mapping: str | None = Field(
+        default=None,
+        max_length=200_000,
+        description="JSON: for an MCAP recording of another tool, its fields' channels "
+        "(gaitscope.sessions.formats.foreign_mcap.ChannelMapping); for a C3D file, its marker set "
+        "(gaitscope.sessions.formats.c3d.C3DMapping). Null: the mapping saved for the file's rig, else the "
+        "suggested one (Plug-in Gait for C3D)",
+    )
+    allow_other_rig: bool = Field(default=False, description="use a mapping saved for another rig")
+
+
+class SourceField(BaseModel):
+    """A field of a file that a mapping can give a channel: a topic's field of an MCAP recording of another tool
+    (``topic``, ``path``), or a C3D marker or analog channel (``topic`` ``marker`` or ``analog``)."""
+
+    topic: str
+    path: str
+    kind: str = Field(description="number, bool, marker or analog")
+    count: int | None = None
+    rate_hz: float | None = None
+    min: float | None = None
+    max: float | None = None
+    channel: str | None = Field(
+        default=None, description="the channel the mapping in use gives it, or a C3D marker's role (null: none)"
+    )
+
+
+class PreviewChannel(BaseModel):
+    """One channel of an import preview: where it comes from, its unit, what its values look like."""
+
+    channel: str
+    unit: str
+    source: str = Field(description="the file's column, field or marker set it comes from")
+    count: int
+    min: float | None
+    max: float | None
+    plausible: tuple[float, float] | None = Field(description="its plausible range (SENSOR_LIMITS); null: a flag")
+    outside: int = Field(description="values outside the plausible range (treated as missing)")
+
+
+class ImportPreview(BaseModel):
+    """What an import would read from an upload, from its first :data:`PREVIEW_S` seconds, before anything is
+    stored: the channels and their values (a small plot of each), what they feed, what looks wrong, and the
+    mapping in use (editable) for a file that needs one."""
+
+    filename: str
+    format: str
+    previewed_s: float = Field(description="seconds of the file read for the preview")
+    complete: bool = Field(description="the preview read the whole file")
+    report: ImportReport
+    channels: list[PreviewChannel]
+    t: list[float] = Field(description="times (s) of the plotted samples")
+    series: dict[str, list[float | None]] = Field(description="each channel at the times t")
+    mapping_kind: MappingKind | None = None
+    mapping: str | None = Field(default=None, description="the mapping in use, as JSON (null: none needed)")
+    mapping_source: Literal["given", "saved", "suggested"] | None = None
+    rig: str | None = Field(default=None, description="the file's rig signature (a saved mapping's key)")
+    fields: list[SourceField] = Field(default_factory=list)
+    problem: str | None = Field(default=None, description="why the import would be refused (null: it would not)")
+
+
+#: Seconds of an upload an import preview reads.
+PREVIEW_S: Final = 60.0
+#: Samples per channel an import preview plots.
+PREVIEW_POINTS: Final = 400
+
+
+class SavedMapping(BaseModel):
+    """A channel mapping saved for a rig (the next file of the same rig maps itself)."""
+
+    rig: str
+    kind: MappingKind
+    mapping: str
+    actor: str
+    updated_utc: str
 
 
 class ImportedTrial(Trial):

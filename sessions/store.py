@@ -91,6 +91,7 @@ _TABLE_MODULES: Final = (
     "gaitscope.sessions.accounts.tables",
     "gaitscope.sessions.audit.tables",
     "gaitscope.sessions.cluster.tables",
+    "gaitscope.sessions.mappings.tables",
 )
 
 

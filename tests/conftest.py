@@ -56,7 +56,7 @@ def client(tmp_path: Path) -> Iterator[TestClient]:
     TestClient sends ``Host: testserver``: allowed here, and only here (never by default). The disk
     thresholds are 1 MiB so that the tests do not depend on how full the machine's disk is."""
     settings = Settings(
-        data_dir=tmp_path / "data", demo=False, leg_view=False, max_upload_mb=5, upload_chunk_kb=64,
+        data_dir=tmp_path / "data", demo=False, leg_view=False, max_upload_mb=8, upload_chunk_kb=64,
         allowed_hosts=["testserver"], disk_warn_mb=1, disk_stop_mb=1, upload_min_free_mb=1,
         gp_fit_duty=1.0,  # the tests stream faster than real time: every window fitted as it comes
     )  # fmt: skip

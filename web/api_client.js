@@ -1322,6 +1322,28 @@ export function cancelUpload(uploadId) {
 }
 
 /**
+ * The address of `POST /api/uploads/{upload_id}/preview`.
+ * @param {string} uploadId
+ * @returns {string}
+ */
+export function previewUploadUrl(uploadId) {
+  return `/api/uploads/${_p(uploadId)}/preview`;
+}
+
+/**
+ * `POST /api/uploads/{upload_id}/preview`: What an import of the (complete) upload would read, from its
+ * first seconds: the channels, a small plot of each, what they feed, what looks wrong, and the channel
+ * mapping in use for a file that needs one (given, saved for the file's rig, or suggested). Nothing is
+ * stored; the upload stays open.
+ * @param {string} uploadId
+ * @param {object | null} [body]
+ * @returns {Promise<object>}
+ */
+export function previewUpload(uploadId, body) {
+  return api("POST", previewUploadUrl(uploadId), body);
+}
+
+/**
  * The address of `POST /api/uploads/{upload_id}/finish`.
  * @param {string} uploadId
  * @param {{recover?: boolean, keep_copy?: boolean}} [params]
@@ -1334,13 +1356,51 @@ export function finishUploadUrl(uploadId, params = {}) {
 /**
  * `POST /api/uploads/{upload_id}/finish`: Import the upload; ``recover=true`` first recovers an MCAP
  * recording that was never finished; ``keep_copy=true`` stores a file uploaded before again (else 409,
- * naming its trial).
+ * naming its trial). ``options``: the channel mapping of another tool's MCAP recording or of a C3D file
+ * (kept for the file's rig, so its next file maps itself); without it, the mapping saved for the rig, else
+ * the suggested one.
  * @param {string} uploadId
+ * @param {object | null} [body]
  * @param {{recover?: boolean, keep_copy?: boolean}} [params]
  * @returns {Promise<object>}
  */
-export function finishUpload(uploadId, params = {}) {
-  return api("POST", finishUploadUrl(uploadId, params));
+export function finishUpload(uploadId, body, params = {}) {
+  return api("POST", finishUploadUrl(uploadId, params), body);
+}
+
+/**
+ * The address of `GET /api/mappings`.
+ * @returns {string}
+ */
+export function listMappingsUrl() {
+  return "/api/mappings";
+}
+
+/**
+ * `GET /api/mappings`: The channel mappings saved per rig, newest first.
+ * @returns {Promise<Array<object>>}
+ */
+export function listMappings() {
+  return api("GET", listMappingsUrl());
+}
+
+/**
+ * The address of `DELETE /api/mappings/{rig}`.
+ * @param {string} rig
+ * @returns {string}
+ */
+export function deleteMappingUrl(rig) {
+  return `/api/mappings/${_p(rig)}`;
+}
+
+/**
+ * `DELETE /api/mappings/{rig}`: Forget the mapping saved for ``rig`` (its next file gets the suggested one
+ * again).
+ * @param {string} rig
+ * @returns {Promise<null>}
+ */
+export function deleteMapping(rig) {
+  return api("DELETE", deleteMappingUrl(rig));
 }
 
 /**

@@ -1572,7 +1572,7 @@ export const FIELD_LIMITS = deepFreeze({
     filename: {
       minLength: 1,
       maxLength: 200,
-      pattern: "^[^/\\\\\\x00-\\x1f\\x7f-\\x9f\\u2028\\u2029\\u200e\\u200f\\u202a-\\u202e\\u2066-\\u2069]+\\.([Mm][Cc][Aa][Pp]|[Cc][Ss][Vv]|[Pp][Aa][Rr][Qq][Uu][Ee][Tt])$",
+      pattern: "^[^/\\\\\\x00-\\x1f\\x7f-\\x9f\\u2028\\u2029\\u200e\\u200f\\u202a-\\u202e\\u2066-\\u2069]+\\.([Mm][Cc][Aa][Pp]|[Cc][Ss][Vv]|[Pp][Aa][Rr][Qq][Uu][Ee][Tt]|[Cc]3[Dd])$",
     },
     size: { min: 1, max: 9.223372036854776e+18 },
     subject_id: { min: 1, max: 9.223372036854776e+18 },

@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Final
 
 from fastapi import APIRouter, HTTPException, Query, Request, Response
+from fastapi import Path as Path_
 
 from gaitscope.server.auth import Uploader, allow
 from gaitscope.server.routes.common import Ctx, audited
@@ -186,8 +187,59 @@ class Uploads:
             state.touched = time.monotonic()
             return state.info
 
+    def _complete(self, upload_id: str) -> UploadState:
+        """The upload, all of it received and no chunk arriving (else 409)."""
+        state = self._get(upload_id)
+        info = state.info
+        if state.lock.locked():
+            raise HTTPException(409, f"a chunk of {info.filename} is still being received; finish after it")
+        if info.received != info.size:
+            raise HTTPException(409, f"received {info.received} of {info.size} bytes; send the rest first")
+        return state
+
+    async def _mapping(
+        self, state: UploadState, c: AppContext, options: schema.ImportOptions
+    ) -> tuple[str | None, bool]:
+        """The mapping to read the upload with: the one given, else the one saved for the file's rig (then
+        True), else None (the reader's suggestion)."""
+        if options.mapping is not None:
+            return options.mapping, False
+        rig = await asyncio.to_thread(_rig, state.path, state.info.filename)
+        saved = None if rig is None else c.mappings.get(rig)
+        return (None, False) if saved is None else (saved.mapping, True)
+
+    async def preview(self, upload_id: str, c: AppContext, options: schema.ImportOptions) -> schema.ImportPreview:
+        """What an import of the upload would read (:mod:`gaitscope.sessions.formats.preview`); the upload stays
+        open for its finish (or another preview with another mapping)."""
+        from gaitscope.sessions.formats.preview import run_preview
+
+        state = self._complete(upload_id)
+        async with state.lock:
+            state.touched = time.monotonic()
+            mapping, saved = await self._mapping(state, c, options)
+            subject = c.store.get_subject(state.subject_id)
+            model = c.models.get("default")[0]
+            scratch = self.folder / f"{upload_id}.preview.mcap"  # never written: a preview stores nothing
+            job = ImportJob(state.path, state.info.filename, scratch, subject, model, mapping, options.allow_other_rig)
+            try:
+                preview = await asyncio.wrap_future(self._executor().submit(run_preview, job))
+            except ImportRefused as err:
+                raise HTTPException(422, str(err)) from None
+            except BrokenProcessPool:
+                self._worker = None
+                raise HTTPException(503, f"the preview of {state.info.filename} stopped unexpectedly") from None
+            state.touched = time.monotonic()
+        return preview.model_copy(update={"mapping_source": "saved"}) if saved else preview
+
     async def finish(
-        self, upload_id: str, c: AppContext, *, recover: bool = False, keep_copy: bool = False
+        self,
+        upload_id: str,
+        c: AppContext,
+        *,
+        recover: bool = False,
+        keep_copy: bool = False,
+        options: schema.ImportOptions | None = None,
+        actor: str = "local",
     ) -> schema.ImportedTrial:
         """Import a complete upload as a new session with one trial (422 for a bad file; 409 for a file uploaded
         before, unless ``keep_copy``: see :meth:`_once`).
@@ -197,12 +249,9 @@ class Uploads:
         and finished with ``recover=True``, it is re-indexed first (:func:`gaitscope.sessions.formats.mcap_io.recover`,
         the crash recovery of the server's own recordings), then imported.
         """
-        state = self._get(upload_id)
+        state = self._complete(upload_id)
         info = state.info
-        if state.lock.locked():
-            raise HTTPException(409, f"a chunk of {info.filename} is still being received; finish after it")
-        if info.received != info.size:
-            raise HTTPException(409, f"received {info.received} of {info.size} bytes; send the rest first")
+        options = options or schema.ImportOptions()
         self._close(upload_id)
         self._importing[upload_id] = info.size
         recording = self.folder / f"{upload_id}.import.mcap"
@@ -212,7 +261,9 @@ class Uploads:
                 await _unfinished_mcap(state.path, info.filename, recover)
             subject = c.store.get_subject(state.subject_id)
             model = c.models.get("default")[0]
-            result = await self._run(ImportJob(state.path, info.filename, recording, subject, model))
+            mapping, _ = await self._mapping(state, c, options)
+            job = ImportJob(state.path, info.filename, recording, subject, model, mapping, options.allow_other_rig)
+            result = await self._run(job)
             rel = f"recordings/upload_{int(time.time() * 1000)}_{upload_id[:8]}_{_safe_stem(info.filename)}.mcap"
             final = c.settings.data_dir / rel
             final.parent.mkdir(parents=True, exist_ok=True)
@@ -229,6 +280,9 @@ class Uploads:
             except BaseException:
                 final.unlink(missing_ok=True)  # moved, then the commit failed: no rows, so no file
                 raise
+            if result.mapping is not None:  # the rig's next file maps itself
+                text, kind, rig = result.mapping
+                c.mappings.save(rig, kind, text, actor=actor)
             return schema.ImportedTrial(**trial.model_dump(), report=result.report)
         finally:
             del self._importing[upload_id]
@@ -321,6 +375,27 @@ class Uploads:
             raise _disk_error(err, job.filename) from None
 
 
+def _rig(path: Path, filename: str) -> str | None:
+    """The rig signature of an upload that needs a channel mapping (another tool's MCAP recording, a C3D
+    file), else None (as for a file that cannot be read: the import says why)."""
+    from gaitscope.sessions.errors import DataFormatError
+
+    suffix = Path(filename).suffix.lower()
+    try:
+        if suffix == ".mcap":
+            from gaitscope.sessions.formats import foreign_mcap
+            from gaitscope.sessions.formats.imports import foreign
+
+            return foreign_mcap.rig_signature(path, filename) if foreign(path, filename) else None
+        if suffix == ".c3d":
+            from gaitscope.sessions.formats import c3d
+
+            return c3d.rig_of(c3d.inspect_c3d(path, filename))
+    except (DataFormatError, OSError, ValueError):
+        return None
+    return None
+
+
 async def _unfinished_mcap(path: Path, name: str, recover: bool) -> None:
     """Refuse an MCAP recording that was never finished (422, recoverable), or recover it when asked."""
     from gaitscope.sessions.errors import DataFormatError
@@ -407,16 +482,54 @@ async def upload_chunk(
     return await c.uploads.receive(upload_id, offset, request)
 
 
+@router.post("/uploads/{upload_id}/preview")
+async def preview_upload(
+    upload_id: str, c: Ctx, who: Uploader, options: schema.ImportOptions | None = None
+) -> schema.ImportPreview:
+    """What an import of the (complete) upload would read, from its first seconds: the channels, a small plot of
+    each, what they feed, what looks wrong, and the channel mapping in use for a file that needs one (given,
+    saved for the file's rig, or suggested). Nothing is stored; the upload stays open."""
+    return await c.uploads.preview(upload_id, c, options or schema.ImportOptions())
+
+
 @router.post("/uploads/{upload_id}/finish", status_code=201)
 async def finish_upload(
-    upload_id: str, c: Ctx, who: Uploader, recover: bool = False, keep_copy: bool = False
+    upload_id: str,
+    c: Ctx,
+    who: Uploader,
+    recover: bool = False,
+    keep_copy: bool = False,
+    options: schema.ImportOptions | None = None,
 ) -> schema.ImportedTrial:
     """Import the upload; ``recover=true`` first recovers an MCAP recording that was never finished;
-    ``keep_copy=true`` stores a file uploaded before again (else 409, naming its trial)."""
-    await audited(
-        c, who, "upload.finish", f"upload {upload_id[:64]}", after={"recover": recover, "keep_copy": keep_copy}
-    )
-    return await c.uploads.finish(upload_id, c, recover=recover, keep_copy=keep_copy)
+    ``keep_copy=true`` stores a file uploaded before again (else 409, naming its trial). ``options``: the channel
+    mapping of another tool's MCAP recording or of a C3D file (kept for the file's rig, so its next file maps
+    itself); without it, the mapping saved for the rig, else the suggested one."""
+    given = None if options is None else options.model_dump()
+    after = {"recover": recover, "keep_copy": keep_copy, "options": given}
+    await audited(c, who, "upload.finish", f"upload {upload_id[:64]}", after=after)
+    return await c.uploads.finish(upload_id, c, recover=recover, keep_copy=keep_copy, options=options, actor=who.name)
+
+
+@router.get("/mappings", dependencies=[allow("read")])
+async def list_mappings(c: Ctx) -> list[schema.SavedMapping]:
+    """The channel mappings saved per rig, newest first."""
+    return await asyncio.to_thread(c.mappings.list)
+
+
+@router.delete("/mappings/{rig}", status_code=204)
+async def delete_mapping(
+    rig: Annotated[str, Path_(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9-]+$")], c: Ctx, who: Uploader
+) -> Response:
+    """Forget the mapping saved for ``rig`` (its next file gets the suggested one again)."""
+    from gaitscope.sessions.store import NotFound
+
+    await audited(c, who, "mapping.delete", f"rig {rig}")
+    try:
+        await asyncio.to_thread(c.mappings.delete, rig)
+    except NotFound as err:
+        raise HTTPException(404, str(err)) from None
+    return Response(status_code=204)
 
 
 @router.delete("/uploads/{upload_id}", status_code=204)

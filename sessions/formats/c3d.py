@@ -50,6 +50,7 @@ Foot Strike events (heel_forward peaks, plates off: 0.03-0.04 s early, as Zeni r
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import warnings
@@ -66,7 +67,7 @@ from gaitscope.estimators import channels
 from gaitscope.sessions import schema
 from gaitscope.sessions.errors import DataFormatError
 
-__all__ = ["PLUG_IN_GAIT", "ROLES", "C3DMapping", "C3DSummary", "c3d_frames", "inspect_c3d"]
+__all__ = ["PLUG_IN_GAIT", "ROLES", "C3DMapping", "C3DSummary", "c3d_frames", "inspect_c3d", "rig_of", "to_json"]
 
 #: Per-side roles: Plug-in Gait lower-body markers, then optional joint centres a lab's model may output.
 _SIDE_ROLES: Final = ("ASI", "PSI", "THI", "KNE", "TIB", "ANK", "HEE", "TOE", "HJC", "KJC", "AJC")
@@ -327,6 +328,27 @@ def _channels(roles: Mapping[str, Any], mapping: C3DMapping, plates: int, analog
         if plates and (f"{side}HEE" in have or f"{side}TOE" in have):
             out |= {f"foot_force{suffix}_N", f"foot_contact{suffix}", *(("heel_strike",) if not suffix else ())}
     return [c for c in schema.CHANNELS if c in out]
+
+
+def to_json(mapping: C3DMapping) -> str:
+    """``mapping`` as :meth:`C3DMapping.from_json` reads it back (every role named: its label, or null)."""
+    doc = {
+        "markers": {r: mapping.markers.get(r) for r in ROLES},
+        "side": mapping.side,
+        "analog": {label: {"channel": c, "scale": k} for label, (c, k) in mapping.analog.items()},
+        "force_plates": mapping.force_plates,
+        "strike_threshold_N": mapping.strike_threshold_N,
+        "forward_axis": mapping.forward_axis,
+        "up_axis": mapping.up_axis,
+    }
+    return json.dumps(doc, indent=1)
+
+
+def rig_of(summary: C3DSummary) -> str:
+    """The rig of a C3D file: ``c3d-`` and a hash (16 hex digits) of its sorted marker and analog labels, the
+    same for every file of one lab's marker set and amplifiers, so a saved mapping is found for the next one."""
+    text = json.dumps([sorted(summary.markers), sorted(summary.analog)])
+    return "c3d-" + hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def inspect_c3d(path: str | Path, name: str, mapping: C3DMapping = PLUG_IN_GAIT) -> C3DSummary:

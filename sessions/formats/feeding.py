@@ -113,6 +113,24 @@ class Plausibility:
                 if c in _KNEE and v < KNEE_HYPEREXTENSION_DEG:
                     s.hyperextended += 1
 
+    def summary(self) -> list[schema.PreviewChannel]:
+        """What each checked channel's values looked like (an import preview's table)."""
+        out = []
+        for c, seen in self._seen.items():
+            out.append(
+                schema.PreviewChannel(
+                    channel=c,
+                    unit=schema.CHANNELS[c].unit,
+                    source=c,
+                    count=seen.n,
+                    min=None if seen.low > seen.high else seen.low,
+                    max=None if seen.low > seen.high else seen.high,
+                    plausible=schema.SENSOR_LIMITS[c],
+                    outside=seen.outside,
+                )
+            )
+        return out
+
     def refusal(self) -> tuple[str, str] | None:
         """``(channel, what is wrong)`` of the first value problem that refuses the file, else None."""
         for c, s in self._seen.items():

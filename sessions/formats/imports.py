@@ -26,6 +26,7 @@ import codecs
 import collections
 import contextlib
 import csv
+import dataclasses
 import errno
 import io
 import itertools
@@ -76,14 +77,14 @@ MAX_ABS_TIME_S: Final = 1e10
 #: Longest log (s, last time minus first): about 11.6 days.
 MAX_SPAN_S: Final = 1e6
 
-LogFormat = Literal["mcap", "parquet", "replay_csv", "locohub_csv"]
+LogFormat = Literal["mcap", "parquet", "replay_csv", "locohub_csv", "c3d"]
 
 _MCAP_MAGIC: Final = b"\x89MCAP0\r\n"
 _PARQUET_MAGIC: Final = b"PAR1"
 _BOM: Final = codecs.BOM_UTF8
 _HEAD_BYTES: Final = 64 * 1024
-_EXPECTED: Final = {".mcap": "mcap", ".parquet": "parquet", ".csv": "text"}
-_NOUN: Final = {".mcap": "an MCAP file", ".parquet": "a parquet file", ".csv": "a CSV file"}
+_EXPECTED: Final = {".mcap": "mcap", ".parquet": "parquet", ".csv": "text", ".c3d": "c3d"}
+_NOUN: Final = {".mcap": "an MCAP file", ".parquet": "a parquet file", ".csv": "a CSV file", ".c3d": "a C3D file"}
 _CONTROL: Final = frozenset(chr(c) for c in (*range(0x09), 0x0B, 0x0C, *range(0x0E, 0x20), 0x7F))
 _SENSOR_VALUES: Final = tuple(f for f in schema.SensorFrame.model_fields if f not in ("type", "seq", "t", "sent_ns"))
 
@@ -106,6 +107,9 @@ class ImportJob:
     target: Path
     subject: schema.Subject
     model: TrainedModel
+    #: the channel mapping (JSON) of another tool's MCAP recording or of a C3D file; None: the suggested one
+    mapping: str | None = None
+    allow_other_rig: bool = False
 
 
 @dataclass(frozen=True)
@@ -116,6 +120,8 @@ class ImportResult:
     samples: int
     duration_s: float
     report: schema.ImportReport
+    #: the mapping the import used (JSON, its kind, the file's rig), to be saved for the rig's next file
+    mapping: tuple[str, schema.MappingKind, str] | None = None
 
 
 class ImportRefused(ValueError):
@@ -145,20 +151,90 @@ def import_log(job: ImportJob) -> ImportResult:
     if job.target.exists():
         raise FileExistsError(errno.EEXIST, "the import's recording exists already", str(job.target))
     try:
-        with _user_errors(job):
+        with user_errors(job):
             fmt = detect_format(job.upload, job.filename)
-            if fmt == "mcap":
+            if fmt == "mcap" and not foreign(job.upload, job.filename):
                 return _import_mcap(job)
-            ignored: list[str] = []
-            if fmt == "replay_csv":
-                frames = _replay_frames(job.upload, job.filename, ignored)
-            else:
-                suffix = ".csv" if fmt == "locohub_csv" else ".parquet"
-                frames = _locohub_frames(job.upload, job.filename, suffix, ignored)
-            return _record(job, frames, fmt, ignored)
+            source = frames_of(job, fmt)
+            result = _record(job, source.frames, source.format, source.ignored)
+            return dataclasses.replace(result, mapping=source.mapping)
     except BaseException:
         job.target.unlink(missing_ok=True)
         raise
+
+
+@dataclass
+class Source:
+    """A file's frames as an import reads them (:func:`frames_of`): ``format`` is the report's (``foreign_mcap``
+    for another tool's MCAP recording), ``ignored`` fills as the frames are read, ``mapping`` is the channel
+    mapping used (JSON, kind, rig) when the file needed one."""
+
+    frames: Iterator[schema.SensorFrame]
+    format: str
+    ignored: list[str]
+    mapping: tuple[str, schema.MappingKind, str] | None = None
+
+
+def foreign(path: Path, name: str) -> bool:
+    """Whether an MCAP file is another tool's recording: it has no gaitscope ``/sensor`` channel (a file that
+    cannot be read as MCAP is gaitscope's to refuse, with its reasons)."""
+    from mcap.reader import make_reader
+
+    try:
+        with path.open("rb") as f:
+            summary = make_reader(f).get_summary()
+    except Exception:
+        return False
+    return summary is not None and all(c.topic != "/sensor" for c in summary.channels.values())
+
+
+def frames_of(job: ImportJob, fmt: LogFormat) -> Source:
+    """The frames of a raw log (not a gaitscope recording with gait states), mapped where it needs it:
+    another tool's MCAP recording by ``job.mapping`` (else the suggested mapping of its fields), a C3D file by
+    its marker set (else Plug-in Gait)."""
+    path, name = job.upload, job.filename
+    ignored: list[str] = []
+    if fmt == "replay_csv":
+        return Source(_replay_frames(path, name, ignored), fmt, ignored)
+    if fmt in ("locohub_csv", "parquet"):
+        suffix = ".csv" if fmt == "locohub_csv" else ".parquet"
+        return Source(_locohub_frames(path, name, suffix, ignored), fmt, ignored)
+    if fmt == "c3d":
+        from gaitscope.sessions.formats import c3d
+
+        c3d_mapping = c3d.PLUG_IN_GAIT if job.mapping is None else c3d.C3DMapping.from_json(job.mapping, name)
+        summary = c3d.inspect_c3d(path, name, c3d_mapping)
+        ignored.extend(m for m in summary.markers if m not in summary.roles_found.values())
+        used = (job.mapping or c3d.to_json(c3d_mapping), "c3d", c3d.rig_of(summary))
+        return Source(c3d.c3d_frames(path, name, c3d_mapping), "c3d", ignored, used)  # type: ignore[arg-type]
+    from gaitscope.sessions.formats import foreign_mcap as fm
+
+    try:
+        mapping = (
+            fm.suggest_mapping(fm.inspect_mcap(path, name))
+            if job.mapping is None
+            else fm.ChannelMapping.from_json(job.mapping)
+        )
+    except fm.MappingError as e:
+        raise DataFormatError(f"the channel mapping is not usable: {e}", file=name) from None
+    rig = fm.rig_signature(path, name)
+    mapped = {(e.topic, e.field) for e in mapping.entries}
+    ignored.extend(f"{f.topic} {f.path}" for f in fm.inspect_mcap(path, name) if (f.topic, f.path) not in mapped)
+    if mapping.entries:
+        frames = fm.foreign_frames(path, name, mapping, allow_other_rig=job.allow_other_rig)
+    else:  # refused when read: a preview still lists the fields to map
+        frames = _refused(
+            "the recording is another tool's and none of its fields is named as a gaitscope channel: map its "
+            "fields to channels in the upload's preview",
+            name,
+        )
+    return Source(frames, "foreign_mcap", ignored, (mapping.to_json(), "mcap", rig))
+
+
+def _refused(why: str, name: str) -> Iterator[schema.SensorFrame]:
+    """Frames that are a refusal: :class:`DataFormatError` ``why`` when the first is read."""
+    raise DataFormatError(why, file=name)
+    yield  # a generator: the refusal comes when the frames are read
 
 
 def detect_format(path: Path, filename: str) -> LogFormat:
@@ -184,6 +260,8 @@ def detect_format(path: Path, filename: str) -> LogFormat:
         raise DataFormatError(f"not {_NOUN[suffix]}: the content is {found}", file=filename)
     if suffix == ".mcap":
         return "mcap"
+    if suffix == ".c3d":
+        return "c3d"
     if suffix == ".parquet":
         return "parquet"
     names = {h.strip() for h in next(csv.reader(io.StringIO(text)), [])}
@@ -208,6 +286,8 @@ def _content(head: bytes) -> tuple[str, str]:
     control characters but tab and line ends), ``latin`` (text, not UTF-8) or ``binary``; and the text."""
     if head.startswith(_MCAP_MAGIC):
         return "mcap", ""
+    if len(head) >= 512 and head[1:2] == b"P":  # a C3D header block: its parameter block number, then 0x50
+        return "c3d", ""
     if head.startswith(_PARQUET_MAGIC):
         return "parquet", ""
     body = head.removeprefix(_BOM)
@@ -221,7 +301,7 @@ def _content(head: bytes) -> tuple[str, str]:
 
 
 @contextlib.contextmanager
-def _user_errors(job: ImportJob) -> Iterator[None]:
+def user_errors(job: ImportJob) -> Iterator[None]:
     """Re-raise every DataFormatError as one naming ``job.filename``, with server paths taken out."""
     try:
         yield
@@ -392,7 +472,7 @@ def _record(
             job.model, subject.leg_length_m, subject.mass_kg, settings, period, channels=channels
         )
     except (MissingChannels, ValueError) as err:  # no estimator, or none of the gait phase
-        raise DataFormatError(_cannot_feed(channels, str(err)), file=job.filename) from None
+        raise DataFormatError(cannot_feed(channels, str(err)), file=job.filename) from None
     checks = Plausibility(channels)
     metadata = {
         "subject": subject.code,
@@ -425,7 +505,7 @@ def _record(
     return ImportResult(samples=rec.samples, duration_s=rec.duration_s, report=done)
 
 
-def _cannot_feed(channels: set[str], why: str) -> str:
+def cannot_feed(channels: set[str], why: str) -> str:
     """Why a log's ``channels`` cannot be estimated: what each estimator of the gait phase lacks."""
     from gaitscope.sessions.registry import DECLARED, feeds
 

@@ -56,10 +56,13 @@ AUDITED: dict[tuple[str, str], str] = {
     ("POST", "/api/uploads"): "upload.create",
     ("POST", "/api/uploads/{upload_id}/finish"): "upload.finish",
     ("DELETE", "/api/uploads/{upload_id}"): "upload.cancel",
+    ("DELETE", "/api/mappings/{rig}"): "mapping.delete",
     ("POST", "/api/viewer/focus"): "leg_view.focus",
 }
 #: (method, route) -> why it writes no entry.
 EXEMPT: dict[tuple[str, str], str] = {
+    ("POST", "/api/uploads/{upload_id}/preview"): "reads an open upload and stores nothing; the import it previews "
+    "is audited (upload.finish, with the mapping it used)",
     ("POST", "/api/sessions/{session_id}/settings/check"): "computes what a settings change would do to the torque "
     "and changes nothing; the change itself is audited (settings.change)",
     ("POST", "/api/trials/{trial_id}/rerun"): "computes a re-run of a stored trial and stores nothing",
@@ -188,6 +191,8 @@ def test_each_audited_route_writes_its_entry_when_it_succeeds(client: TestClient
                content=data[off : off + up["chunk_size"]])  # fmt: skip
     trial = d.call("POST", "/api/uploads/{upload_id}/finish", {"upload_id": up["id"]})
     assert trial["samples"] > 0  # a name in capitals is imported as any other (issue #21: "x.CSV" was refused)
+    client.app.state.ctx.mappings.save("c3d-0123456789abcdef", "c3d", "{}", "root")  # type: ignore[attr-defined]
+    d.call("DELETE", "/api/mappings/{rig}", {"rig": "c3d-0123456789abcdef"})
 
     d.call("POST", "/api/auth/logout", {})
     d.login()

@@ -39,8 +39,10 @@ def test_an_uploaded_raw_imu_csv_is_estimated_through_the_imu_front_end(client: 
 
 
 def test_the_command_line_replay_says_where_raw_imu_files_go(tmp_path: Path) -> None:
-    with pytest.raises(DataFormatError, match=r"raw IMU columns \(foot, shank\).*--estimators imu_foot,imu_shank,phase_ekf"):
+    hint = r"raw IMU columns \(foot, shank\).*--estimators imu_foot,imu_shank,phase_ekf"
+    with pytest.raises(DataFormatError, match=hint):
         read_replay_csv(_raw_imu_csv(tmp_path))
     assert set(read_replay_csv(_raw_imu_csv(tmp_path), ["imu_shank", "phase_ekf"]).signals) == {
-        *RAW_IMUS["foot"], *RAW_IMUS["shank"]
+        *RAW_IMUS["foot"],
+        *RAW_IMUS["shank"],
     }

@@ -104,7 +104,8 @@ def test_no_channel_column_says_how_columns_are_named(tmp_path: Path) -> None:
 
 
 def test_every_channel_column_is_read_and_the_others_are_listed(tmp_path: Path) -> None:
-    text = "time_s,shank_angle_deg,thigh_angle_deg,knee_angle_deg,foot_contact,notes,\n0,1,2,3,1,4,5\n0.01,2,3,4,0,5,6\n"
+    header = "time_s,shank_angle_deg,thigh_angle_deg,knee_angle_deg,foot_contact,notes,"
+    text = header + "\n0,1,2,3,1,4,5\n0.01,2,3,4,0,5,6\n"
     data = read_replay_csv(_write(tmp_path, text))
     assert list(data.signals) == ["shank_angle_deg", "thigh_angle_deg", "knee_angle_deg", "foot_contact"]
     assert data.signals["foot_contact"].tolist() == [1.0, 0.0] and data.ignored == ("notes", "(column 7)")
