@@ -44,12 +44,12 @@ from gaitscope.estimators.highpass import HighPassFilter
 from gaitscope.estimators.lock import LockConfig
 from gaitscope.estimators.phase_ekf_estimator import PhaseEKFEstimator
 from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
-from gaitscope.estimators.protocol import HEEL_STRIKE
+from gaitscope.estimators.protocol import ANGLE_CHANNELS, HEEL_STRIKE
 from gaitscope.estimators.tbe import TimingBasedEstimator
 from gaitscope.sessions import schema
 from gaitscope.sessions.estimation import backward_difference
 from gaitscope.sessions.formats.replay_io import ReplayInput, ReplayOutput, read_replay_csv
-from gaitscope.sessions.registry import ESTIMATORS, StackContext
+from gaitscope.sessions.registry import DERIVERS, ESTIMATORS, StackContext, feeds
 from gaitscope.sessions.stack import EstimatorStack
 
 if TYPE_CHECKING:
@@ -79,6 +79,10 @@ class ReplaySummary:
     lost: int = 0
     #: what the stack reported for a session's event log (an estimator that failed, the torque handed on)
     events: tuple[str, ...] = ()
+    #: the file's columns that are not channels (not read)
+    ignored: tuple[str, ...] = ()
+    #: registered estimators the file's channels cannot feed, with what each lacks (the registry's rule)
+    cannot_feed: tuple[str, ...] = ()
 
     def lines(self) -> list[str]:
         src = "detected from the foot signals" if self.heel_strikes_detected else "from the input"
@@ -97,6 +101,8 @@ class ReplaySummary:
             f"peak torque      {self.peak_torque_Nm:.1f} N m",
             f"wall time        {self.wall_s:.2f} s ({self.samples / max(self.wall_s, 1e-9):,.0f} samples/s)",
             *(f"event            {e}" for e in self.events),
+            *([f"ignored          {', '.join(self.ignored)} (not channels)"] if self.ignored else []),
+            *([f"cannot feed      {'; '.join(self.cannot_feed)}"] if self.cannot_feed else []),
         ]
 
 
@@ -225,7 +231,21 @@ def replay_file(
         standing_s=0.0 if stacked is None else stacked.standing_s,
         lost=0 if stacked is None else stacked.lost,
         events=() if stacked is None else tuple(stacked.events),
+        ignored=data.ignored,
+        cannot_feed=_cannot_feed(data),
     )
+
+
+def _cannot_feed(data: ReplayInput) -> tuple[str, ...]:
+    """The registered estimators (not the IMU front ends) the file cannot feed, each with what it lacks (an
+    angle's velocity left out when the angle is missing too: it would be derived from it)."""
+    derived_from = {vel: angle for angle, vel in ANGLE_CHANNELS.items()}
+    out = []
+    for name, feed in feeds(data.signals).items():
+        if feed.missing and name not in DERIVERS:
+            lacks = [c for c in feed.missing if derived_from.get(c) not in feed.missing]
+            out.append(f"{name} needs {', '.join(lacks)}")
+    return tuple(out)
 
 
 def _period(data: ReplayInput) -> float:

@@ -211,3 +211,20 @@ def test_a_supervised_replay_steps_the_stack_from_where_it_would_fail(
     assert any("failed" in e for e in a.events)
     assert repr(replace(a, wall_s=0.0)) == repr(replace(b, wall_s=0.0))  # (NaN means: not estimated)
     assert fast.read_bytes() == slow.read_bytes()
+
+
+def test_the_replay_lists_the_columns_it_ignored_and_what_the_file_cannot_feed(tmp_path: Path) -> None:
+    """Issue #25: every channel column is read, the others listed back; the registry says what the file's
+    channels cannot feed."""
+    model, _ = load_model(default_model_path())
+    src = tmp_path / "lab.csv"
+    t = np.arange(300) * 0.01
+    pd.DataFrame({"time_s": t, "shank_angle_deg": 20 * np.sin(2 * np.pi * t), "Notes": "x"}).to_csv(src, index=False)
+    summary = replay.replay_file(src, tmp_path / "out.csv", model, PipelineConfig(), supervised=True)
+    assert summary.ignored == ("Notes",) and summary.channels == ("shank_angle_deg",)
+    assert (
+        "fp_avg needs thigh_angle_deg" in summary.cannot_feed
+        and "gp_ekf needs hip_angle_deg, knee_angle_deg, ankle_angle_deg" in summary.cannot_feed
+    )
+    assert not any(c.startswith(("phase_ekf", "tbe", "imu_")) for c in summary.cannot_feed)
+    assert "ignored          Notes (not channels)" in summary.lines()
