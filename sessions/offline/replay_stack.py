@@ -117,6 +117,7 @@ class StackReplaySummary:
     wall_s: float
     events: tuple[str, ...] = ()  #: the stack's (failures, primary switches)
     notes: tuple[str, ...] = ()  #: the frame estimator's (restarts, standing still)
+    ignored: tuple[str, ...] = ()  #: the file's columns that are not channels (not read)
 
     def lines(self) -> list[str]:
         more = len(self.notes) - _NOTES_SHOWN
@@ -131,6 +132,7 @@ class StackReplaySummary:
             *(f"event            {e}" for e in self.events),
             *(f"note             {n}" for n in self.notes[:_NOTES_SHOWN]),
             *([f"note             ... and {more} more"] if more > 0 else []),
+            *([f"ignored          {', '.join(self.ignored)} (not channels)"] if self.ignored else []),
         ]
 
 
@@ -339,6 +341,7 @@ def replay_input_estimators(
         wall_s=time.perf_counter() - start,
         events=tuple(replay.events),
         notes=tuple(replay.notes),
+        ignored=data.ignored,
     )
 
 
@@ -352,15 +355,17 @@ def replay_estimators(
 ) -> StackReplaySummary:
     """Replay the CSV ``input_path`` through the estimators ``names`` (or ``["all"]``) into ``output_path``.
 
-    Reads the input with full validation (:func:`~gaitscope.sessions.formats.replay_io.read_replay_csv`);
-    nothing is written if it is invalid or the stack is refused (:func:`replay_input_estimators`).
+    Reads the input with full validation (:func:`~gaitscope.sessions.formats.replay_io.read_replay_csv`, which
+    refuses a file that feeds none of the named estimators); nothing is written if it is invalid or the stack is
+    refused (:func:`replay_input_estimators`).
 
     Raises:
         DataFormatError: the input file (naming its row and column).
         ValueError, MissingChannels: as :class:`StackReplay`.
     """
     started = time.perf_counter()
-    data = read_replay_csv(input_path)
+    named = [n.strip() for n in names if n.strip() and n.strip() != ALL]
+    data = read_replay_csv(input_path, estimators=[n for n in named if n in ESTIMATORS])  # all: any channel
     return replay_input_estimators(data, output_path, model, config, names, fingerprint, started=started)
 
 

@@ -248,10 +248,23 @@ def test_the_command_line(
     assert list(got.columns[:4]) == ["time_s", "torque_Nm", "hs_detector.heel_strike", "phase_ekf.phase"]
     assert math.isclose(float(got["phase_ekf.phase_rate"].mean()), float(sensors["gt_phase_rate"].mean()), abs_tol=0.05)
 
+    # a thigh-only file (and a column that is no channel): the fingerprint filters
+    thigh = tmp_path / "thigh.csv"
+    sensors[["time_s", *THIGH, "gt_phase"]].to_csv(thigh, index=False)
+    assert main(["replay", str(thigh), "--out", str(out), "--estimators", "fp_avg,fp_gf", *subject]) == 0
+    printed = capsys.readouterr().out
+    assert "stack            fp_avg, fp_gf (torque follows fp_avg)" in printed
+    assert "ignored          gt_phase (not channels)" in printed
+    got = pd.read_csv(out)
+    assert list(got.columns[:3]) == ["time_s", "torque_Nm", "fp_avg.phase"] and got["fp_gf.phase"].notna().all()
+    assert main(["replay", str(thigh), "--out", str(tmp_path / "no.csv"), "--estimators", "phase_ekf"]) == 2
+    assert "phase_ekf needs foot_angle_deg or shank_angle_deg" in capsys.readouterr().err
+    assert not (tmp_path / "no.csv").exists()
+
     # refused: the file's channels, unknown names, --as-published; exit status 2, nothing written
     refused = tmp_path / "refused.csv"
     for option, words in (
-        (["--estimators", "com_kin"], f"file {file}: the source does not send what the stack needs: com_kin needs"),
+        (["--estimators", "com_kin"], "com_kin needs thigh_angle_deg, thigh_vel_dps"),
         (["--estimators", "nope"], "file --estimators: unknown estimator nope; gaitscope has"),
         (["--estimators", "tbe", "--as-published"], "--as-published is the default stack's"),
     ):
