@@ -1,4 +1,7 @@
-// Chunked upload of a recording (.mcap / .csv / .parquet): create, PUT chunks in order, finish -> Trial.
+// Chunked upload of a recording (.mcap / .csv / .parquet / .c3d): create, PUT chunks in order, finish -> Trial.
+// "Preview" sends the chunks and asks the server what an import would read (upload_preview.js draws it: channels,
+// sparklines, what the file feeds, the problem, the channel mapping to edit); "Import" then finishes the upload with
+// the mapping previewed and shows the trial and its report. "Upload and import" finishes at once, as before.
 // A refusal is shown in the user's terms (which file, row and column, what is wrong); a recording that was never
 // finished (cut off by a crash) is refused as recoverable, and a button sends it again to be recovered. A file
 // uploaded before (the same content) is refused naming its trial, with a link to it and a button that sends it
@@ -8,8 +11,10 @@ import { ApiError, authFetch, describeDetail } from "./api.js";
 import * as api from "./api_client.js";
 import { fence } from "./auth.js";
 import { errorBox, field, h, runAction, showError, ValidationError } from "./ui.js";
+import { ImportPreviewPanel, reportView } from "./upload_preview.js";
 
-const NAME_RE = /^[^/\\]+\.(mcap|csv|parquet)$/i; // UploadCreate.filename: the extension in any case
+const NAME_RE = /^[^/\\]+\.(mcap|csv|parquet|c3d)$/i; // UploadCreate.filename: the extension in any case
+const ACCEPT = ".mcap,.csv,.parquet,.c3d";
 const RETRIES = 3; // per chunk, for network failures and 5xx only
 const RECOVERABLE_HEADER = "X-Gaitscope-Recoverable"; // server/routes/uploads.py
 const DUPLICATE_HEADER = "X-Gaitscope-Duplicate-Of"; // server/routes/uploads.py: the trial it was uploaded as
@@ -42,13 +47,21 @@ export function refusalText(detail) {
 }
 
 /**
- * `POST /api/uploads/{id}/finish`: the Trial, or an ApiError with `recoverable` and `duplicateOf` (the trial a file
- * uploaded before is) set from the server's headers.
+ * `POST /api/uploads/{id}/finish` (with ImportOptions `options`, when given): the ImportedTrial, or an ApiError with
+ * `recoverable` and `duplicateOf` (the trial a file uploaded before is) set from the server's headers.
+ * @param {string} id
+ * @param {boolean} recover
+ * @param {boolean} keepCopy
+ * @param {{mapping: string | null, allow_other_rig: boolean} | null} [options]
  */
-async function _finish(id, recover, keepCopy) {
+async function _finish(id, recover, keepCopy, options = null) {
   const params = { ...(recover ? { recover: true } : {}), ...(keepCopy ? { keep_copy: true } : {}) };
-  const resp = await authFetch(api.finishUploadUrl(id, params),
-    { method: "POST", headers: { Accept: "application/json" } });
+  const init = { method: "POST", headers: { Accept: "application/json" } };
+  if (options) {
+    init.headers["Content-Type"] = "application/json";
+    init.body = JSON.stringify(options);
+  }
+  const resp = await authFetch(api.finishUploadUrl(id, params), init);
   if (resp.ok) return resp.json();
   let detail = resp.statusText;
   try {
@@ -65,16 +78,33 @@ async function _finish(id, recover, keepCopy) {
   throw err;
 }
 
+/** A refusal of the preview (an ApiError), in the words a refused finish uses. */
+function _previewRefused(err) {
+  if (!(err instanceof ApiError)) return err;
+  const words = err.status === 422 ? "The file was not accepted" : `The preview failed (error ${err.status})`;
+  return new ApiError(err.status, err.detail, `${words}: ${refusalText(err.detail)}`);
+}
+
+/**
+ * How an upload is finished, and what to offer when it is refused: `options` the ImportOptions (the mapping
+ * previewed), `show` to show the trial and its report here rather than open it.
+ * @typedef {{file: File, subjectId: number, recover: boolean, keepCopy: boolean,
+ *   options: {mapping: string | null, allow_other_rig: boolean} | null, show: boolean}} Job
+ */
+
 /** The upload form; `subjectSelect` is filled by the sessions page. Returns {el, unmount}. */
 export function mountUpload(subjectSelect) {
   let cancelled = false;
-  let activeId = null;
-  let pending = null; // the recoverable file refused last: {file, subjectId, keepCopy}
-  let duplicate = null; // the file refused last as uploaded before: {file, subjectId}
-  const file = h("input", { type: "file", id: "upload-file", "data-testid": "upload-file", accept: ".mcap,.csv,.parquet" });
+  let previewing = null; // the upload previewed, still open on the server: {id, file, subjectId}
+  /** @type {Job | null} the recoverable file refused last */
+  let pending = null;
+  /** @type {Job | null} the file refused last as uploaded before */
+  let duplicate = null;
+  const file = h("input", { type: "file", id: "upload-file", "data-testid": "upload-file", accept: ACCEPT });
   const progress = h("progress", { id: "upload-progress", "data-testid": "upload-progress", max: 1, value: 0 });
   const progressText = h("span", { class: "hint", "data-testid": "upload-progress-text", "aria-live": "polite" });
-  const submit = h("button", { type: "submit", class: "primary", "data-testid": "upload-submit", text: "Upload" });
+  const previewBtn = h("button", { type: "button", class: "primary", "data-testid": "upload-preview-submit", text: "Preview" });
+  const submit = h("button", { type: "submit", "data-testid": "upload-submit", text: "Upload and import" });
   const cancel = h("button", { type: "button", "data-testid": "upload-cancel", text: "Cancel", disabled: true });
   const error = errorBox("upload-error");
   const recoverBtn = h("button", { type: "button", class: "primary", "data-testid": "upload-recover", text: "Recover this recording" });
@@ -85,12 +115,16 @@ export function mountUpload(subjectSelect) {
   const copyBtn = h("button", { type: "button", "data-testid": "upload-keep-copy", text: "Upload a second copy anyway" });
   const dupBox = h("div", { class: "upload-recover", "data-testid": "upload-duplicate-box", hidden: true },
     h("p", { class: "hint" }, "This file is already stored: ", dupLink, ". Nothing was stored again."), copyBtn);
-  const form = h("form", { class: "card form", "data-testid": "upload-form", novalidate: true },
+  const panel = new ImportPreviewPanel();
+  const imported = h("div", { class: "upload-imported", "data-testid": "upload-imported", hidden: true });
+  const form = h("form", { class: "card form upload-form", "data-testid": "upload-form", novalidate: true },
     h("h2", { text: "Upload a recording" }),
-    field("File", file, ".mcap (a gaitscope recording), replay .csv or LocoHub .parquet"),
+    field("File", file, ".mcap (gaitscope's or another tool's), replay .csv, LocoHub .parquet or motion capture .c3d"),
     field("Subject", subjectSelect),
     h("div", { class: "progress-row" }, progress, progressText),
-    h("div", { class: "buttons" }, submit, cancel), error, recoverBox, dupBox);
+    h("div", { class: "buttons" }, previewBtn, submit, cancel),
+    h("p", { class: "hint", text: "Preview shows what an import would read (channels, what they feed, the channel mapping) before anything is stored." }),
+    error, recoverBox, dupBox, panel.el, imported);
   fence(form, "upload");
 
   cancel.addEventListener("click", () => {
@@ -105,11 +139,39 @@ export function mountUpload(subjectSelect) {
     dupBox.hidden = true;
   }
 
-  async function send(f, subjectId, recover, keepCopy = false) {
+  /** Drops the upload previewed (the server deletes its bytes) and its preview. */
+  function discardPreview() {
+    if (previewing) api.cancelUpload(previewing.id).catch(() => {});
+    previewing = null;
+    panel.clear();
+    form.classList.remove("previewing");
+  }
+
+  /** Clears what the last action left: offers, the preview, the trial imported. */
+  function reset() {
+    hideOffers();
+    discardPreview();
+    imported.hidden = true;
+  }
+
+  /** The file and subject chosen, checked as the server would. */
+  function chosen() {
+    const f = file.files && file.files[0];
+    if (!f) throw new ValidationError("Choose a file to upload.");
+    if (!NAME_RE.test(f.name) || f.name.length > 200) {
+      throw new ValidationError("The file must be a .mcap, .csv, .parquet or .c3d file (name up to 200 characters).");
+    }
+    if (f.size < 1) throw new ValidationError("The file is empty.");
+    const subjectId = Number(subjectSelect.value);
+    if (!subjectId) throw new ValidationError("Choose the subject this recording belongs to.");
+    return { f, subjectId };
+  }
+
+  /** Creates an upload and sends its chunks in order; its id. A failure deletes it (it holds no space). */
+  async function sendChunks(f, subjectId, recover) {
     progress.value = 0;
     progressText.textContent = recover ? "sending it again to recover it…" : "starting…";
     const up = await api.createUpload({ filename: f.name, size: f.size, subject_id: subjectId });
-    activeId = up.id;
     let offset = up.received || 0;
     const chunk = Math.max(1, up.chunk_size);
     try {
@@ -120,23 +182,31 @@ export function mountUpload(subjectSelect) {
         progress.value = offset / f.size;
         progressText.textContent = `${Math.round((100 * offset) / f.size)} % (${offset} of ${f.size} bytes)`;
       }
-      progressText.textContent = recover ? "recovering the recording and checking it…" : "checking the file…";
-      activeId = null; // from here the server owns it: a refused finish stores nothing and drops the upload
-      const trial = await _finish(up.id, recover, keepCopy);
-      progressText.textContent = `stored as trial ${trial.id}${recover ? " (recovered)" : keepCopy ? " (a second copy)" : ""}`;
-      location.hash = `#/trials/${trial.id}`;
     } catch (err) {
       progressText.textContent = "not stored";
-      // A half-sent upload is deleted so it holds no space on the server.
-      if (activeId) api.cancelUpload(activeId).catch(() => {});
-      activeId = null;
-      if (err.recoverable && !recover) {
-        pending = { file: f, subjectId, keepCopy };
+      api.cancelUpload(up.id).catch(() => {});
+      throw err;
+    }
+    return up.id;
+  }
+
+  /** Finishes a sent upload (from here the server owns it: a refused finish stores nothing and drops it). */
+  async function finishAs(id, /** @type {Job} */ job) {
+    try {
+      const trial = await _finish(id, job.recover, job.keepCopy, job.options);
+      progressText.textContent = `stored as trial ${trial.id}${job.recover ? " (recovered)" : job.keepCopy ? " (a second copy)" : ""}`;
+      if (job.show) showImported(trial);
+      else location.hash = `#/trials/${trial.id}`;
+      return trial;
+    } catch (err) {
+      progressText.textContent = "not stored";
+      if (err.recoverable && !job.recover) {
+        pending = job;
         recoverBox.hidden = false;
       }
-      if (err.duplicateOf && !keepCopy) {
+      if (err.duplicateOf && !job.keepCopy) {
         progressText.textContent = `already uploaded as trial ${err.duplicateOf}`;
-        duplicate = { file: f, subjectId, recover };
+        duplicate = job;
         dupLink.href = `#/trials/${err.duplicateOf}`;
         dupLink.textContent = `trial ${err.duplicateOf}`;
         dupBox.hidden = false;
@@ -145,67 +215,165 @@ export function mountUpload(subjectSelect) {
     }
   }
 
+  /** Sends a file and finishes it. */
+  async function send(/** @type {Job} */ job) {
+    const id = await sendChunks(job.file, job.subjectId, job.recover);
+    progressText.textContent = job.recover ? "recovering the recording and checking it…" : "checking the file…";
+    return finishAs(id, job);
+  }
+
+  /** The trial an import made, with a link to its review and what the import read. */
+  function showImported(trial) {
+    imported.replaceChildren(
+      h("p", { class: "ok", "data-testid": "upload-imported-text",
+        text: `Stored as trial ${trial.id}: ${trial.name}, ${trial.samples} samples.` }),
+      h("p", {}, h("a", { href: `#/trials/${trial.id}`, "data-testid": "upload-trial-link", text: `Open trial ${trial.id} in review` })),
+      trial.report ? reportView(trial.report) : null);
+    imported.hidden = false;
+  }
+
+  /** Previews the open upload with `mapping` (JSON text; null: the saved or suggested one). */
+  async function previewWith(mapping) {
+    const id = previewing.id;
+    const p = await api.previewUpload(id, { mapping, allow_other_rig: panel.otherRig.checked });
+    if (!previewing || previewing.id !== id) return; // discarded meanwhile
+    panel.show(p);
+    form.classList.add("previewing");
+    progressText.textContent = p.problem ? "previewed: it cannot be imported as it is" : "previewed: nothing is stored yet";
+  }
+
   form.addEventListener("submit", (ev) => {
     ev.preventDefault();
     cancelled = false;
     cancel.disabled = false;
-    hideOffers();
+    previewBtn.disabled = true;
+    reset();
     runAction(submit, error, async () => {
-      const f = file.files && file.files[0];
-      if (!f) throw new ValidationError("Choose a file to upload.");
-      if (!NAME_RE.test(f.name) || f.name.length > 200) {
-        throw new ValidationError("The file must be a .mcap, .csv or .parquet file (name up to 200 characters).");
-      }
-      if (f.size < 1) throw new ValidationError("The file is empty.");
-      const subjectId = Number(subjectSelect.value);
-      if (!subjectId) throw new ValidationError("Choose the subject this recording belongs to.");
-      await send(f, subjectId, false);
+      const { f, subjectId } = chosen();
+      await send({ file: f, subjectId, recover: false, keepCopy: false, options: null, show: false });
     }).finally(() => {
       cancel.disabled = true;
+      previewBtn.disabled = false;
     });
+  });
+
+  previewBtn.addEventListener("click", () => {
+    cancelled = false;
+    cancel.disabled = false;
+    submit.disabled = true;
+    reset();
+    runAction(previewBtn, error, async () => {
+      const { f, subjectId } = chosen();
+      const id = await sendChunks(f, subjectId, false);
+      previewing = { id, file: f, subjectId };
+      progressText.textContent = "reading the file…";
+      try {
+        await previewWith(null);
+      } catch (err) {
+        discardPreview();
+        progressText.textContent = "not stored";
+        if (err instanceof ApiError && /can recover/.test(describeDetail(err.detail))) {
+          pending = { file: f, subjectId, recover: false, keepCopy: false, options: null, show: false };
+          recoverBox.hidden = false;
+        }
+        throw _previewRefused(err);
+      }
+    }).finally(() => {
+      cancel.disabled = true;
+      submit.disabled = false;
+    });
+  });
+
+  panel.applyBtn.addEventListener("click", () => {
+    panel.importBtn.disabled = true;
+    runAction(panel.applyBtn, panel.error, async () => {
+      if (!previewing) throw new ValidationError("The upload has ended: preview the file again.");
+      const mapping = panel.mappingText();
+      progressText.textContent = "reading the file with this mapping…";
+      try {
+        await previewWith(mapping);
+      } catch (err) {
+        progressText.textContent = "previewed: the mapping was not accepted";
+        throw _previewRefused(err);
+      }
+    }).finally(() => panel.refresh());
+  });
+
+  panel.importBtn.addEventListener("click", () => {
+    if (!previewing) return;
+    const { id, file: f, subjectId } = previewing;
+    const options = panel.options();
+    previewing = null; // the finish ends the upload, whatever its outcome
+    submit.disabled = true;
+    previewBtn.disabled = true;
+    progressText.textContent = "importing…";
+    runAction(panel.importBtn, error, async () => {
+      try {
+        await finishAs(id, { file: f, subjectId, recover: false, keepCopy: false, options, show: true });
+      } finally {
+        discardPreview();
+      }
+    }).finally(() => {
+      submit.disabled = false;
+      previewBtn.disabled = false;
+    });
+  });
+
+  panel.discardBtn.addEventListener("click", () => {
+    discardPreview();
+    progressText.textContent = "discarded: nothing was stored";
   });
 
   recoverBtn.addEventListener("click", () => {
     if (!pending) return;
-    const { file: f, subjectId, keepCopy } = pending;
+    const job = { ...pending, recover: true };
     cancelled = false;
     cancel.disabled = false;
     submit.disabled = true;
+    previewBtn.disabled = true;
     runAction(recoverBtn, error, async () => {
-      await send(f, subjectId, true, keepCopy);
+      await send(job);
       pending = null;
       recoverBox.hidden = true;
     }).finally(() => {
       cancel.disabled = true;
       submit.disabled = false;
+      previewBtn.disabled = false;
     });
   });
 
   copyBtn.addEventListener("click", () => {
     if (!duplicate) return;
-    const { file: f, subjectId, recover } = duplicate;
+    const job = { ...duplicate, keepCopy: true };
     cancelled = false;
     cancel.disabled = false;
     submit.disabled = true;
+    previewBtn.disabled = true;
     runAction(copyBtn, error, async () => {
-      await send(f, subjectId, recover, true);
+      await send(job);
       hideOffers();
     }).finally(() => {
       cancel.disabled = true;
       submit.disabled = false;
+      previewBtn.disabled = false;
     });
   });
 
-  file.addEventListener("change", () => {
+  const changed = () => {
     showError(error, null);
-    hideOffers();
+    reset();
     progress.value = 0;
     progressText.textContent = "";
+  };
+  file.addEventListener("change", changed);
+  subjectSelect.addEventListener("change", () => {
+    if (previewing) changed(); // the upload previewed belongs to the subject chosen before
   });
   return {
     el: form,
     unmount() {
       cancelled = true;
+      discardPreview();
     },
   };
 }
