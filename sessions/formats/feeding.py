@@ -8,7 +8,8 @@ columns not read, and for every registered estimator whether the file feeds it (
 :class:`Plausibility` checks the values as they stream past (bounded memory) and names what it finds in the
 user's terms: a column whose values mostly fall outside its channel's plausible range (a heel position in mm
 where metres are meant), an angle column whose whole range is that of radians, a knee that hyperextends
-beyond :data:`KNEE_HYPEREXTENSION_DEG` (a knee angle whose sign is extension-positive). Some are refusals
+beyond :data:`KNEE_HYPEREXTENSION_DEG` (a knee angle whose sign is extension-positive), a walking foot angle
+more toes-up than toes-down (:data:`FOOT_WALKING_SPAN_DEG`: its sign reversed). Some are refusals
 (:meth:`Plausibility.refusal`: the import stores nothing), the rest warnings in the report.
 """
 
@@ -22,7 +23,14 @@ from typing import Final
 from gaitscope.estimators.protocol import ANGLE_CHANNELS
 from gaitscope.sessions import schema
 
-__all__ = ["KNEE_HYPEREXTENSION_DEG", "OUTSIDE_REFUSED", "Plausibility", "derived_channels", "report"]
+__all__ = [
+    "FOOT_WALKING_SPAN_DEG",
+    "KNEE_HYPEREXTENSION_DEG",
+    "OUTSIDE_REFUSED",
+    "Plausibility",
+    "derived_channels",
+    "report",
+]
 
 #: A knee angle this far below 0 (deg, hyperextension) in more than 1 % of the samples is refused: the
 #: knee's sign is flexion-positive in gaitscope's channels; walking hyperextends a few degrees at most.
@@ -35,6 +43,11 @@ OUTSIDE_REFUSED: Final = 0.5
 _RADIANS_SPAN_DEG: Final = 3.2
 _RADIANS_MIN_SAMPLES: Final = 500
 _KNEE: Final = ("knee_angle_deg", "knee_angle_contra_deg")
+_FOOT: Final = ("foot_angle_deg", "foot_angle_contra_deg")
+#: A foot angle spanning more than this (deg: walking) whose toes-up extreme exceeds its toes-down one is
+#: refused: in walking the foot is steepest toes-down at toe-off (-60 to -80 deg in the cohort and in a real
+#: Vicon walk, +10 to +30 toes-up at heel strike), so the column's sign is reversed.
+FOOT_WALKING_SPAN_DEG: Final = 40.0
 
 
 def derived_channels(channels: Collection[str]) -> list[str]:
@@ -141,6 +154,13 @@ class Plausibility:
                     f"{s.outside} of its {s.n} values are outside the plausible range of {c} ({lo:g} to {hi:g} "
                     f"{unit}): is the column in {unit}?"
                 )
+            if c in _FOOT and s.n - s.outside >= _RADIANS_MIN_SAMPLES and s.high - s.low > FOOT_WALKING_SPAN_DEG:
+                if s.high > -s.low:
+                    return c, (
+                        f"the foot angle reaches {s.high:+.0f} deg toes-up but only {s.low:+.0f} deg toes-down: in "
+                        "walking the foot is steepest toes-down at toe-off (about -60 deg) and gaitscope's foot angle "
+                        "is (+) toes up; is the column's sign reversed?"
+                    )
             if s.n and s.hyperextended > 0.01 * s.n:
                 return c, (
                     f"the knee hyperextends beyond {-KNEE_HYPEREXTENSION_DEG:g} deg in {s.hyperextended} of {s.n} "

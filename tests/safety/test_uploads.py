@@ -260,7 +260,13 @@ BAD_FILES: list[tuple[str, Callable[[Path], bytes], str]] = [
     ("text.parquet", lambda _: b"time_s,foot_angle_deg\n0,1\n", "not a parquet file: the content is CSV text"),
     ("other.parquet", lambda _: _parquet(pd.DataFrame({"x": [1.0, 2.0]})), "missing required column(s)"),
     ("cut.parquet", lambda p: _locohub_bytes(".parquet", p)[:2000], "not a readable parquet file"),
-    ("nosensor.mcap", lambda _: _mcap(_frames(), topic="/other"), "no /sensor channel"),
+    # another tool's recording whose fields no channel is named as: it needs a mapping (its frames on another
+    # topic, named as channels, import: the suggested mapping maps them, tests/server/test_import_preview.py)
+    (
+        "nosensor.mcap",
+        lambda _: _mcap([{"speed": 1.0 + i, "mode": 2} for i in range(20)], topic="/other"),
+        "none of its fields is named as a gaitscope channel",
+    ),
     ("one.mcap", lambda _: _mcap(_frames()[:1]), "fewer than 2 sensor frames"),
     ("nan_t.mcap", lambda _: _mcap(_edit(_frames(), 5, t=math.nan)), "/sensor message 6: t is NaN"),
     ("inf_t.mcap", lambda _: _mcap(_edit(_frames(), 5, t=math.inf)), "/sensor message 6: t is infinite"),
@@ -314,8 +320,8 @@ def test_bad_uploads_store_nothing(client: TestClient, tmp_path: Path) -> None:
     assert code == 422 and "column 'shank_angle_deg', row 42" in body["detail"]
     code, body = _upload(client, b"\x89MCAP0\r\n" + b"\x00" * 64, "cut.mcap", sid)
     assert code == 422 and "cut.mcap" in body["detail"]
-    code, body = _upload(client, bytes(6 * 1024 * 1024), "big.csv", sid)
-    assert code == 413 and "limit is 5 MiB" in body["detail"]
+    code, body = _upload(client, bytes(9 * 1024 * 1024), "big.csv", sid)
+    assert code == 413 and "limit is 8 MiB" in body["detail"]
     assert _files(data_dir) == before
     assert client.get("/api/trials").json() == []
 

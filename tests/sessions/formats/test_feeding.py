@@ -102,6 +102,7 @@ def test_thigh_columns_feed_the_fingerprint_filters_and_other_columns_are_listed
         (["time_s", "belt_speed_m_s"], None, "feed no estimator of the gait phase"),
         (["time_s", "foot_angle_deg", "heel_forward_m"], ("heel_forward_m", 1000.0), "is the column in m?"),
         (["time_s", "shank_angle_deg", "knee_angle_deg"], ("knee_angle_deg", -1.0), "is the column's sign reversed?"),
+        (["time_s", "foot_angle_deg"], ("foot_angle_deg", -1.0), "the foot angle reaches +"),
     ],
 )
 def test_a_file_that_cannot_be_estimated_is_refused_naming_why_and_nothing_is_stored(
