@@ -18,6 +18,7 @@ const ACCEPT = ".mcap,.csv,.parquet,.c3d";
 const RETRIES = 3; // per chunk, for network failures and 5xx only
 const RECOVERABLE_HEADER = "X-Gaitscope-Recoverable"; // server/routes/uploads.py
 const DUPLICATE_HEADER = "X-Gaitscope-Duplicate-Of"; // server/routes/uploads.py: the trial it was uploaded as
+const RECOVERABLE_RE = /can recover it/; // a preview's problem for an MCAP never finished (sessions/formats/mcap_io.py)
 
 const _sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
@@ -115,7 +116,7 @@ export function mountUpload(subjectSelect) {
   const copyBtn = h("button", { type: "button", "data-testid": "upload-keep-copy", text: "Upload a second copy anyway" });
   const dupBox = h("div", { class: "upload-recover", "data-testid": "upload-duplicate-box", hidden: true },
     h("p", { class: "hint" }, "This file is already stored: ", dupLink, ". Nothing was stored again."), copyBtn);
-  const panel = new ImportPreviewPanel();
+  const panel = new ImportPreviewPanel(refusalText);
   const imported = h("div", { class: "upload-imported", "data-testid": "upload-imported", hidden: true });
   const form = h("form", { class: "card form upload-form", "data-testid": "upload-form", novalidate: true },
     h("h2", { text: "Upload a recording" }),
@@ -234,12 +235,16 @@ export function mountUpload(subjectSelect) {
 
   /** Previews the open upload with `mapping` (JSON text; null: the saved or suggested one). */
   async function previewWith(mapping) {
-    const id = previewing.id;
+    const { id, file: f, subjectId } = previewing;
     const p = await api.previewUpload(id, { mapping, allow_other_rig: panel.otherRig.checked });
     if (!previewing || previewing.id !== id) return; // discarded meanwhile
     panel.show(p);
     form.classList.add("previewing");
     progressText.textContent = p.problem ? "previewed: it cannot be imported as it is" : "previewed: nothing is stored yet";
+    if (p.problem && RECOVERABLE_RE.test(p.problem)) { // a recording never finished: offer to recover it
+      pending = { file: f, subjectId, recover: false, keepCopy: false, options: null, show: true };
+      recoverBox.hidden = false;
+    }
   }
 
   form.addEventListener("submit", (ev) => {
@@ -272,10 +277,6 @@ export function mountUpload(subjectSelect) {
       } catch (err) {
         discardPreview();
         progressText.textContent = "not stored";
-        if (err instanceof ApiError && /can recover/.test(describeDetail(err.detail))) {
-          pending = { file: f, subjectId, recover: false, keepCopy: false, options: null, show: false };
-          recoverBox.hidden = false;
-        }
         throw _previewRefused(err);
       }
     }).finally(() => {
@@ -327,6 +328,7 @@ export function mountUpload(subjectSelect) {
   recoverBtn.addEventListener("click", () => {
     if (!pending) return;
     const job = { ...pending, recover: true };
+    discardPreview(); // sent again, to be recovered
     cancelled = false;
     cancel.disabled = false;
     submit.disabled = true;

