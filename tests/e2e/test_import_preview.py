@@ -202,6 +202,29 @@ def test_another_tools_mcap_is_mapped_in_the_field_table_and_imported(
     done.get_by_test_id("upload-trial-link").click()
     page.wait_for_url(re.compile(rf"#/trials/{trial_id}$"))
     expect(page.get_by_test_id("trial-info")).to_contain_text("uploaded")
+
+    # the same file again: the rig's saved mapping maps it; the import is refused as uploaded before, and the
+    # second copy asked for is imported with the mapping previewed
+    watched.allow_refusal(409, r"/api/uploads/\w+/finish$")
+    panel = _preview(page, server, subject, tmp_path / "rig.mcap")
+    expect(panel.get_by_test_id("upload-mapping-source")).to_have_attribute("data-source", "saved")
+    expect(panel.get_by_test_id("upload-preview-problem")).to_have_count(0)
+    rows = panel.get_by_test_id("upload-mapping-field")
+    angle = rows.and_(page.locator("[data-topic='/leg/shank'][data-path='angle']"))
+    expect(angle.get_by_test_id("upload-mapping-channel")).to_have_value("shank_angle_deg")
+    expect(angle.get_by_test_id("upload-mapping-scale")).to_have_value(RAD_TO_DEG)
+    page.get_by_test_id("upload-import").click()
+    expect(page.get_by_test_id("upload-duplicate-box")).to_be_visible(timeout=WORKER_MS)
+    expect(page.get_by_test_id("upload-error")).to_contain_text(
+        f"Not stored again: rig.mcap was uploaded already, as trial {trial_id} "
+    )
+    with page.expect_request(re.compile(r"/api/uploads/\w+/finish\?keep_copy=true$")) as again:
+        page.get_by_test_id("upload-keep-copy").click()
+    assert json.loads(again.value.post_data_json["mapping"]) == mapping
+    expect(done.get_by_test_id("upload-imported-text")).to_contain_text("Stored as trial", timeout=WORKER_MS)
+    expect(page.get_by_test_id("upload-progress-text")).to_contain_text("(a second copy)")
+    copy = int((done.get_by_test_id("upload-trial-link").get_attribute("href") or "").rsplit("/", 1)[1])
+    assert copy != trial_id and call(server, "GET", f"/api/trials/{copy}")["name"] == "rig.mcap"
     watched.check_clean()
 
 
