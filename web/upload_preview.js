@@ -7,7 +7,7 @@
 // (MCAP) or the mapping's JSON (C3D). upload.js sends it and previews again; this module only draws.
 
 import { estimatorLabel, listText } from "./estimators.js";
-import { errorBox, fmt, h, ValidationError } from "./ui.js";
+import { errorBox, fmt, h, showError, ValidationError } from "./ui.js";
 import { SENSOR_LIMITS } from "./wire.js";
 
 /**
@@ -223,10 +223,11 @@ export class ImportPreviewPanel {
     this.importBtn = h("button", { type: "button", class: "primary", "data-testid": "upload-import", text: "Import" });
     this.discardBtn = h("button", { type: "button", "data-testid": "upload-discard", text: "Discard" });
     this.otherRig = h("input", { type: "checkbox", "data-testid": "upload-allow-other-rig" });
+    this.otherRig.addEventListener("change", () => this._changed());
     this.error = errorBox("upload-preview-error");
     this.importNote = h("p", { class: "hint", "data-testid": "upload-import-note" });
     this.body = h("div", { class: "preview-body" });
-    this.el = h("section", { class: "upload-preview", "data-testid": "upload-preview", hidden: true, "aria-live": "polite" },
+    this.el = h("section", { class: "upload-preview", "data-testid": "upload-preview", hidden: true, "aria-label": "Import preview" },
       this.body, this.error, h("div", { class: "buttons" }, this.importBtn, this.discardBtn), this.importNote);
     /** @type {ImportPreview | null} */
     this.preview = null;
@@ -239,6 +240,8 @@ export class ImportPreviewPanel {
   clear() {
     this.preview = null;
     this.dirty = false;
+    this.otherRig.checked = false;
+    showError(this.error, null);
     this.body.replaceChildren();
     this.el.hidden = true;
   }
@@ -295,7 +298,7 @@ export class ImportPreviewPanel {
 
   _otherRigField() {
     return h("label", { class: "choice" }, this.otherRig,
-      h("span", { text: "Use a mapping saved for another rig (when this file's rig has none)" }));
+      h("span", { text: "Use the mapping although it was made for another rig (check that it still fits)" }));
   }
 
   /** Another tool's MCAP recording: a channel and a scale per field, built into a ChannelMapping's JSON. */
