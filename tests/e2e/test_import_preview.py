@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from tests.e2e.accounts import call
-from tests.e2e.pages import ARTIFACTS, Watched
+from tests.e2e.pages import ARTIFACTS, Watched, sweep
 from tests.real_files import treadmill_walk_c3d
 from tests.safety.test_uploads import _mcap
 from tests.server.test_import_preview import _foreign_mcap
@@ -107,6 +107,7 @@ def test_a_real_c3d_walk_is_previewed_imported_and_rerun_in_review(server: str, 
     link.click()
     page.wait_for_url(re.compile(rf"#/trials/{trial_id}$"))
     expect(page.get_by_test_id("trial-info")).to_contain_text("uploaded")
+    expect(page.get_by_test_id("review-stride-count")).to_contain_text("strides", timeout=30_000)  # loaded
     labels = {
         "phase_ekf": "Phase EKF (seed 000)",
         "fp_avg": "Average thigh model (seed 004)",
@@ -135,6 +136,14 @@ def test_a_real_c3d_walk_is_previewed_imported_and_rerun_in_review(server: str, 
     phase_legend = page.get_by_test_id("review-plot-phase").locator(".u-legend")
     for label in labels.values():
         expect(phase_legend).to_contain_text(f"{label}, re-run")
+    page.wait_for_timeout(500)  # the overlay drawn
+    readings = sweep(page, page.get_by_test_id("review-plot-phase"), np.linspace(0.1, 0.9, 9))
+    phases = {n: [r.get(f"{label}, re-run") for r in readings] for n, label in labels.items()}
+    for name, values in phases.items():  # each one's phase (%) under the mouse
+        assert sum(v is not None and 0.0 <= v <= 100.0 for v in values) >= 7, (name, values)
+    for ekf, fp in zip(phases["phase_ekf"], phases["fp_avg"], strict=True):  # they agree on the real walk's phase
+        if ekf is not None and fp is not None:
+            assert abs((ekf - fp + 50.0) % 100.0 - 50.0) < 15.0, phases
     page.screenshot(path=str(ARTIFACTS / "upload-c3d-review.png"), full_page=True)
     watched.check_clean()
 
