@@ -93,14 +93,89 @@ function _previewRefused(err) {
  *   options: {mapping: string | null, allow_other_rig: boolean} | null, show: boolean}} Job
  */
 
-/** The upload form; `subjectSelect` is filled by the sessions page. Returns {el, unmount}. */
-export function mountUpload(subjectSelect) {
-  let cancelled = false;
-  let previewing = null; // the upload previewed, still open on the server: {id, file, subjectId}
-  /** @type {Job | null} the recoverable file refused last */
-  let pending = null;
-  /** @type {Job | null} the file refused last as uploaded before */
-  let duplicate = null;
+/** The offers a refused upload may get: to recover a recording never finished, to keep a second copy. */
+class RefusalOffers {
+  constructor() {
+    /** @type {Job | null} the recoverable file refused last */
+    this.pending = null;
+    /** @type {Job | null} the file refused last as uploaded before */
+    this.duplicate = null;
+    this.recoverBtn = h("button", { type: "button", class: "primary", "data-testid": "upload-recover", text: "Recover this recording" });
+    this.recoverBox = h("div", { class: "upload-recover", "data-testid": "upload-recover-box", hidden: true },
+      h("p", { class: "hint", text: "Recovering keeps everything recorded up to where the file was cut off (the last second or so may be lost) and stores it as a new trial." }),
+      this.recoverBtn);
+    this.dupLink = h("a", { "data-testid": "upload-duplicate-link" });
+    this.copyBtn = h("button", { type: "button", "data-testid": "upload-keep-copy", text: "Upload a second copy anyway" });
+    this.dupBox = h("div", { class: "upload-recover", "data-testid": "upload-duplicate-box", hidden: true },
+      h("p", { class: "hint" }, "This file is already stored: ", this.dupLink, ". Nothing was stored again."), this.copyBtn);
+  }
+
+  /** Hides both offers. */
+  hide() {
+    this.pending = null;
+    this.duplicate = null;
+    this.recoverBox.hidden = true;
+    this.dupBox.hidden = true;
+  }
+
+  /** Offers to send `job` again to be recovered. @param {Job} job */
+  offerRecovery(job) {
+    this.pending = job;
+    this.recoverBox.hidden = false;
+  }
+
+  /** Offers to keep a second copy of `job`'s file, stored before as trial `trialId`. @param {Job} job */
+  offerCopy(job, trialId) {
+    this.duplicate = job;
+    this.dupLink.href = `#/trials/${trialId}`;
+    this.dupLink.textContent = `trial ${trialId}`;
+    this.dupBox.hidden = false;
+  }
+}
+
+/** Shows in `box` the trial an import made, with a link to its review and what the import read. */
+function _showImported(box, trial) {
+  box.replaceChildren(
+    h("p", { class: "ok", "data-testid": "upload-imported-text",
+      text: `Stored as trial ${trial.id}: ${trial.name}, ${trial.samples} samples.` }),
+    h("p", {}, h("a", { href: `#/trials/${trial.id}`, "data-testid": "upload-trial-link", text: `Open trial ${trial.id} in review` })),
+    trial.report ? reportView(trial.report) : null);
+  box.hidden = false;
+}
+
+/**
+ * Creates an upload and sends its chunks in order; its id. A failure deletes it (it holds no space).
+ * `ui`: the progress bar and text to update, and whether the person cancelled.
+ * @param {File} f
+ * @param {number} subjectId
+ * @param {boolean} recover
+ * @param {{progress: HTMLProgressElement, progressText: HTMLElement, cancelled: () => boolean}} ui
+ */
+async function _sendChunks(f, subjectId, recover, ui) {
+  const { progress, progressText } = ui;
+  progress.value = 0;
+  progressText.textContent = recover ? "sending it again to recover it…" : "starting…";
+  const up = await api.createUpload({ filename: f.name, size: f.size, subject_id: subjectId });
+  let offset = up.received || 0;
+  const chunk = Math.max(1, up.chunk_size);
+  try {
+    while (offset < f.size) {
+      if (ui.cancelled()) throw new ValidationError("Upload cancelled.");
+      const res = await _putWithRetry(up.id, offset, f.slice(offset, Math.min(offset + chunk, f.size)));
+      offset = res.received;
+      progress.value = offset / f.size;
+      progressText.textContent = `${Math.round((100 * offset) / f.size)} % (${offset} of ${f.size} bytes)`;
+    }
+  } catch (err) {
+    progressText.textContent = "not stored";
+    api.cancelUpload(up.id).catch(() => {});
+    throw err;
+  }
+  return up.id;
+}
+
+/** The upload form's elements (the offers and the preview panel placed in it), fenced to the upload role. */
+function _uploadForm(subjectSelect, /** @type {RefusalOffers} */ offers, /** @type {ImportPreviewPanel} */ panel) {
   const file = h("input", { type: "file", id: "upload-file", "data-testid": "upload-file", accept: ACCEPT });
   const progress = h("progress", { id: "upload-progress", "data-testid": "upload-progress", max: 1, value: 0 });
   const progressText = h("span", { class: "hint", "data-testid": "upload-progress-text", "aria-live": "polite" });
@@ -108,15 +183,6 @@ export function mountUpload(subjectSelect) {
   const submit = h("button", { type: "submit", "data-testid": "upload-submit", text: "Upload and import" });
   const cancel = h("button", { type: "button", "data-testid": "upload-cancel", text: "Cancel", disabled: true });
   const error = errorBox("upload-error");
-  const recoverBtn = h("button", { type: "button", class: "primary", "data-testid": "upload-recover", text: "Recover this recording" });
-  const recoverBox = h("div", { class: "upload-recover", "data-testid": "upload-recover-box", hidden: true },
-    h("p", { class: "hint", text: "Recovering keeps everything recorded up to where the file was cut off (the last second or so may be lost) and stores it as a new trial." }),
-    recoverBtn);
-  const dupLink = h("a", { "data-testid": "upload-duplicate-link" });
-  const copyBtn = h("button", { type: "button", "data-testid": "upload-keep-copy", text: "Upload a second copy anyway" });
-  const dupBox = h("div", { class: "upload-recover", "data-testid": "upload-duplicate-box", hidden: true },
-    h("p", { class: "hint" }, "This file is already stored: ", dupLink, ". Nothing was stored again."), copyBtn);
-  const panel = new ImportPreviewPanel(refusalText);
   const imported = h("div", { class: "upload-imported", "data-testid": "upload-imported", hidden: true });
   const form = h("form", { class: "card form upload-form", "data-testid": "upload-form", novalidate: true },
     h("h2", { text: "Upload a recording" }),
@@ -125,19 +191,36 @@ export function mountUpload(subjectSelect) {
     h("div", { class: "progress-row" }, progress, progressText),
     h("div", { class: "buttons" }, previewBtn, submit, cancel),
     h("p", { class: "hint", text: "Preview shows what an import would read (channels, what they feed, the channel mapping) before anything is stored." }),
-    error, recoverBox, dupBox, panel.el, imported);
+    error, offers.recoverBox, offers.dupBox, panel.el, imported);
   fence(form, "upload");
+  return { form, file, progress, progressText, previewBtn, submit, cancel, error, imported };
+}
+
+/** The upload form; `subjectSelect` is filled by the sessions page. Returns {el, unmount}. */
+export function mountUpload(subjectSelect) {
+  let cancelled = false;
+  let previewing = null; // the upload previewed, still open on the server: {id, file, subjectId}
+  const offers = new RefusalOffers();
+  const panel = new ImportPreviewPanel(refusalText);
+  const { form, file, progress, progressText, previewBtn, submit, cancel, error, imported } =
+    _uploadForm(subjectSelect, offers, panel);
 
   cancel.addEventListener("click", () => {
     cancelled = true;
   });
 
-  /** Hides the offers to recover a recording and to keep a second copy of a file. */
-  function hideOffers() {
-    pending = null;
-    duplicate = null;
-    recoverBox.hidden = true;
-    dupBox.hidden = true;
+  /**
+   * Runs `action` on `button` (its errors in `box`) with `others` disabled meanwhile; `cancellable`: the
+   * Cancel button works during it.
+   */
+  function busy(button, box, others, cancellable, action) {
+    cancelled = false;
+    if (cancellable) cancel.disabled = false;
+    for (const b of others) b.disabled = true;
+    return runAction(button, box, action).finally(() => {
+      cancel.disabled = true;
+      for (const b of others) b.disabled = false;
+    });
   }
 
   /** Drops the upload previewed (the server deletes its bytes) and its preview. */
@@ -150,7 +233,7 @@ export function mountUpload(subjectSelect) {
 
   /** Clears what the last action left: offers, the preview, the trial imported. */
   function reset() {
-    hideOffers();
+    offers.hide();
     discardPreview();
     imported.hidden = true;
   }
@@ -168,49 +251,23 @@ export function mountUpload(subjectSelect) {
     return { f, subjectId };
   }
 
-  /** Creates an upload and sends its chunks in order; its id. A failure deletes it (it holds no space). */
-  async function sendChunks(f, subjectId, recover) {
-    progress.value = 0;
-    progressText.textContent = recover ? "sending it again to recover it…" : "starting…";
-    const up = await api.createUpload({ filename: f.name, size: f.size, subject_id: subjectId });
-    let offset = up.received || 0;
-    const chunk = Math.max(1, up.chunk_size);
-    try {
-      while (offset < f.size) {
-        if (cancelled) throw new ValidationError("Upload cancelled.");
-        const res = await _putWithRetry(up.id, offset, f.slice(offset, Math.min(offset + chunk, f.size)));
-        offset = res.received;
-        progress.value = offset / f.size;
-        progressText.textContent = `${Math.round((100 * offset) / f.size)} % (${offset} of ${f.size} bytes)`;
-      }
-    } catch (err) {
-      progressText.textContent = "not stored";
-      api.cancelUpload(up.id).catch(() => {});
-      throw err;
-    }
-    return up.id;
-  }
+  const sendChunks = (f, subjectId, recover) =>
+    _sendChunks(f, subjectId, recover, { progress, progressText, cancelled: () => cancelled });
 
   /** Finishes a sent upload (from here the server owns it: a refused finish stores nothing and drops it). */
   async function finishAs(id, /** @type {Job} */ job) {
     try {
       const trial = await _finish(id, job.recover, job.keepCopy, job.options);
       progressText.textContent = `stored as trial ${trial.id}${job.recover ? " (recovered)" : job.keepCopy ? " (a second copy)" : ""}`;
-      if (job.show) showImported(trial);
+      if (job.show) _showImported(imported, trial);
       else location.hash = `#/trials/${trial.id}`;
       return trial;
     } catch (err) {
       progressText.textContent = "not stored";
-      if (err.recoverable && !job.recover) {
-        pending = job;
-        recoverBox.hidden = false;
-      }
+      if (err.recoverable && !job.recover) offers.offerRecovery(job);
       if (err.duplicateOf && !job.keepCopy) {
         progressText.textContent = `already uploaded as trial ${err.duplicateOf}`;
-        duplicate = job;
-        dupLink.href = `#/trials/${err.duplicateOf}`;
-        dupLink.textContent = `trial ${err.duplicateOf}`;
-        dupBox.hidden = false;
+        offers.offerCopy(job, err.duplicateOf);
       }
       throw err;
     }
@@ -223,16 +280,6 @@ export function mountUpload(subjectSelect) {
     return finishAs(id, job);
   }
 
-  /** The trial an import made, with a link to its review and what the import read. */
-  function showImported(trial) {
-    imported.replaceChildren(
-      h("p", { class: "ok", "data-testid": "upload-imported-text",
-        text: `Stored as trial ${trial.id}: ${trial.name}, ${trial.samples} samples.` }),
-      h("p", {}, h("a", { href: `#/trials/${trial.id}`, "data-testid": "upload-trial-link", text: `Open trial ${trial.id} in review` })),
-      trial.report ? reportView(trial.report) : null);
-    imported.hidden = false;
-  }
-
   /** Previews the open upload with `mapping` (JSON text; null: the saved or suggested one). */
   async function previewWith(mapping) {
     const { id, file: f, subjectId } = previewing;
@@ -242,32 +289,22 @@ export function mountUpload(subjectSelect) {
     form.classList.add("previewing");
     progressText.textContent = p.problem ? "previewed: it cannot be imported as it is" : "previewed: nothing is stored yet";
     if (p.problem && RECOVERABLE_RE.test(p.problem)) { // a recording never finished: offer to recover it
-      pending = { file: f, subjectId, recover: false, keepCopy: false, options: null, show: true };
-      recoverBox.hidden = false;
+      offers.offerRecovery({ file: f, subjectId, recover: false, keepCopy: false, options: null, show: true });
     }
   }
 
   form.addEventListener("submit", (ev) => {
     ev.preventDefault();
-    cancelled = false;
-    cancel.disabled = false;
-    previewBtn.disabled = true;
     reset();
-    runAction(submit, error, async () => {
+    busy(submit, error, [previewBtn], true, async () => {
       const { f, subjectId } = chosen();
       await send({ file: f, subjectId, recover: false, keepCopy: false, options: null, show: false });
-    }).finally(() => {
-      cancel.disabled = true;
-      previewBtn.disabled = false;
     });
   });
 
   previewBtn.addEventListener("click", () => {
-    cancelled = false;
-    cancel.disabled = false;
-    submit.disabled = true;
     reset();
-    runAction(previewBtn, error, async () => {
+    busy(previewBtn, error, [submit], true, async () => {
       const { f, subjectId } = chosen();
       const id = await sendChunks(f, subjectId, false);
       previewing = { id, file: f, subjectId };
@@ -279,9 +316,6 @@ export function mountUpload(subjectSelect) {
         progressText.textContent = "not stored";
         throw _previewRefused(err);
       }
-    }).finally(() => {
-      cancel.disabled = true;
-      submit.disabled = false;
     });
   });
 
@@ -305,18 +339,13 @@ export function mountUpload(subjectSelect) {
     const { id, file: f, subjectId } = previewing;
     const options = panel.options();
     previewing = null; // the finish ends the upload, whatever its outcome
-    submit.disabled = true;
-    previewBtn.disabled = true;
     progressText.textContent = "importing…";
-    runAction(panel.importBtn, error, async () => {
+    busy(panel.importBtn, error, [submit, previewBtn], false, async () => {
       try {
         await finishAs(id, { file: f, subjectId, recover: false, keepCopy: false, options, show: true });
       } finally {
         discardPreview();
       }
-    }).finally(() => {
-      submit.disabled = false;
-      previewBtn.disabled = false;
     });
   });
 
@@ -325,39 +354,22 @@ export function mountUpload(subjectSelect) {
     progressText.textContent = "discarded: nothing was stored";
   });
 
-  recoverBtn.addEventListener("click", () => {
-    if (!pending) return;
-    const job = { ...pending, recover: true };
+  offers.recoverBtn.addEventListener("click", () => {
+    if (!offers.pending) return;
+    const job = { ...offers.pending, recover: true };
     discardPreview(); // sent again, to be recovered
-    cancelled = false;
-    cancel.disabled = false;
-    submit.disabled = true;
-    previewBtn.disabled = true;
-    runAction(recoverBtn, error, async () => {
+    busy(offers.recoverBtn, error, [submit, previewBtn], true, async () => {
       await send(job);
-      pending = null;
-      recoverBox.hidden = true;
-    }).finally(() => {
-      cancel.disabled = true;
-      submit.disabled = false;
-      previewBtn.disabled = false;
+      offers.hide();
     });
   });
 
-  copyBtn.addEventListener("click", () => {
-    if (!duplicate) return;
-    const job = { ...duplicate, keepCopy: true };
-    cancelled = false;
-    cancel.disabled = false;
-    submit.disabled = true;
-    previewBtn.disabled = true;
-    runAction(copyBtn, error, async () => {
+  offers.copyBtn.addEventListener("click", () => {
+    if (!offers.duplicate) return;
+    const job = { ...offers.duplicate, keepCopy: true };
+    busy(offers.copyBtn, error, [submit, previewBtn], true, async () => {
       await send(job);
-      hideOffers();
-    }).finally(() => {
-      cancel.disabled = true;
-      submit.disabled = false;
-      previewBtn.disabled = false;
+      offers.hide();
     });
   });
 

@@ -176,8 +176,8 @@ class Source:
 
 
 def foreign(path: Path, name: str) -> bool:
-    """Whether an MCAP file is another tool's recording: it has no gaitscope ``/sensor`` channel (a file that
-    cannot be read as MCAP is gaitscope's to refuse, with its reasons)."""
+    """Whether an MCAP file is another tool's recording: it has channels, none of them gaitscope's ``/sensor``
+    (a file that cannot be read as MCAP, or has no channel, is gaitscope's to refuse, with its reasons)."""
     from mcap.reader import make_reader
 
     try:
@@ -185,7 +185,8 @@ def foreign(path: Path, name: str) -> bool:
             summary = make_reader(f).get_summary()
     except Exception:
         return False
-    return summary is not None and all(c.topic != "/sensor" for c in summary.channels.values())
+    topics = [] if summary is None else [c.topic for c in summary.channels.values()]
+    return bool(topics) and "/sensor" not in topics  # no channel at all: nobody's recording
 
 
 def frames_of(job: ImportJob, fmt: LogFormat) -> Source:
