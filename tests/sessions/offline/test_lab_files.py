@@ -32,3 +32,13 @@ def test_the_command_prints_a_row_per_estimator(capsys: pytest.CaptureFixture[st
     rows = [line.split() for line in capsys.readouterr().out.splitlines()[1:]]
     ekf = next(r for r in rows if r[1] == "phase_ekf")
     assert ekf[2] == "1206" and ekf[3] == "1.85%" and ekf[4:7] == ["11", "of", "11"]
+
+
+def test_the_real_shank_imu_walk_gives_regular_heel_strikes_and_a_phase_rate_that_agrees() -> None:
+    from gaitscope.sessions.offline.lab_files import score_shank_imu, xsens_lower_leg, xsens_shank_table
+
+    walk = score_shank_imu(xsens_shank_table(xsens_lower_leg()), load_model(default_model_path())[0], 0.9, 70.0)
+    assert walk.samples == 3511 and walk.estimators == ("imu_shank", "phase_ekf", "tbe")
+    assert 18 <= walk.strikes <= 22 and walk.stride_sd_s < 0.1 * walk.stride_s
+    assert walk.phase_rate == pytest.approx(1.0 / walk.stride_s, rel=0.03)
+
