@@ -146,3 +146,23 @@ def test_a_real_shank_imu_walk_uploads_and_runs_the_phase_ekf_through_the_imu_fr
     assert 18 <= strikes.size <= 22 and strides.std() / strides.mean() < 0.1, strikes  # ~1.27 s apart
     rate = np.nanmedian(np.asarray([np.nan if r is None else r for r in series["phase_rate"]], dtype=float))
     assert rate == pytest.approx(1.0 / np.median(strides), rel=0.05)
+
+
+def test_a_real_walks_thigh_columns_as_a_csv_run_the_fingerprint_filters(client: TestClient, tmp_path: Path) -> None:
+    """The real Vicon treadmill walk's segment angles (its C3D read by gaitscope) written as the CSV a lab's
+    own pipeline would export: the thigh columns feed fp_avg and fp_gf, whose phases sweep every stride."""
+    from gaitscope.sessions.formats.c3d import c3d_frames
+    from tests.real_files import treadmill_walk_c3d
+
+    columns = ["thigh_angle_deg", "shank_angle_deg", "foot_angle_deg", "heel_strike"]
+    rows = [{"time_s": f.t, **{c: getattr(f, c) for c in columns}} for f in c3d_frames(treadmill_walk_c3d(), "w")]
+    table = pd.DataFrame(rows).dropna()
+    table["heel_strike"] = table["heel_strike"].astype(int)
+    trial = upload(client, _csv(tmp_path, table, "vicon_walk.csv"), _subject(client))
+    feeds = _feeds(trial)
+    assert feeds["fp_avg"]["ran"] and feeds["fp_gf"]["ran"] and trial["report"]["ignored"] == []
+    r = client.post(f"/api/trials/{trial['id']}/rerun?max_points=2000", json={"estimators": ["fp_avg", "fp_gf"]})
+    assert r.status_code == 200, r.text
+    for name in ("fp_avg", "fp_gf"):
+        phase = np.array([np.nan if p is None else p for p in r.json()[f"{name}.phase"]], dtype=float)
+        assert np.isfinite(phase).mean() > 0.95 and np.nanmax(phase) - np.nanmin(phase) > 0.9, name
