@@ -24,8 +24,10 @@ def test_the_gp_ekf_learns_beats_the_time_based_phase_and_freezes_at_a_stop(tmp_
         assert r.time_stop_error > 0.2  # ... while the time-based phase ran on
         assert r.stop_torque_s < 1.0 and r.stop_torque_s <= r.published_stop_torque_s  # the hold takes it out
         assert np.isfinite(r.step_rmse[:10]).all()
+    # seed 003's test is the two-sided Wilcoxon; with every subject better, exactly twice the one-sided p
+    assert study.wilcoxon_p == 2 * study.wilcoxon_p_one_sided == 2 / 2 ** len(study.runs)
     md = to_markdown(study)
-    assert "| VC01 |" in md and "Wilcoxon" in md and "Learning curve" in md
+    assert "| VC01 |" in md and "two-sided, as the paper tested" in md and "Learning curve" in md
     written = write_figure(study, tmp_path)
     assert [p.name for p in written] == ["gp_ekf_learning.csv", "gp_ekf_learning.svg"]
     assert written[1].read_text().lstrip().startswith("<?xml")
