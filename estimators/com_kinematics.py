@@ -188,4 +188,6 @@ DESCRIPTOR: Final = Descriptor(
     optional_inputs=KinematicCoM.optional_inputs,
     outputs=tuple(out(name, unit) for name, unit in KinematicCoM.outputs),
     derives=True,
+    purpose="The centre of mass over the stance foot from both legs' thigh and shank angles, for the intent estimator.",
+    paper="Karulkar and Wensing 2021 (seed 001)",
 )

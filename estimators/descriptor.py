@@ -3,11 +3,12 @@
 Each estimator module states its descriptor next to its class (a ``DESCRIPTOR`` constant, or a function of
 what varies, e.g. an IMU front end's segment): its machine name and its name on screen, the channels it
 reads, its outputs with their units and meanings, which outputs are gait-state quantities (:data:`QUANTITIES`),
-what it lets a session tune and within which bounds, which outputs a view plots, and the roles a session or a
-view gives it (run only when named, a front end that derives channels, a model it learns online, a gait
-fingerprint's variant). The session level (``gaitscope.sessions.registry``) attaches how a session builds it
-(:meth:`Descriptor.built_by`: a callable of the session's context) and derives everything else from the list
-of descriptors: the registry's tables, the browser's ``wire.js``, the views. Pure data: no I/O.
+what it lets a session tune and within which bounds, which outputs a view plots, what it is for and the paper
+it implements, and the roles a session or a view gives it (run only when named, a front end that derives
+channels, a model it learns online, a gait fingerprint's variant). The session level
+(``gaitscope.sessions.registry``) attaches how a session builds it (:meth:`Descriptor.built_by`: a callable of
+the session's context) and derives everything else from the list of descriptors: the registry's tables, the
+browser's ``wire.js``, the views. Pure data: no I/O.
 """
 
 from __future__ import annotations
@@ -136,6 +137,10 @@ class Descriptor:
     learned_model: str | None = None
     #: which variant of the gait-fingerprint filter it is (one of :data:`FINGERPRINT_ROLES`), if one
     fingerprint: Literal["average", "personal", "online"] | None = None
+    #: what it is for, in one line a clinician choosing a session's estimators reads ("": not said)
+    purpose: str = ""
+    #: the paper it implements, as cited on screen (``Medrano et al., IEEE T-RO 2023 (seed 000)``); "": none
+    paper: str = ""
     #: how a session builds it from the session's context (attached by the registry: :meth:`built_by`)
     factory: Callable[[Any], Estimator] | None = field(default=None, compare=False, hash=False)
 
@@ -154,6 +159,8 @@ class Descriptor:
             unknown = [o for o in p.outputs if o not in names]
             if unknown or not p.outputs:
                 raise ValueError(f"{self.name}: plot {p.key} draws {list(p.outputs)}, outputs are {names}")
+        if "\n" in self.purpose or "\n" in self.paper:
+            raise ValueError(f"{self.name}: its purpose and paper are one line each")
         unknown = [o for o in self.live if o not in names]
         if unknown:
             raise ValueError(f"{self.name}: live outputs {unknown} are not outputs {names}")

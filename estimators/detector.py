@@ -143,4 +143,6 @@ DESCRIPTOR: Final = Descriptor(
     optional_inputs=HeelStrikeDetector.optional_inputs,
     outputs=(out(HEEL_STRIKE, "bool"),),
     tunables=(Tunable("max_foot_angle_deg"), Tunable("refractory_s", min=0.0), Tunable("accel_threshold")),
+    purpose="Heel strikes from the foot angle and its velocity, for the estimators after it that need them.",
+    paper="Medrano et al., IEEE T-RO 2023 (seed 000)",
 )

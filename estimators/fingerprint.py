@@ -513,6 +513,12 @@ _VARIANTS: Final[dict[Mode, tuple[str, str, Literal["average", "personal", "onli
     "ls": ("fp_ls", "Personalized thigh model (seed 004 LS-GF)", "personal"),
     "gf": ("fp_gf", "Online fingerprint EKF (seed 004 GF)", "online"),
 }
+#: What each variant is for, in a line (:attr:`Descriptor.purpose`).
+_PURPOSES: Final[dict[Mode, str]] = {
+    "avg": "Gait phase and stride length from the thigh angle alone, on the population's average thigh model.",
+    "ls": "Gait phase from the thigh angle on the subject's own model: needs a calibrated fingerprint first.",
+    "gf": "Gait phase from the thigh angle while it estimates the subject's gait fingerprint live.",
+}
 
 
 def descriptor(mode: Mode, n_components: int = 3) -> Descriptor:
@@ -538,4 +544,6 @@ def descriptor(mode: Mode, n_components: int = 3) -> Descriptor:
         tunables=tuple(Tunable(p) for p in FingerprintEKF.tunables),
         fingerprint=role,
         live=tuple(o.name for o in outputs[4:]),  # the online fingerprint, which the subject page draws moving
+        purpose=_PURPOSES[mode],
+        paper="Montes Pérez, Thomas and Gregg (seed 004)",
     )

@@ -513,4 +513,7 @@ DESCRIPTOR: Final = Descriptor(
     tunables=(Tunable("measurement_noise_scale"), Tunable("torque_scale", 0.0, 1.0)),
     opt_in=True,
     learned_model="GP-EKF model",
+    purpose="Stance phase (heel strike to toe-off) from hip, knee and ankle encoders, with models it relearns "
+    "for the wearer.",
+    paper="Thatte, Shah and Geyer 2019 (seed 003)",
 )

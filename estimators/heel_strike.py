@@ -275,4 +275,6 @@ DESCRIPTOR: Final = Descriptor(
     },
     tunables=(Tunable("measurement_noise_scale"),),
     opt_in=True,
+    purpose="The phase EKF's heel-strike backup on its own (phase open loop from the last heel strike), to compare.",
+    paper="Medrano et al., IEEE T-RO 2023 (seed 000)",
 )

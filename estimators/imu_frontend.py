@@ -352,4 +352,6 @@ def descriptor(segment: str) -> Descriptor:
         outputs=tuple(out(name, unit, meanings.get(name)) for name, unit in est.outputs),
         tunables=tuple(Tunable(name) for name in est.tunables),
         derives=True,
+        purpose=f"The {segment.replace('_', ' ')} angle and its rate from a raw 6-axis IMU, for a device that sends "
+        "no angles.",
     )

@@ -281,4 +281,6 @@ DESCRIPTOR: Final = Descriptor(
     plots=(
         PlotHint("intent", "Speed-change intent: desired vs actual speed", "m/s", ("desired_speed_m_s", "speed_m_s")),
     ),
+    purpose="Whether the walker means to speed up or slow down, and the desired speed, at every mid-stance.",
+    paper="Karulkar and Wensing 2021 (seed 001)",
 )

@@ -198,4 +198,6 @@ DESCRIPTOR: Final = Descriptor(
         "incline_deg": "incline",
     },
     tunables=(Tunable("measurement_noise_scale", 0.1, 10.0), Tunable("process_noise_scale", 0.1, 10.0)),
+    purpose="Gait phase, stride length and incline from a foot or shank angle: the torque follows it by default.",
+    paper="Medrano et al., IEEE T-RO 2023 (seed 000)",
 )

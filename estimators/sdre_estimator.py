@@ -143,4 +143,7 @@ DESCRIPTOR: Final = Descriptor(
     quantities={"knee_sdre_deg": "knee_angle"},
     tunables=tuple(Tunable(name) for name in SDREKnee.tunables),
     opt_in=True,
+    purpose="Knee angle from thigh and shank IMUs. Meant for seated, FES-driven legs: in walking its knee is about "
+    "12 deg off (docs/results.md).",
+    paper="Zhong 2016, MS thesis (seed 002)",
 )

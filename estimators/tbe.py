@@ -125,4 +125,6 @@ DESCRIPTOR: Final = Descriptor(
     ),
     quantities={"phase": "phase", "phase_rate": "phase_rate"},
     tunables=(Tunable("initial_period"), Tunable("min_period"), Tunable("max_period")),
+    purpose="Gait phase from heel-strike timing alone (the last stride's duration): the baseline the filters beat.",
+    paper="Medrano et al., IEEE T-RO 2023 (seed 000)",
 )

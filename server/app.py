@@ -14,7 +14,7 @@ import logging
 import time
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from fastapi import FastAPI
@@ -65,6 +65,9 @@ class AppContext:
     leg_view: LegView | None = None
     #: this node's membership of a cluster (Settings.cluster), else None
     nodes: Nodes | None = None
+    #: each registered estimator's median time per sample on this machine (microseconds) by name, as the
+    #: start-up warm-up timed it (``GET /api/estimators``); empty until it ran
+    estimator_cost_us: dict[str, float] = field(default_factory=dict)
 
     focus: int | None = None
     _last_view: float = 0.0
@@ -185,7 +188,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 watch=accounts.watch,
             )
         app.state.ctx = ctx
-        await asyncio.to_thread(warm_up, models.get("default")[0])  # compile the kernels before answering
+        # compile the kernels before answering, and time each estimator's step now that it is compiled
+        ctx.estimator_cost_us = await asyncio.to_thread(warm_up, models.get("default")[0])
         # What start-up made (numpy, scipy, numba, pandas, the model: millions of objects) lives as long as
         # the server: kept out of the cyclic collector, whose full passes over it stalled the sessions'
         # event loop for tens of milliseconds (the load benchmark's p99).

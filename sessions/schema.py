@@ -509,6 +509,30 @@ class Upload(BaseModel):
     chunk_size: int
 
 
+class RegisteredEstimator(BaseModel):
+    """A registered estimator as ``GET /api/estimators`` describes it (its descriptor in
+    ``gaitscope.sessions.registry.DESCRIPTORS``), for choosing a session's stack (``SessionSettings.estimators``
+    and ``primary``), with what it costs on this server. Named so, not ``EstimatorInfo``: that is ``wire.js``'s
+    type of its ``ESTIMATORS`` table."""
+
+    name: EstimatorName = Field(description="its machine name, as SessionSettings.estimators and primary name it")
+    label: str = Field(description="its name on screen")
+    purpose: str = Field(description="what it is for, in one line")
+    paper: str | None = Field(description="the paper it implements (its seed); null: none, gaitscope's own")
+    inputs: list[str] = Field(description="the channels it requires (SensorFrame field names)")
+    inputs_any: list[str] = Field(description="it needs at least one of these (empty: no such rule)")
+    optional_inputs: list[str] = Field(description="channels it uses when the source sends them")
+    phase: bool = Field(description="it estimates a phase (of the gait cycle or of stance): the torque may follow it")
+    opt_in: bool = Field(description="a session runs it only when named: the default stack leaves it out")
+    derives: bool = Field(
+        description="a front end deriving channels: the default stack leaves it out when the source sends them"
+    )
+    cost_us: float | None = Field(
+        description="its median time per sample on this server (microseconds), measured at start-up over a "
+        "synthetic walk; null: not measured (the model cannot build it)"
+    )
+
+
 class EstimatorFeed(BaseModel):
     """How a log's channels feed one registered estimator (the registry's rule,
     :func:`gaitscope.sessions.registry.feeds`): an import's report and its preview."""
@@ -1846,5 +1870,5 @@ WIRE: Final[tuple[type[BaseModel], ...]] = (
     GPLearningState, GPLearningControl, SessionSummary, SummaryProgress, ExportCreate, ExportJob, CompareRequest,
     Comparison, ReviewAnnotationCreate, ReviewAnnotation, SettingsUndo, User, UserCreate, UserChange, LoginRequest,
     PasswordChange, Me, DeviceToken, AssistanceLimits, SubjectLimits, AuditEntry, AuditQuery, AuditVerification,
-    TorqueRaiseRefused, TorqueCheck,
+    TorqueRaiseRefused, TorqueCheck, RegisteredEstimator,
 )  # fmt: skip

@@ -35,6 +35,7 @@ import { api, apiBytes, query } from "./api.js";
 /** @typedef {import("./wire.js").PersonalizationChange} PersonalizationChange */
 /** @typedef {import("./wire.js").PersonalizationExport} PersonalizationExport */
 /** @typedef {import("./wire.js").RecordingControl} RecordingControl */
+/** @typedef {import("./wire.js").RegisteredEstimator} RegisteredEstimator */
 /** @typedef {import("./wire.js").RerunChoices} RerunChoices */
 /** @typedef {import("./wire.js").RerunRequest} RerunRequest */
 /** @typedef {import("./wire.js").ReviewAnnotation} ReviewAnnotation */
@@ -718,6 +719,24 @@ export function recordingUrl(sessionId) {
  */
 export function recording(sessionId, body) {
   return api("POST", recordingUrl(sessionId), body);
+}
+
+/**
+ * The address of `GET /api/estimators`.
+ * @returns {string}
+ */
+export function listEstimatorsUrl() {
+  return "/api/estimators";
+}
+
+/**
+ * `GET /api/estimators`: Every registered estimator, in the order a stack runs them, with its cost per
+ * sample here (null when the warm-up did not time it). Which of them a source can feed stays the session's
+ * start to judge (409 naming the missing channels).
+ * @returns {Promise<Array<RegisteredEstimator>>}
+ */
+export function listEstimators() {
+  return api("GET", listEstimatorsUrl());
 }
 
 /**

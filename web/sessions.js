@@ -1,7 +1,9 @@
-// Sessions page (`#/`): sessions and trials, new subject, new session, and the upload form.
+// Sessions page (`#/`): sessions and trials, new subject, new session (its estimators: estimator_picker.js), and the
+// upload form.
 
 import * as api from "./api_client.js";
 import { fence } from "./auth.js";
+import { SessionEstimators } from "./estimator_picker.js";
 import { mountUpload } from "./upload.js";
 import { errorBox, field, fmt, fmtUtc, h, readNumber, runAction, showError, ValidationError } from "./ui.js";
 import { FIELD_LIMITS } from "./wire.js";
@@ -146,13 +148,14 @@ export function mountSessions(root) {
     field("Trial", replayTrial), field("Speed (× real time)", replaySpeed, range(REPLAY_SPEED)));
   const deviceBox = h("div", { class: "source-opts", "data-kind": "device", hidden: true },
     h("p", { class: "hint", text: "The device connects to /ws/devices/{session id} and streams sensor frames." }));
+  const estimators = new SessionEstimators(); // the default stack, or a choice and the one the torque follows
   const sessionError = errorBox("session-error");
   const sessionSubmit = h("button", { type: "submit", class: "primary", "data-testid": "session-submit", text: "Start session" });
   const sessionForm = h("form", { class: "card form", "data-testid": "session-form", novalidate: true },
     h("h2", { text: "New session" }),
     field("Subject", sessSubject),
     h("fieldset", { class: "choices" }, h("legend", { text: "Source" }), ...kindRadios),
-    simBox, replayBox, deviceBox, sessionSubmit, sessionError);
+    simBox, replayBox, deviceBox, estimators.el, sessionSubmit, sessionError);
   fence(subjectForm, "run");
   fence(sessionForm, "run");
   sessionForm.addEventListener("change", (ev) => {
@@ -177,7 +180,7 @@ export function mountSessions(root) {
       } else {
         source = { kind: "device" }; // the third radio
       }
-      const session = await api.createSession({ subject_id: subjectId, source, start: true });
+      const session = await api.createSession({ subject_id: subjectId, source, settings: estimators.settings(), start: true });
       location.hash = `#/sessions/${session.id}`;
     });
   });

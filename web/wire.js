@@ -934,6 +934,25 @@
  */
 
 /**
+ * A registered estimator as ``GET /api/estimators`` describes it (its descriptor in
+ * ``gaitscope.sessions.registry.DESCRIPTORS``), for choosing a session's stack (``SessionSettings.estimators``
+ * and ``primary``), with what it costs on this server. Named so, not ``EstimatorInfo``: that is ``wire.js``'s
+ * type of its ``ESTIMATORS`` table.
+ * @typedef {object} RegisteredEstimator
+ * @property {string} name its machine name, as SessionSettings.estimators and primary name it
+ * @property {string} label its name on screen
+ * @property {string} purpose what it is for, in one line
+ * @property {string | null} paper the paper it implements (its seed); null: none, gaitscope's own
+ * @property {Array<string>} inputs the channels it requires (SensorFrame field names)
+ * @property {Array<string>} inputs_any it needs at least one of these (empty: no such rule)
+ * @property {Array<string>} optional_inputs channels it uses when the source sends them
+ * @property {boolean} phase it estimates a phase (of the gait cycle or of stance): the torque may follow it
+ * @property {boolean} opt_in a session runs it only when named: the default stack leaves it out
+ * @property {boolean} derives a front end deriving channels: the default stack leaves it out when the source sends them
+ * @property {number | null} cost_us its median time per sample on this server (microseconds), measured at start-up over a synthetic walk; null: not measured (the model cannot build it)
+ */
+
+/**
  * One re-run's figures, its time series (on the comparison's ``t``) and its mean stride.
  * @typedef {object} ComparedRun
  * @property {string} name
@@ -1686,6 +1705,7 @@ export const FIELD_LIMITS = deepFreeze({
     retry_after_s: { min: 0.0 },
   },
   TorqueCheck: { peak_before_Nm: { min: 0.0 }, peak_after_Nm: { min: 0.0 }, retry_after_s: { min: 0.0 } },
+  RegisteredEstimator: { name: { pattern: "^[a-z][a-z0-9_]{0,31}$" } },
   ComparedRunSpec: { name: { minLength: 1, maxLength: 40 }, estimators: { maxItems: 16 } },
   DeviceSource: { rate_hz: { min: 1.0, max: 1000.0 }, channels: { maxItems: 256 } },
   ImuSensorCalibration: {

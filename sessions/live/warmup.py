@@ -11,12 +11,16 @@ a session's estimators call has been compiled by it.
 
 The walk is not a gait anyone walks: each channel a smooth periodic signal of its kind (angles, rates,
 forces, IMU axes), heel strikes once a second, then standing still and a gap, so that each estimator passes
-through its stance, swing, hold and restart branches. What it estimates is thrown away.
+through its stance, swing, hold and restart branches. What it estimates is thrown away; what it costs is not:
+each estimator's step is timed over the walk's last second, when everything it calls is compiled, and
+:func:`warm_up` returns the medians, the time per sample of each estimator on this server (``GET /api/estimators``
+shows them when a session's estimators are chosen).
 """
 
 from __future__ import annotations
 
 import math
+import time
 from typing import Final
 
 import numpy as np
@@ -32,6 +36,7 @@ __all__ = ["warm_up"]
 _RATE: Final = 100.0  # Hz
 _WALK_S: Final = 3.5  # s of walking: three heel strikes, so that each filter has completed a stride
 _STAND_S: Final = 1.0  # s standing still after it (the holds), then a gap of 2 s (the restarts)
+_TIMED: Final = 100  # the stream's last samples (walking again after the gap), each estimator's step timed
 
 
 def _value(channel: str, t: float, walking: bool) -> float:
@@ -65,10 +70,16 @@ def _stream() -> list[tuple[float, bool]]:
     return walk + stand + after_gap
 
 
-def warm_up(model: TrainedModel) -> None:
+def warm_up(model: TrainedModel) -> dict[str, float]:
     """Run a throw-away session's frame path and every registered estimator (:data:`ESTIMATORS`, opt-in
     ones included; those the model cannot build are skipped) over the synthetic walk, so that every
-    compiled kernel they call is built (or loaded from numba's cache)."""
+    compiled kernel they call is built (or loaded from numba's cache).
+
+    Returns:
+        By estimator name (those built, in registry order), the median time of its ``step`` over the walk's
+        last :data:`_TIMED` samples, after everything it calls is compiled: its cost per sample on this
+        machine, in microseconds (the input vector made beforehand, so only the step is timed).
+    """
     stream = _stream()
     frames = FrameEstimator(model, 0.9, 75.0, SessionSettings(), DEFAULT_PERIOD)
     for k, (t, walking) in enumerate(stream):
@@ -77,11 +88,20 @@ def warm_up(model: TrainedModel) -> None:
     fmap = model.fingerprints
     fingerprint = None if fmap is None else (0.0,) * fmap.n_components
     ctx = StackContext(model, 0.9, 75.0, 1.0 / _RATE, fingerprint=fingerprint)
-    for make in ESTIMATORS.values():
+    timed_from = len(stream) - _TIMED
+    costs: dict[str, float] = {}
+    for name, make in ESTIMATORS.items():
         try:
             est = make(ctx)
         except Unavailable:
             continue
         names = input_names(est)
-        for t, walking in stream:
-            est.step(t, np.array([_value(c, t, walking) for c in names], dtype=np.float64))
+        ns: list[int] = []
+        for k, (t, walking) in enumerate(stream):
+            z = np.array([_value(c, t, walking) for c in names], dtype=np.float64)
+            start = time.perf_counter_ns()
+            est.step(t, z)
+            if k >= timed_from:
+                ns.append(time.perf_counter_ns() - start)
+        costs[name] = round(float(np.median(ns)) / 1e3, 2)
+    return costs

@@ -82,6 +82,7 @@ EXPECTED: dict[tuple[str, str], str] = {
     ("GET", "/api/exports/{job_id}"): "read",
     ("GET", "/api/exports/{job_id}/file"): "read",
     ("GET", "/api/models"): "read",
+    ("GET", "/api/estimators"): "read",
     ("GET", "/api/trials"): "read",
     ("GET", "/api/trials/{trial_id}"): "read",
     ("GET", "/api/trials/{trial_id}/events"): "read",

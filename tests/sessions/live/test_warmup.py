@@ -1,7 +1,8 @@
 """The server's start-up warm-up (:mod:`gaitscope.sessions.live.warmup`) compiles every numba kernel a session calls:
 in a fresh process, after :func:`warm_up`, sessions of every feedable estimator (opt-in ones included) over
-realistic walks compile nothing more. Run in a subprocess, since this process may have compiled kernels
-already; numba's on-disk cache may serve the compiled code (a cache load counts as compiled)."""
+realistic walks compile nothing more, and it returns each estimator's time per sample. Run in a subprocess, since
+this process may have compiled kernels already; numba's on-disk cache may serve the compiled code (a cache load
+counts as compiled)."""
 
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ SCRIPT = textwrap.dedent(
 
     model = load_model(default_model_path())[0]
     cold = counts()
-    warm_up(model)
+    costs = warm_up(model)
     warm = counts()
     sensors, _, _ = sensor_trial([(1.0, 0.0, 6), (0.6, 5.0, 4)], rate_hz=200.0)
     speeds = speed_walk(make_subjects(CohortSpec())[0], SpeedProtocol(walk_s=12.0, standing_s=1.0, rate_hz=200.0))
@@ -52,7 +53,7 @@ SCRIPT = textwrap.dedent(
                 if k % 97 == 0:  # a dropout now and then: the missing-channel branches
                     frame = frame.model_copy(update={c: None for c in ("foot_angle_deg", "knee_angle_deg")})
                 est.step(frame, 0)
-    print(json.dumps({"cold": cold, "warm": warm, "after": counts(), "ran": sorted(ran)}))
+    print(json.dumps({"cold": cold, "warm": warm, "after": counts(), "ran": sorted(ran), "costs": costs}))
     """
 )
 
@@ -68,3 +69,6 @@ def test_after_the_warm_up_a_session_compiles_nothing() -> None:
     assert sum(got["warm"].values()) > sum(got["cold"].values())  # it compiled (or loaded) something
     late = {k: (got["warm"][k], n) for k, n in got["after"].items() if n != got["warm"][k]}
     assert not late, f"compiled during a session, after the warm-up (kernel: signatures then, now): {late}"
+    # and it timed each estimator it built, compiled: a positive time per sample (us), well under 50 ms
+    assert set(got["ran"]) <= set(got["costs"])
+    assert all(0.0 < us < 50_000.0 for us in got["costs"].values()), got["costs"]
