@@ -105,7 +105,10 @@ def test_a_session_stream_closes_within_a_second_of_its_login_ending(
             while True:
                 ws.receive_text()
                 after += 1
-                assert time.monotonic() - ended < 1.0, f"still streaming 1 s after the {ending} ({after} messages)"
+                # the close is pushed by the login's watch at once; the bound is wall time in the test client, which
+                # a loaded CI machine stretched past 1 s once (1.005 s, PostgreSQL, password change): 2 s still
+                # tells a close that came from the watch from one that waits for the stream's 10 s re-check
+                assert time.monotonic() - ended < 2.0, f"still streaming 2 s after the {ending} ({after} messages)"
         assert exc.value.code == 1008 and why in exc.value.reason, (exc.value.code, exc.value.reason)
     # a stream opened with another login of someone else goes on meanwhile: only the ended login's sockets close
 
