@@ -203,6 +203,11 @@ class Declared:
     outputs: tuple[Output, ...]  #: ``(name, unit)`` in the order it returns them (``Estimator.outputs``)
     inputs_any: tuple[str, ...] = ()  #: it needs at least one of these (:attr:`Descriptor.inputs_any`)
 
+    @property
+    def phased(self) -> bool:
+        """It estimates a phase (an output ``phase``): it can drive the torque."""
+        return any(o == "phase" for o, _ in self.outputs)
+
     def lacking(self, available: Collection[str]) -> list[str]:
         """What a source providing ``available`` lacks to run it: each required channel it does not
         provide, and, when it provides none of :attr:`inputs_any`, those joined by "or" as one entry

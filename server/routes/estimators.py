@@ -31,7 +31,7 @@ def _described(d: Descriptor, cost_us: float | None) -> schema.RegisteredEstimat
         inputs=list(d.inputs),
         inputs_any=list(d.inputs_any),
         optional_inputs=list(d.optional_inputs),
-        phase=any(o.name == "phase" for o in d.outputs),
+        phase=registry.DECLARED[d.name].phased,
         opt_in=d.opt_in,
         derives=d.derives,
         cost_us=cost_us,

@@ -210,17 +210,14 @@ def frames_of(job: ImportJob, fmt: LogFormat) -> Source:
         return Source(c3d.c3d_frames(path, name, c3d_mapping), "c3d", ignored, used)  # type: ignore[arg-type]
     from gaitscope.sessions.formats import foreign_mcap as fm
 
+    fields = fm.inspect_mcap(path, name)  # once: the suggestion and the fields left unread
     try:
-        mapping = (
-            fm.suggest_mapping(fm.inspect_mcap(path, name))
-            if job.mapping is None
-            else fm.ChannelMapping.from_json(job.mapping)
-        )
+        mapping = fm.suggest_mapping(fields) if job.mapping is None else fm.ChannelMapping.from_json(job.mapping)
     except fm.MappingError as e:
         raise DataFormatError(f"the channel mapping is not usable: {e}", file=name) from None
     rig = fm.rig_signature(path, name)
     mapped = {(e.topic, e.field) for e in mapping.entries}
-    ignored.extend(f"{f.topic} {f.path}" for f in fm.inspect_mcap(path, name) if (f.topic, f.path) not in mapped)
+    ignored.extend(f"{f.topic} {f.path}" for f in fields if (f.topic, f.path) not in mapped)
     if mapping.entries:
         frames = fm.foreign_frames(path, name, mapping, allow_other_rig=job.allow_other_rig)
     else:  # refused when read: a preview still lists the fields to map
@@ -510,7 +507,7 @@ def cannot_feed(channels: set[str], why: str) -> str:
     """Why a log's ``channels`` cannot be estimated: what each estimator of the gait phase lacks."""
     from gaitscope.sessions.registry import DECLARED, feeds
 
-    phased = [n for n, d in DECLARED.items() if any(o == "phase" for o, _ in d.outputs)]
+    phased = [n for n, d in DECLARED.items() if d.phased]
     fed = feeds(channels)
     lacking = "; ".join(f"{n} needs {', '.join(fed[n].missing)}" for n in phased if fed[n].missing)
     sent = ", ".join(sorted(channels)) or "none"

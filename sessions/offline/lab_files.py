@@ -227,7 +227,7 @@ def score_c3d(
     frames = list(c3d_frames(path, path.name))
     channels = channels_of(frames)
     fed = feeds(channels)
-    phased = [n for n, d in DECLARED.items() if any(o == "phase" for o, _ in d.outputs) and not fed[n].missing]
+    phased = [n for n, d in DECLARED.items() if d.phased and not fed[n].missing]
     period = float(np.median(np.diff([f.t for f in frames])))
     chosen = (
         list(names) if names is not None else [n for n in phased if _buildable(n, model, leg_length, mass_kg, period)]

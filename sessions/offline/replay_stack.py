@@ -370,7 +370,7 @@ def replay_estimators(
 
 
 def _phased(name: str) -> bool:
-    return any(o == "phase" for o, _ in DECLARED[name].outputs)
+    return DECLARED[name].phased
 
 
 def _primary(names: Sequence[str]) -> str:
