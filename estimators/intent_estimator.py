@@ -8,6 +8,7 @@ when the events cannot be trusted (standing, walking backwards, a lost leg chann
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Final
 
 import numpy as np
@@ -16,6 +17,7 @@ from numpy.typing import NDArray
 from gaitscope.estimators.channels import positions
 from gaitscope.estimators.descriptor import Descriptor, PlotHint, Tunable, out
 from gaitscope.estimators.intent import _VX, COHORT, BKFConfig, ButtressedKF
+from gaitscope.estimators.intent_episodes import DEFAULT_RULE, EpisodeRule, SpeedEpisodes
 from gaitscope.estimators.protocol import MAX_GAP_S, check_params
 
 __all__ = [
@@ -61,10 +63,16 @@ class IntentEstimator:
       delay: sensor noise around zero while standing makes no mid-stances; a walking step swings it by
       tens of degrees).
     - Between events the outputs hold: desired speed, intent (the last mid-stance's change of desired
-      speed), its class (``intent_code``: 1 speeding up, -1 slowing down, 0 steady, when the change is
-      below ``deadband_m_s`` (0.05 m/s) or its confidence below ``min_confidence`` (2) standard deviations;
-      the trade-off of missed changes against false calls on the cohort is in ``docs/results.md``) and
-      confidence. The bookkeeping of a sample between events is a few float comparisons (no numpy).
+      speed), its class and confidence. The bookkeeping of a sample between events is a few float
+      comparisons (no numpy).
+    - The class (``intent_code``: 1 speeding up, -1 slowing down, 0 steady) is a speed-change **episode**
+      (:class:`gaitscope.estimators.intent_episodes.SpeedEpisodes`, rule ``episodes``): it holds its sign
+      from the step a change is called until the walker is steady again, so a change is one call (one
+      event, one boost), and steady walking calls about once in five minutes or less on the cohort
+      (``docs/results/intent.md``). The episode steps once per step, where the intent is read
+      (``BKFConfig.intent_at``). With ``episodes=None`` the class is the per-step one of earlier versions
+      and of the study's dead-band table: the step's change when it passes ``deadband_m_s`` with
+      ``min_confidence`` standard deviations.
     - The hip-motor current (``motor_current_A``, optional) feeds the iSCI variant's current model when
       the configuration has ``alpha``: its RMS over the swing before the touchdown.
 
@@ -100,7 +108,7 @@ class IntentEstimator:
         ("intent_confidence", "1"),
         ("speed_m_s", "m/s"),
     )
-    tunables: tuple[str, ...] = ("deadband_m_s", "min_confidence")
+    tunables: tuple[str, ...] = ("threshold_m_s", "speed_threshold_m_s")
 
     def __init__(
         self,
@@ -115,8 +123,10 @@ class IntentEstimator:
         max_dropout_s: float = 0.05,
         hip_arm_deg: float = 2.0,
         recover_steps: int = 2,
+        episodes: EpisodeRule | None = DEFAULT_RULE,
     ):
         self.filter = ButtressedKF(leg_length, config)
+        self.episodes = SpeedEpisodes(episodes) if episodes is not None else None
         self.contact_fraction = contact_fraction
         self.deadband_m_s, self.min_confidence = deadband_m_s, min_confidence
         self.standing_s, self.min_speed_m_s = standing_s, min_speed_m_s
@@ -150,14 +160,33 @@ class IntentEstimator:
         self._lost = False
         self._held = False  # holding: the next trustworthy mid-stance restarts the filter
         self._pending = self.recover_steps  # steps still to see before codes come back (none at the start)
+        if self.episodes is not None:
+            self.episodes.reset()
 
     def retune(self, **params: float) -> None:
         check_params(self, params)
         for k, v in params.items():
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"{k} must be a number >= 0, got {v}")
-        self.deadband_m_s = float(params.get("deadband_m_s", self.deadband_m_s))
-        self.min_confidence = float(params.get("min_confidence", self.min_confidence))
+            if not v > 0:
+                raise ValueError(f"{k} must be a number > 0, got {v}")
+        if self.episodes is None:
+            raise ValueError("this intent estimator calls per step (episodes=None): nothing to retune")
+        episodes = self.episodes
+        rule = episodes.rule
+        episodes.rule = replace(
+            rule,
+            threshold_m_s=float(params.get("threshold_m_s", rule.threshold_m_s)),
+            speed_threshold_m_s=float(params.get("speed_threshold_m_s", rule.speed_threshold_m_s)),
+        )  # checks the rule
+
+    @property
+    def threshold_m_s(self) -> float:
+        """The episode rule's threshold (a tunable; NaN without episodes)."""
+        return self.episodes.rule.threshold_m_s if self.episodes is not None else math.nan
+
+    @property
+    def speed_threshold_m_s(self) -> float:
+        """The episode rule's threshold on the measured speed (a tunable; NaN without episodes)."""
+        return self.episodes.rule.speed_threshold_m_s if self.episodes is not None else math.nan
 
     def step(self, t: float, z: Array) -> Array:
         """One sample: ``z`` = the four sagittal CoM channels, both hip angles, both foot forces, the last
@@ -219,7 +248,7 @@ class IntentEstimator:
         f = self.filter
         if not self._held and -_MAX_STEP_M < length < _MAX_STEP_M and f.touchdown(length, rms):
             if f.config.intent_at == "touchdown" and self._pending == 0:
-                self._classify()  # the step's intent, a quarter step before its mid-stance
+                self._classify(True)  # the step's intent, a quarter step before its mid-stance
 
     def _midstance(self, t: float, v: list[float]) -> None:
         self._last_mid = t
@@ -246,19 +275,27 @@ class IntentEstimator:
             self._pending -= counts
             self._out[:] = (f.desired_speed, 0.0, 0.0, 0.0, float(f.z[_VX]))
             return
-        self._classify()
+        self._classify(f.config.intent_at == "midstance")
 
     def _hold(self) -> None:
         """Hold desired speed and speed, flag intent, code and confidence 0 until the walk is trusted again."""
         self._held = True
         self._out[1:4] = 0.0
+        if self.episodes is not None:
+            self.episodes.reset()
 
-    def _classify(self) -> None:
+    def _classify(self, new_step: bool) -> None:
+        """The outputs after an update; ``new_step``: where the step's intent is read (the episode steps)."""
         f = self.filter
-        code = 0.0
-        if abs(f.intent) >= self.deadband_m_s and f.confidence >= self.min_confidence:
-            code = 1.0 if f.intent > 0 else -1.0
-        self._out[:] = (f.desired_speed, f.intent, code, f.confidence, float(f.z[_VX]))
+        speed = float(f.z[_VX])
+        episodes = self.episodes
+        if episodes is None:
+            code = 0.0
+            if abs(f.intent) >= self.deadband_m_s and f.confidence >= self.min_confidence:
+                code = 1.0 if f.intent > 0 else -1.0
+        else:
+            code = float(episodes.step(f.desired_speed, speed) if new_step else episodes.code)
+        self._out[:] = (f.desired_speed, f.intent, code, f.confidence, speed)
 
 
 #: The speed-change intent estimator as a session and the views know it
@@ -271,13 +308,13 @@ DESCRIPTOR: Final = Descriptor(
     outputs=(
         out("desired_speed_m_s", "m/s", "the walker's desired speed, updated at every mid-stance"),
         out("intent_m_s", "m/s", "the last mid-stance's change of desired speed (0: not sure)"),
-        out("intent_code", "code", "1 speeding up, -1 slowing down, 0 steady or not sure"),
+        out("intent_code", "code", "1 while a called speed-up lasts, -1 a slow-down, 0 steady or not sure"),
         out("intent_confidence", "1", "the change in standard deviations (0: held and flagged)"),
         out("speed_m_s", "m/s", "the centre of mass's forward speed at the last mid-stance"),
     ),
     quantities={"desired_speed_m_s": "desired_speed", "speed_m_s": "speed"},
     live=("intent_code", "intent_confidence"),  # the live view's indicator
-    tunables=(Tunable("deadband_m_s", min=0.0), Tunable("min_confidence", min=0.0)),
+    tunables=(Tunable("threshold_m_s", min=0.01, max=1.0), Tunable("speed_threshold_m_s", min=0.01, max=1.0)),
     plots=(
         PlotHint("intent", "Speed-change intent: desired vs actual speed", "m/s", ("desired_speed_m_s", "speed_m_s")),
     ),

@@ -39,9 +39,11 @@ from scipy import stats
 
 from gaitscope.estimators.com_kinematics import LegGeometry, com_from_legs
 from gaitscope.estimators.intent import UNINJURED, BKFConfig, ButtressedKF, fit_kappa
+from gaitscope.estimators.intent_episodes import DEFAULT_RULE, EpisodeRule
 from gaitscope.estimators.intent_estimator import IntentEstimator
+from gaitscope.sessions.offline.intent_calls import CallStudy, calls_markdown, run_calls
 from gaitscope.sessions.synth.cohort import CohortSpec
-from gaitscope.sessions.synth.intent_walks import IntentProtocol, IntentTrial, intent_trials
+from gaitscope.sessions.synth.intent_walks import IntentProtocol, IntentTrial, intent_trials, steady_trial
 
 __all__ = [
     "PAPER_CORR",
@@ -153,10 +155,16 @@ def _inputs(trial: IntentTrial, kinematic: bool) -> tuple[np.ndarray, np.ndarray
     return z, true
 
 
-def run_filter(trial: IntentTrial, config: BKFConfig = UNINJURED, kinematic: bool = False, **options: float) -> StepLog:
-    """Run the live estimator (with ``options``, e.g. ``min_confidence``) over a trial's samples and log
-    its events."""
-    est = IntentEstimator(trial.subject.leg_length_m, config, **options)  # type: ignore[arg-type]
+def run_filter(
+    trial: IntentTrial,
+    config: BKFConfig = UNINJURED,
+    kinematic: bool = False,
+    episodes: EpisodeRule | None = DEFAULT_RULE,
+    **options: float,
+) -> StepLog:
+    """Run the live estimator (with the episode rule ``episodes`` and ``options``, e.g. ``min_confidence``)
+    over a trial's samples and log its events."""
+    est = IntentEstimator(trial.subject.leg_length_m, config, episodes=episodes, **options)  # type: ignore[arg-type]
     kf = _LoggedKF(trial.subject.leg_length_m, config)
     est.filter = kf
     z, true = _inputs(trial, kinematic)
@@ -327,24 +335,32 @@ class IntentStudy:
     step_rmse_held_out_m: float
     cohort_kappa: np.ndarray
     com_rmse: np.ndarray  # forward position, up position, forward velocity, up velocity at mid-stance
-    #: the live class's dead band -> the commanded trials' scores and calls per step of the self-paced walks
+    #: the per-step class's dead band -> the commanded trials' scores and calls per step of the self-paced walks
     dead_bands: dict[float, tuple[Scores, float]]
+    #: the live call (speed-change episodes), nested leave-one-subject-out
+    calls: CallStudy | None = None
 
 
 def _config(kappa: np.ndarray) -> BKFConfig:
     return replace(UNINJURED, kappa=(float(kappa[0]), float(kappa[1]), float(kappa[2])))
 
 
-def run_study(protocol: IntentProtocol | None = None, spec: CohortSpec | None = None) -> IntentStudy:
+def run_study(
+    protocol: IntentProtocol | None = None,
+    spec: CohortSpec | None = None,
+    steady_minutes: float = 5.0,
+    call_grid: list[EpisodeRule] | None = None,
+) -> IntentStudy:
     """The whole study (see the module docstring) on ``spec``'s subjects (default: the cohort's ten);
-    deterministic for a given protocol."""
+    deterministic for a given protocol. ``steady_minutes``: each subject's steady walk for the live call's
+    false calls (:mod:`gaitscope.sessions.offline.intent_calls`, on ``call_grid``; 0: no such section)."""
     protocol = protocol or IntentProtocol()
     trials = intent_trials(protocol, spec)
     subjects = sorted({t.subject.code for t in trials})
     by_subject = {c: [i for i, t in enumerate(trials) if t.subject.code == c] for c in subjects}
     commanded = [i for i, t in enumerate(trials) if t.direction]
     # Step data for the regressions: from the paper-model run (the data do not depend on kappa).
-    paper_logs = [run_filter(t) for t in trials]
+    paper_logs = [run_filter(t, episodes=None) for t in trials]
     data = [step_data(log) for log in paper_logs]
     legs = [t.subject.leg_length_m for t in trials]
 
@@ -364,11 +380,13 @@ def run_study(protocol: IntentProtocol | None = None, spec: CohortSpec | None = 
             if i in own:
                 held_out.append(_model_rmse(k, data[i], legs[i]))
         cohort_kappa[code] = fit([i for i in commanded if trials[i].subject.code != code])
-    logs = {
+    logs = {  # the class per step, as seed 001 scores it (the live call, episodes, is scored below)
         "paper": paper_logs,
-        "subject": [run_filter(t, _config(subject_kappa[i])) for i, t in enumerate(trials)],
-        "cohort": [run_filter(t, _config(cohort_kappa[t.subject.code])) for t in trials],
-        "kinematic": [run_filter(t, _config(cohort_kappa[t.subject.code]), kinematic=True) for t in trials],
+        "subject": [run_filter(t, _config(subject_kappa[i]), episodes=None) for i, t in enumerate(trials)],
+        "cohort": [run_filter(t, _config(cohort_kappa[t.subject.code]), episodes=None) for t in trials],
+        "kinematic": [
+            run_filter(t, _config(cohort_kappa[t.subject.code]), kinematic=True, episodes=None) for t in trials
+        ],
     }
     self_paced = [i for i, t in enumerate(trials) if not t.direction]
 
@@ -382,11 +400,18 @@ def run_study(protocol: IntentProtocol | None = None, spec: CohortSpec | None = 
 
     dead_bands = {}
     for band in DEAD_BANDS_M_S:
-        lg = [run_filter(t, _config(cohort_kappa[t.subject.code]), deadband_m_s=band) for t in trials]
+        lg = [run_filter(t, _config(cohort_kappa[t.subject.code]), deadband_m_s=band, episodes=None) for t in trials]
         sc = score([trials[i] for i in commanded], [lg[i] for i in commanded], _filter_prediction, False)
-        calls = [lg[i].ms_code[2:] != 0 for i in self_paced]
-        dead_bands[band] = (sc, float(np.mean(np.concatenate(calls))))
+        per_step = [lg[i].ms_code[2:] != 0 for i in self_paced]
+        dead_bands[band] = (sc, float(np.mean(np.concatenate(per_step))))
     com_err = np.vstack([lg.com_error for lg in logs["kinematic"]])[:, [0, 2, 3, 5]]
+    calls: CallStudy | None = None
+    if steady_minutes > 0:
+        walks = [*trials]
+        for subject in {t.subject.code: t.subject for t in trials}.values():
+            walks.append(steady_trial(subject, 0, protocol, steady_minutes))
+        configs = [_config(cohort_kappa[t.subject.code]) for t in walks]
+        calls = run_calls(walks, configs, lambda t, c, r: run_filter(t, c, episodes=r), call_grid)
     return IntentStudy(
         protocol=protocol,
         n_subjects=len(subjects),
@@ -397,6 +422,7 @@ def run_study(protocol: IntentProtocol | None = None, spec: CohortSpec | None = 
         cohort_kappa=fit(commanded),
         com_rmse=np.sqrt(np.nanmean(com_err**2, axis=0)),
         dead_bands=dead_bands,
+        calls=calls,
     )
 
 
@@ -463,8 +489,9 @@ def to_markdown(study: IntentStudy) -> str:
         f"- Centre of mass from leg kinematics, RMSE at mid-stance: forward {100 * r[0]:.1f} cm, "
         f"up {100 * r[1]:.1f} cm, forward velocity {r[2]:.3f} m/s, up velocity {r[3]:.3f} m/s.",
         "",
-        "The live class (`intent_code`) against its dead band (cohort kappa, `min_confidence` 2): commanded "
-        "changes caught on time against calls while the speed is steady.",
+        "A class per step (`intent_code` of earlier versions, `episodes=None`) against its dead band (cohort kappa, "
+        "`min_confidence` 2): commanded changes caught on time against calls while the speed is steady. Every "
+        "row calls far more often than once per 5 minutes (about 525 steps); the live call is now an episode, below.",
         "",
         "| dead band (m/s) | detected on the command step or one later (missed) | calls per steady step "
         "| calls per step, self-paced walks |",
@@ -473,4 +500,6 @@ def to_markdown(study: IntentStudy) -> str:
     for band, (sc, calls) in study.dead_bands.items():
         rate = sc.steady_calls / sc.steady_steps if sc.steady_steps else math.nan
         lines.append(f"| {band:g} | {sc.on_time} of {n_cmd} ({sc.missed}) | {rate:.2f} | {calls:.2f} |")
+    if study.calls is not None:
+        lines += calls_markdown(study.calls)
     return "\n".join(lines) + "\n"

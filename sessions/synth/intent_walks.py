@@ -48,7 +48,15 @@ from gaitscope.sessions.synth.cohort import (
 )
 from gaitscope.sessions.synth.normative import at_speed, normative
 
-__all__ = ["IntentProtocol", "IntentTrial", "commanded_trial", "intent_trials", "self_paced_trial", "speed_profile"]
+__all__ = [
+    "IntentProtocol",
+    "IntentTrial",
+    "commanded_trial",
+    "intent_trials",
+    "self_paced_trial",
+    "speed_profile",
+    "steady_trial",
+]
 
 G = 9.81
 
@@ -219,3 +227,16 @@ def intent_trials(
             out += [commanded_trial(subject, direction, i, protocol) for i in range(protocol.trials_per_direction)]
         out += [self_paced_trial(subject, i, protocol) for i in range(self_paced)]
     return out
+
+
+def steady_trial(subject: SubjectParams, index: int, protocol: IntentProtocol, minutes: float = 5.0) -> IntentTrial:
+    """A steady walk of about ``minutes`` at one self-selected speed (drawn as the commanded trials' first
+    speed): what a call of a speed change should stay quiet on. Its stride-to-stride speed noise is the
+    protocol's ``speed_cv``, as in every other walk."""
+    if not 0.1 <= minutes <= 60.0:
+        raise ValueError(f"minutes must lie in 0.1..60, got {minutes}")
+    rng = _rng(protocol, subject, 3, index)
+    v0 = float(rng.uniform(*protocol.speed_range_m_s))
+    stride_s = 2.0 * float(_steady_step(np.array([v0]), subject.leg_length_m)[0]) * subject.leg_length_m / v0
+    desired = np.full(max(2, math.ceil(60.0 * minutes / stride_s)), v0)
+    return _trial(subject, f"ST-{index + 1:02d}", 0, desired, v0, None, protocol, rng)

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gaitscope.server.cli import main
+from gaitscope.sessions.offline.intent_calls import CallScores, nested, rule
 from gaitscope.sessions.offline.intent_study import run_filter, run_study, step_data, to_markdown
 from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
 from gaitscope.sessions.synth.intent_walks import IntentProtocol, commanded_trial
@@ -43,9 +45,44 @@ def test_the_study_reproduces_seed_001s_comparisons_on_a_small_cohort() -> None:
 
 
 def test_the_command_writes_the_table(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["crossval", "--study", "intent", "--out-dir", str(tmp_path)]) == 0
+    assert main(["crossval", "--study", "intent", "--steady-minutes", "0", "--out-dir", str(tmp_path)]) == 0
     text = (tmp_path / "intent.md").read_text()
     assert "sign of next speed change correct" in text
     assert "wall time" in capsys.readouterr().out
     with pytest.raises(SystemExit):
         main(["crossval", "--study", "intent", "--step-lead", "2"])
+
+
+def test_the_live_call_is_chosen_held_out_and_the_filter_calls_sooner_than_the_speed() -> None:
+    grid = [rule(t, v) for t in (0.1, 0.12, math.inf) for v in (0.08, math.inf) if min(t, v) < math.inf]
+    study = run_study(spec=CohortSpec(n_subjects=3), steady_minutes=1.0, call_grid=grid)
+    assert study.calls is not None
+    bkf, speed, either = (study.calls.families[k] for k in ("bkf", "speed", "either"))
+    assert either.scores.commanded == 18 and either.scores.steady_s > 3 * 55.0
+    # seed 001's point: the step length tells of a change before the speed shows it
+    assert bkf.scores.on_time > speed.scores.on_time
+    assert speed.scores.within_3 >= speed.scores.on_time
+    assert all(r.speed_threshold_m_s == math.inf for r in bkf.rules.values())
+    assert all(r.threshold_m_s == math.inf for r in speed.rules.values())
+    assert either.scores.after_command <= 1.5 * either.scores.commanded  # about one call per change
+    md = to_markdown(study)
+    assert "Calling a change live" in md and "BKF desired speed or measured speed" in md
+
+
+def _scores(false_calls: int, on_time: int) -> CallScores:
+    return CallScores(false_calls=false_calls, steady_s=300.0, commanded=10, on_time=on_time)
+
+
+def test_each_subject_is_scored_with_the_rule_chosen_on_the_others() -> None:
+    loose, tight = rule(0.08, math.inf), rule(0.14, math.inf)
+    table = {
+        # the loose rule calls falsely on A and B (2 per 5 min each), not on C
+        loose: {"A": _scores(2, 9), "B": _scores(2, 9), "C": _scores(0, 9)},
+        tight: {"A": _scores(0, 5), "B": _scores(0, 5), "C": _scores(0, 5)},
+    }
+    held = nested(table, lambda r: True)
+    # for A (and B) the others' loose total is 2 false calls per 10 minutes: within the target of 1 per 5 min
+    assert held.rules == {"A": loose, "B": loose, "C": tight}
+    assert held.per_subject["C"] == _scores(0, 5)  # C held out: B and A's 4 per 10 minutes rule the loose one out
+    assert held.scores.false_calls == 4 and held.scores.on_time == 9 + 9 + 5
+    assert held.on_all == tight  # 4 false calls in 15 minutes: over the target
