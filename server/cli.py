@@ -311,7 +311,7 @@ def _crossval_intent(a: argparse.Namespace) -> int:
 
     protocol = IntentProtocol(step_lead=a.step_lead)
     suffix = "" if a.step_lead == IntentProtocol.step_lead else f"_lead{a.step_lead:g}"
-    return _study(a, f"intent{suffix}.md", lambda: to_markdown(run_study(protocol)))
+    return _study(a, f"intent{suffix}.md", lambda: to_markdown(run_study(protocol, steady_minutes=a.steady_minutes)))
 
 
 def _crossval_robust(a: argparse.Namespace) -> int:
@@ -570,6 +570,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=_fraction,
         default=0.5,
         help="intent study: how far a stride's length is toward the desired speed (0..1; the cohort's 0.5)",
+    )
+    p.add_argument(
+        "--steady-minutes",
+        type=float,
+        default=5.0,
+        help="intent study: each subject's steady walk for the live call's false calls (0: skip that section)",
     )
     p.add_argument("--out-dir", type=Path, default=Path("docs/results"))
     p.add_argument("--workers", type=int, default=None)
