@@ -294,9 +294,9 @@ def cmd_crossval(a: argparse.Namespace) -> int:
 
 
 def _crossval_fingerprints(a: argparse.Namespace) -> int:
-    from gaitscope.sessions.offline.fingerprints import run_study, to_markdown
+    from gaitscope.sessions.offline.fingerprints import report
 
-    return _study(a, "fingerprints.md", lambda: to_markdown(run_study()))
+    return _study(a, "fingerprints.md", report)
 
 
 def _crossval_ekf_fingerprints(a: argparse.Namespace) -> int:
