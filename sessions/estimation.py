@@ -16,6 +16,7 @@ from typing import Final, Literal
 
 import numpy as np
 
+from gaitscope.estimators.intent import BKFConfig
 from gaitscope.estimators.pipeline import TrainedModel
 from gaitscope.estimators.protocol import (
     ANGLE_CHANNELS,
@@ -111,13 +112,14 @@ class FrameEstimator:
         extra: Sequence[Estimator] = (),
         blend_s: float = schema.PRIMARY_BLEND_S,
         fingerprint: Sequence[float] | None = None,
+        intent: BKFConfig | None = None,
     ):
         if not (math.isfinite(sample_period) and 1e-5 <= sample_period <= 1.0):
             sample_period = DEFAULT_PERIOD
         self.sample_period = sample_period
         self.stack: EstimatorStack = build_stack(
             StackContext(
-                model, leg_length, mass_kg, sample_period, None if fingerprint is None else tuple(fingerprint)
+                model, leg_length, mass_kg, sample_period, None if fingerprint is None else tuple(fingerprint), intent
             ),
             names=settings.estimators if estimators is None else estimators,
             channels=channels,

@@ -51,6 +51,7 @@ from gaitscope.estimators.gp_models import GPModelSet
 from gaitscope.estimators.heel_strike import HeelStrikeBackup
 from gaitscope.estimators.imu_frontend import SEGMENTS as IMU_SEGMENTS
 from gaitscope.estimators.imu_frontend import FrontEndConfig, ImuFrontEnd
+from gaitscope.estimators.intent import COHORT, BKFConfig
 from gaitscope.estimators.intent_estimator import IntentEstimator
 from gaitscope.estimators.phase_ekf_estimator import PhaseEKFEstimator
 from gaitscope.estimators.pipeline import PipelineConfig, TrainedModel
@@ -90,13 +91,15 @@ _V = TypeVar("_V")
 @dataclass(frozen=True)
 class StackContext:
     """What an estimator of a session is built from: the trained models, the subject, the sample period,
-    and the subject's personalized gait fingerprint (seed 004; None until one is calibrated)."""
+    and the subject's personalized gait fingerprint (seed 004; None until one is calibrated) and speed-change
+    intent model (seed 001; None: the cohort's kappa)."""
 
     model: TrainedModel
     leg_length: float
     mass_kg: float
     sample_period: float
     fingerprint: tuple[float, ...] | None = None
+    intent: BKFConfig | None = None
 
 
 class Unavailable(ValueError):
@@ -172,7 +175,7 @@ DESCRIPTORS: list[Descriptor] = [
     fingerprint.descriptor("ls").built_by(lambda c: _fingerprint_ekf(c, "ls")),
     fingerprint.descriptor("gf").built_by(lambda c: _fingerprint_ekf(c, "gf")),
     com_kinematics.DESCRIPTOR.built_by(lambda c: KinematicCoM(c.leg_length)),
-    intent_estimator.DESCRIPTOR.built_by(lambda c: IntentEstimator(c.leg_length)),
+    intent_estimator.DESCRIPTOR.built_by(lambda c: IntentEstimator(c.leg_length, c.intent or COHORT)),
     sdre_estimator.DESCRIPTOR.built_by(lambda c: SDREKnee(c.leg_length, c.mass_kg)),
     gp_ekf_estimator.DESCRIPTOR.built_by(lambda c: GPEKFEstimator(*gp_ekf_default(), mass_kg=c.mass_kg)),
 ]

@@ -698,6 +698,39 @@ class CalibrationRequest(_Strict):
     note: str = Field(default="", max_length=500)
 
 
+#: The buttressed Kalman filter's tunings a subject may have (seed 001): ``uninjured`` (eq. 1's step-length
+#: model) or ``isci`` (with the hip-motor current model of eq. 14, for incomplete spinal cord injury).
+IntentVariant = Literal["uninjured", "isci"]
+
+
+class IntentModelRequest(_Strict):
+    """Set a subject's speed-change intent model (``PUT /api/subjects/{id}/intent-model``): the variant, and
+    the trial of theirs its step-length model (and, for ``isci``, its hip-current model) is fitted on; without
+    a trial, the variant's default (the cohort's kappa for ``uninjured``, seed 001's iSCI tuning for ``isci``).
+    It runs from the subject's next session on; a running session keeps what it started with."""
+
+    variant: IntentVariant = "uninjured"
+    trial_id: int | None = Field(default=None, ge=1, le=INT64_MAX)
+    note: str = Field(default="", max_length=500)
+
+
+class IntentModel(BaseModel):
+    """A subject's speed-change intent model: what their intent filter runs (``estimators.intent.BKFConfig``)
+    and where it came from."""
+
+    subject_id: int
+    variant: IntentVariant
+    kappa: tuple[float, float, float] = Field(description="eq. 1: step length = [v, v_d - v, leg length] kappa")
+    alpha: tuple[float, float] | None = Field(description="eq. 14 (iSCI): RMS hip current = [v, v_d - v] alpha (A)")
+    source: str = Field(description="the default it is, or the trial it was fitted on")
+    source_trial_id: int | None = None
+    steps: int = Field(ge=0, description="steps the fit used (0: a default)")
+    step_rmse_m: float | None = Field(description="eq. 1's RMSE on those steps (m)")
+    actor: str
+    updated_utc: str
+    note: str = ""
+
+
 class PersonalizationChange(_Strict):
     """Promote a personalization or roll back to the one before (``.../promote``, ``.../rollback``)."""
 

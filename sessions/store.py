@@ -92,6 +92,7 @@ _TABLE_MODULES: Final = (
     "gaitscope.sessions.audit.tables",
     "gaitscope.sessions.cluster.tables",
     "gaitscope.sessions.mappings.tables",
+    "gaitscope.sessions.personalization.tables",
 )
 
 
@@ -504,9 +505,7 @@ class Store:
         with self._read() as session:
             return _session(self._get(session, _SessionRow, session_id))
 
-    def set_session_state(
-        self, session_id: int, state: schema.SessionState, node: str | None = None
-    ) -> schema.Session:
+    def set_session_state(self, session_id: int, state: schema.SessionState, node: str | None = None) -> schema.Session:
         """Move a session to ``state``; the first move to running / stopped stamps started / stopped_utc.
         ``node``: the process that runs it, stored with a move to running.
 

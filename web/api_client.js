@@ -402,6 +402,66 @@ export function setAssistanceLimits(subjectId, body) {
 }
 
 /**
+ * The address of `GET /api/subjects/{subject_id}/intent-model`.
+ * @param {number} subjectId
+ * @returns {string}
+ */
+export function getIntentModelUrl(subjectId) {
+  return `/api/subjects/${_p(subjectId)}/intent-model`;
+}
+
+/**
+ * `GET /api/subjects/{subject_id}/intent-model`: The speed-change intent model the subject's next session
+ * runs (the default when none was set).
+ * @param {number} subjectId
+ * @returns {Promise<object>}
+ */
+export function getIntentModel(subjectId) {
+  return api("GET", getIntentModelUrl(subjectId));
+}
+
+/**
+ * The address of `PUT /api/subjects/{subject_id}/intent-model`.
+ * @param {number} subjectId
+ * @returns {string}
+ */
+export function setIntentModelUrl(subjectId) {
+  return `/api/subjects/${_p(subjectId)}/intent-model`;
+}
+
+/**
+ * `PUT /api/subjects/{subject_id}/intent-model`: Set the subject's intent model: fitted on a trial of
+ * theirs (in a worker thread; 422 with the reason when the trial cannot serve), or the variant's default.
+ * It runs from the subject's next session on (a running session keeps the model it started with, so nothing
+ * that drives a torque now changes).
+ * @param {number} subjectId
+ * @param {object} body
+ * @returns {Promise<object>}
+ */
+export function setIntentModel(subjectId, body) {
+  return api("PUT", setIntentModelUrl(subjectId), body);
+}
+
+/**
+ * The address of `DELETE /api/subjects/{subject_id}/intent-model`.
+ * @param {number} subjectId
+ * @returns {string}
+ */
+export function resetIntentModelUrl(subjectId) {
+  return `/api/subjects/${_p(subjectId)}/intent-model`;
+}
+
+/**
+ * `DELETE /api/subjects/{subject_id}/intent-model`: Back to the default model (the cohort's kappa) from the
+ * subject's next session on; 404 when it is already.
+ * @param {number} subjectId
+ * @returns {Promise<object>}
+ */
+export function resetIntentModel(subjectId) {
+  return api("DELETE", resetIntentModelUrl(subjectId));
+}
+
+/**
  * The address of `GET /api/subjects/{subject_id}/fingerprints`.
  * @param {number} subjectId
  * @param {{model?: string}} [params]

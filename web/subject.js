@@ -9,6 +9,7 @@ import { ApiError, errorText } from "./api.js";
 import * as api from "./api_client.js";
 import { limitsCard } from "./assistance_limits.js";
 import { fence } from "./auth.js";
+import { intentModelCard } from "./intent_model.js";
 import { calibrationWalk } from "./people_calibration_walk.js";
 import { compareCard } from "./subject_compare.js";
 import { LiveFingerprint, sitsCard } from "./subject_live.js";
@@ -75,12 +76,13 @@ export function mountSubject(root, subjectId) {
 
   // --- where the subject sits, the live online fingerprint (subject_live.js) -------------------------
   const sits = sitsCard(live);
+  const intent = intentModelCard(subjectId); // the speed-change intent model (intent_model.js)
 
   root.append(h("div", { class: "page subject-page" },
     h("div", { class: "page-head" }, title,
       h("a", { class: "button", href: "#/subjects", "data-testid": "back-to-subjects", text: "← All subjects" }),
       h("a", { class: "button", href: "#/", text: "← Sessions" })),
-    body, pageError, models.el, limitsCard(subjectId), h("div", { class: "subject-grid" }, calCard, sits.el), cmp.el));
+    body, pageError, models.el, limitsCard(subjectId), intent.el, h("div", { class: "subject-grid" }, calCard, sits.el), cmp.el));
 
   // --- rendering --------------------------------------------------------------------------------------
   function renderModels() {
@@ -107,6 +109,7 @@ export function mountSubject(root, subjectId) {
       ...options());
     calTrial.value = st.trials.some((t) => String(t.id) === keepCal) ? keepCal : "";
     cmp.setTrials(st.trials, options);
+    intent.setTrials(st.trials, options);
   }
 
   // --- loading --------------------------------------------------------------------------------------------

@@ -61,6 +61,7 @@ from gaitscope.sessions.live.settings_change import ChangeNotSaved, SettingRejec
 from gaitscope.sessions.live.sources import FrameSource, LiveDevice
 from gaitscope.sessions.live.subscribers import SUBSCRIBER_CAPACITY, Subscriber
 from gaitscope.sessions.live.trials import Trials
+from gaitscope.sessions.personalization.intent_model import IntentModels, config_of
 from gaitscope.sessions.schema import GaitState, SensorFrame, SessionSettings, SettingsChange
 from gaitscope.sessions.store import Store
 from gaitscope.sessions.store_writer import StoreWriter
@@ -139,6 +140,8 @@ class SessionRuntime:
         self.sample_period = period  # recorded, so that a review re-run builds the same estimator
         active = store.active_personalization(subject.id, session.settings.model)
         fingerprint = None if active is None else active.fingerprint
+        #: the subject's speed-change intent model as it was when the session started (recorded with each trial)
+        self.intent_model = IntentModels(store).get(subject.id)
         self.estimator = FrameEstimator(
             model,
             subject.leg_length_m,
@@ -147,6 +150,7 @@ class SessionRuntime:
             period,
             channels=getattr(source, "channels", None),
             fingerprint=fingerprint,
+            intent=config_of(self.intent_model) if self.intent_model is not None else None,
         )
         self.settings_changes = SettingsChanges(self)
         self.subscribers: set[Subscriber] = set()

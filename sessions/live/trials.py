@@ -26,6 +26,7 @@ from gaitscope.sessions.formats import stack_state
 from gaitscope.sessions.formats.mcap_io import read_messages, recover, recover_in_place
 from gaitscope.sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY, SAMPLE_PERIOD_KEY, Recorder
 from gaitscope.sessions.live.extensions import describe
+from gaitscope.sessions.personalization.intent_model import INTENT_MODEL_KEY, config_of, to_metadata
 
 if TYPE_CHECKING:
     from gaitscope.sessions.live.runtime import SessionRuntime
@@ -67,6 +68,7 @@ class Trials:
                 SAMPLE_PERIOD_KEY: repr(rt.sample_period),
                 ESTIMATORS_KEY: ",".join(rt.estimator.stack.names),
                 **({} if rt.fingerprint is None else {FINGERPRINT_KEY: ",".join(map(repr, rt.fingerprint))}),
+                **({} if (m := rt.intent_model) is None else {INTENT_MODEL_KEY: to_metadata(config_of(m), m.variant)}),
             },
             channels=rt.estimator.recorded_channels(),
         )

@@ -53,6 +53,7 @@ __all__ = [
     "STEP_THRESHOLD_M",
     "IntentStudy",
     "StepLog",
+    "log_steps",
     "run_filter",
     "run_study",
     "step_data",
@@ -79,14 +80,14 @@ class _LoggedKF(ButtressedKF):
 
     def reset(self) -> None:
         super().reset()
-        self.td: list[tuple[float, float, float, float]] = []  # t, step length, v_x^d after, v_x at TD
+        self.td: list[tuple[float, float, float, float, float]] = []  # t, step, v_x^d after, v_x at TD, current
         self.ms: list[tuple[float, float, float, bool]] = []  # t, measured v_x, v_x^d after, touched
 
     def touchdown(self, step_length_m: float, hip_current_a: float = math.nan) -> bool:
         vx = float(self.z[3])
         ok = super().touchdown(step_length_m, hip_current_a)
         if ok:
-            self.td.append((self.now, step_length_m, self.desired_speed, vx))
+            self.td.append((self.now, step_length_m, self.desired_speed, vx, hip_current_a))
         return ok
 
     def midstance(self, com: np.ndarray) -> float:
@@ -109,6 +110,7 @@ class StepLog:
         ms_intent, ms_code: the live outputs there (``intent_m_s``, ``intent_code``).
         td_t, td_step, td_desired, td_speed: touchdown time, step length, desired speed after the update
             and the filter's speed there.
+        td_current: the RMS hip-motor current of the swing before each touchdown (A; NaN: none sent).
         com_error: measured minus true centre of mass at each mid-stance, ``(n, 6)`` (zero when the filter
             read the measured one).
     """
@@ -124,6 +126,7 @@ class StepLog:
     td_step: np.ndarray
     td_desired: np.ndarray
     td_speed: np.ndarray
+    td_current: np.ndarray
     com_error: np.ndarray
 
 
@@ -164,13 +167,29 @@ def run_filter(
 ) -> StepLog:
     """Run the live estimator (with the episode rule ``episodes`` and ``options``, e.g. ``min_confidence``)
     over a trial's samples and log its events."""
-    est = IntentEstimator(trial.subject.leg_length_m, config, episodes=episodes, **options)  # type: ignore[arg-type]
-    kf = _LoggedKF(trial.subject.leg_length_m, config)
-    est.filter = kf
     z, true = _inputs(trial, kinematic)
+    t = trial.sensors["time_s"].to_numpy(np.float64)
+    return log_steps(trial.subject.leg_length_m, config, t, z, true, episodes, **options)
+
+
+def log_steps(
+    leg_length_m: float,
+    config: BKFConfig,
+    t: np.ndarray,
+    z: np.ndarray,
+    true_com: np.ndarray | None = None,
+    episodes: EpisodeRule | None = DEFAULT_RULE,
+    **options: float,
+) -> StepLog:
+    """Run the live estimator over samples ``z`` (its ``inputs`` then ``optional_inputs``, NaN: missing) at
+    times ``t`` and log its events; ``true_com`` (the six CoM channels' truth, default: as measured) is what
+    ``com_error`` and ``ms_true_speed`` are against."""
+    est = IntentEstimator(leg_length_m, config, episodes=episodes, **options)  # type: ignore[arg-type]
+    kf = _LoggedKF(leg_length_m, config)
+    est.filter = kf
     names = [*IntentEstimator.inputs, *IntentEstimator.optional_inputs]
     com = [names.index(n) for n in _COM]
-    t = trial.sensors["time_s"].to_numpy(np.float64)
+    true = z[:, com] if true_com is None else true_com
     outs, errors, true_speed, n_ms = [], [], [], 0
     for i in range(len(t)):
         kf.now = float(t[i])
@@ -181,14 +200,14 @@ def run_filter(
             errors.append(z[i, com] - true[i])
             true_speed.append(true[i, 3])
     ms = np.array(kf.ms, dtype=np.float64).reshape(-1, 4)
-    td = np.array(kf.td, dtype=np.float64).reshape(-1, 4)
+    td = np.array(kf.td, dtype=np.float64).reshape(-1, 5)
     o = np.array(outs, dtype=np.float64).reshape(-1, len(IntentEstimator.outputs))
     names = [n for n, _ in IntentEstimator.outputs]
     return StepLog(
         ms_t=ms[:, 0], ms_speed=ms[:, 1], ms_desired=ms[:, 2], ms_touched=ms[:, 3] > 0.5,
         ms_true_speed=np.array(true_speed, dtype=np.float64),
         ms_intent=o[:, names.index("intent_m_s")], ms_code=o[:, names.index("intent_code")],
-        td_t=td[:, 0], td_step=td[:, 1], td_desired=td[:, 2], td_speed=td[:, 3],
+        td_t=td[:, 0], td_step=td[:, 1], td_desired=td[:, 2], td_speed=td[:, 3], td_current=td[:, 4],
         com_error=np.array(errors).reshape(-1, 6),
     )  # fmt: skip
 
@@ -201,11 +220,12 @@ def _td_before(log: StepLog) -> np.ndarray:
     return np.where(ok, idx, -1)
 
 
-def step_data(log: StepLog) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Steps with a touchdown and a mid-stance before them: ``(v_(j-1), v_j, l_j)`` (m/s, m/s, m)."""
+def step_data(log: StepLog, current: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Steps with a touchdown and a mid-stance before them: ``(v_(j-1), v_j, l_j)`` (m/s, m/s, m), or with
+    ``current`` the touchdown's RMS hip current in place of the step length (A; for eq. 14)."""
     td = _td_before(log)
     j = np.flatnonzero((td >= 0) & (np.arange(len(td)) >= 1))
-    return log.ms_speed[j - 1], log.ms_speed[j], log.td_step[td[j]]
+    return log.ms_speed[j - 1], log.ms_speed[j], (log.td_current if current else log.td_step)[td[j]]
 
 
 def _model_rmse(kappa: np.ndarray, data: tuple[np.ndarray, np.ndarray, np.ndarray], leg: float) -> np.ndarray:

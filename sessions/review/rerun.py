@@ -69,6 +69,7 @@ from gaitscope.sessions.formats.recording import ESTIMATORS_KEY, FINGERPRINT_KEY
 from gaitscope.sessions.gp_models import GPReplay, gp_ekf_of
 from gaitscope.sessions.imu_calibration import apply_calibration
 from gaitscope.sessions.live.runtime import safe_torque
+from gaitscope.sessions.personalization.intent_model import INTENT_MODEL_KEY, from_metadata
 from gaitscope.sessions.registry import OPT_IN, channels_of, feeds, redundant
 from gaitscope.sessions.schema import GPModelRecord, ImuCalibration, RerunChoices, SensorFrame, SessionSettings
 
@@ -252,6 +253,7 @@ def rerun_series(
                         estimators=names,
                         channels=channels,
                         fingerprint=fingerprint,
+                        intent=from_metadata(_metadata(path).get(INTENT_MODEL_KEY), str(path)),  # what ran
                     )
                 except ValueError as exc:  # unknown estimators, missing channels, no fingerprint
                     raise DataFormatError(str(exc), file=str(path)) from exc

@@ -35,6 +35,8 @@ AUDITED: dict[tuple[str, str], str] = {
     ("POST", "/api/subjects"): "subject.create",
     ("PUT", "/api/subjects/{subject_id}/assistance-limits"): "limits.set",
     ("POST", "/api/subjects/{subject_id}/fingerprints"): "fingerprint.calibrate",
+    ("PUT", "/api/subjects/{subject_id}/intent-model"): "intent_model.set",
+    ("DELETE", "/api/subjects/{subject_id}/intent-model"): "intent_model.reset",
     ("POST", "/api/subjects/{subject_id}/fingerprints/{personalization_id}/promote"): "fingerprint.promote",
     ("POST", "/api/subjects/{subject_id}/fingerprints/rollback"): "fingerprint.rollback",
     ("POST", "/api/subjects/{subject_id}/fingerprints/import"): "fingerprint.import",
@@ -175,6 +177,8 @@ def test_each_audited_route_writes_its_entry_when_it_succeeds(client: TestClient
     d.call("POST", "/api/subjects/{subject_id}/fingerprints/rollback", ids, json={})
     exported = d.call("GET", "/api/subjects/{subject_id}/fingerprints/{personalization_id}/export", ids)
     d.call("POST", "/api/subjects/{subject_id}/fingerprints/import", ids, json=exported)
+    d.call("PUT", "/api/subjects/{subject_id}/intent-model", ids, json={"variant": "isci"})
+    d.call("DELETE", "/api/subjects/{subject_id}/intent-model", ids)
     ids["trial_id"] = trial
     d.call("POST", "/api/trials/{trial_id}/exports", ids, json={"kind": "pdf"})
     note = d.call("POST", "/api/trials/{trial_id}/annotations", ids, json={"t": 2.0, "text": "heel strike late"})
