@@ -151,7 +151,9 @@ def intent_cost(strides: int = 30) -> dict[str, float]:
         out[f"{part}_ratio"] = out[f"ref_{part}_median_us"] / out[f"{part}_median_us"]
     # agreement: the estimator set up as the baseline reads its intent (at mid-stance, coded from the first step)
     same = replace(COHORT, intent_at="midstance")
-    a = IntentEstimator(leg, same, deadband_m_s=0.01, min_confidence=1.0, recover_steps=0, episodes=None)  # its class
+    a = IntentEstimator(  # the baseline's class and confidence
+        leg, same, deadband_m_s=0.01, min_confidence=1.0, recover_steps=0, episodes=None, confidence_scale=1.0
+    )
     b = ReferenceIntent(leg, same)
     out["max_output_diff"] = max(float(np.abs(a.step(tk, z[k]) - b.step(tk, z[k])).max()) for k, tk in enumerate(t))
     return out

@@ -35,6 +35,7 @@ import numpy as np
 
 from gaitscope.estimators.intent import BKFConfig
 from gaitscope.estimators.intent_episodes import DEFAULT_RULE, EpisodeRule
+from gaitscope.estimators.intent_estimator import CONFIDENCE_SCALE
 from gaitscope.sessions.synth.intent_walks import IntentTrial
 
 __all__ = [
@@ -43,7 +44,9 @@ __all__ = [
     "THRESHOLDS_M_S",
     "CallScores",
     "CallStudy",
+    "ConfidenceCheck",
     "calls_markdown",
+    "check_confidence",
     "run_calls",
 ]
 
@@ -140,12 +143,47 @@ class HeldOut:
 
 
 @dataclass(frozen=True)
+class ConfidenceCheck:
+    """Whether ``intent_confidence`` means what it says on steady walking (see :func:`check_confidence`).
+
+    Attributes:
+        raw_at_2: share of steady steps whose filter z-score (unscaled) reaches 2.
+        scale_all: the scale fitted on every subject (what :data:`CONFIDENCE_SCALE` should be).
+        held_out: subject -> (scale fitted on the others, share of their steady steps reaching 2 and 3 with it).
+    """
+
+    raw_at_2: float
+    scale_all: float
+    held_out: dict[str, tuple[float, float, float]]
+
+
+#: A normal variable's two-sided shares beyond 2 and 3 standard deviations.
+NORMAL_AT_2, NORMAL_AT_3 = 0.0455, 0.0027
+
+
+def _scale(z: np.ndarray) -> float:
+    return float(np.quantile(z, 1.0 - NORMAL_AT_2) / 2.0)
+
+
+def check_confidence(steady: dict[str, np.ndarray]) -> ConfidenceCheck:
+    """Fit the confidence's scale (the filter's z-score over it reaches 2 on 4.55 % of steady steps) on all
+    subjects but one and score it on that one, for each; and on all subjects."""
+    held = {}
+    for code, z in steady.items():
+        s = _scale(np.concatenate([v for k, v in steady.items() if k != code]))
+        held[code] = (s, float(np.mean(z / s >= 2.0)), float(np.mean(z / s >= 3.0)))
+    every = np.concatenate(list(steady.values()))
+    return ConfidenceCheck(float(np.mean(every >= 2.0)), _scale(every), held)
+
+
+@dataclass(frozen=True)
 class CallStudy:
-    """Held-out figures per family, the grid on all subjects, and the rule shipped."""
+    """Held-out figures per family, the grid on all subjects, the rule shipped, and the confidence's check."""
 
     families: dict[str, HeldOut]
     grid: dict[EpisodeRule, CallScores]
     steady_minutes: float
+    confidence: ConfidenceCheck | None = None
 
 
 def _choose(table: dict[EpisodeRule, CallScores]) -> EpisodeRule:
@@ -289,4 +327,29 @@ def calls_markdown(study: CallStudy) -> list[str]:
         lines.append(f"| {v:g} | " + " | ".join(cells) + " |")
     lines.append("")
     lines.append("(each cell: false calls per 5 min / commanded changes on time)")
+    if study.confidence is not None:
+        lines += _confidence_lines(study.confidence)
     return lines
+
+
+def _confidence_lines(c: ConfidenceCheck) -> list[str]:
+    at2 = [v[1] for v in c.held_out.values()]
+    at3 = [v[2] for v in c.held_out.values()]
+    same = abs(c.scale_all - CONFIDENCE_SCALE) < 0.05
+    return [
+        "",
+        "Confidence (`intent_confidence`, the step's change in standard deviations): on the steady walks, "
+        f"{100 * c.raw_at_2:.0f} % of steps reach the filter's own 2 SD (a normal variable: "
+        f"{100 * NORMAL_AT_2:.1f} %): its variance of the desired speed is too small. Divided by a scale fitted "
+        "on the other subjects (4.55 % of their steady steps at 2), held out per subject:",
+        "",
+        "| subject | scale (others) | steady steps at 2 or more | at 3 or more |",
+        "|---|---|---|---|",
+        *(f"| {k} | {s:.2f} | {100 * a:.1f} % | {100 * b:.2f} % |" for k, (s, a, b) in c.held_out.items()),
+        f"| mean | | {100 * float(np.mean(at2)):.1f} % (normal {100 * NORMAL_AT_2:.1f} %) "
+        f"| {100 * float(np.mean(at3)):.2f} % (normal {100 * NORMAL_AT_3:.2f} %) |",
+        "",
+        f"- Fitted on all subjects: {c.scale_all:.2f}; shipped (`CONFIDENCE_SCALE`): {CONFIDENCE_SCALE:g}"
+        + (" (the same to 0.05)." if same else " (**not the same**: the default is out of date).")
+        + " Beyond 2 the tails are heavier than a normal's: a confidence of 3 is reached more often than 0.27 %.",
+    ]

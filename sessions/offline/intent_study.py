@@ -41,7 +41,7 @@ from gaitscope.estimators.com_kinematics import LegGeometry, com_from_legs
 from gaitscope.estimators.intent import UNINJURED, BKFConfig, ButtressedKF, fit_kappa
 from gaitscope.estimators.intent_episodes import DEFAULT_RULE, EpisodeRule
 from gaitscope.estimators.intent_estimator import IntentEstimator
-from gaitscope.sessions.offline.intent_calls import CallStudy, calls_markdown, run_calls
+from gaitscope.sessions.offline.intent_calls import CallStudy, calls_markdown, check_confidence, run_calls
 from gaitscope.sessions.synth.cohort import CohortSpec
 from gaitscope.sessions.synth.intent_walks import IntentProtocol, IntentTrial, intent_trials, steady_trial
 
@@ -107,7 +107,8 @@ class StepLog:
             update, whether a touchdown came before it (the filter's first mid-stance is not logged).
         ms_true_speed: the true speed there (the same as ``ms_speed`` unless the filter read the centre of
             mass from leg kinematics); the changes the predictions are scored against.
-        ms_intent, ms_code: the live outputs there (``intent_m_s``, ``intent_code``).
+        ms_intent, ms_code, ms_confidence: the live outputs there (``intent_m_s``, ``intent_code``,
+            ``intent_confidence``).
         td_t, td_step, td_desired, td_speed: touchdown time, step length, desired speed after the update
             and the filter's speed there.
         td_current: the RMS hip-motor current of the swing before each touchdown (A; NaN: none sent).
@@ -122,6 +123,7 @@ class StepLog:
     ms_true_speed: np.ndarray
     ms_intent: np.ndarray
     ms_code: np.ndarray
+    ms_confidence: np.ndarray
     td_t: np.ndarray
     td_step: np.ndarray
     td_desired: np.ndarray
@@ -207,6 +209,7 @@ def log_steps(
         ms_t=ms[:, 0], ms_speed=ms[:, 1], ms_desired=ms[:, 2], ms_touched=ms[:, 3] > 0.5,
         ms_true_speed=np.array(true_speed, dtype=np.float64),
         ms_intent=o[:, names.index("intent_m_s")], ms_code=o[:, names.index("intent_code")],
+        ms_confidence=o[:, names.index("intent_confidence")],
         td_t=td[:, 0], td_step=td[:, 1], td_desired=td[:, 2], td_speed=td[:, 3], td_current=td[:, 4],
         com_error=np.array(errors).reshape(-1, 6),
     )  # fmt: skip
@@ -432,6 +435,12 @@ def run_study(
             walks.append(steady_trial(subject, 0, protocol, steady_minutes))
         configs = [_config(cohort_kappa[t.subject.code]) for t in walks]
         calls = run_calls(walks, configs, lambda t, c, r: run_filter(t, c, episodes=r), call_grid)
+        raw = {  # the filter's own z-scores of the steady walks' steps (confidence_scale 1; 0: held)
+            w.subject.code: run_filter(w, c, episodes=None, confidence_scale=1.0).ms_confidence
+            for w, c in zip(walks, configs, strict=True)
+            if w.name.startswith("ST")
+        }
+        calls = replace(calls, confidence=check_confidence({k: v[v > 0] for k, v in raw.items()}))
     return IntentStudy(
         protocol=protocol,
         n_subjects=len(subjects),

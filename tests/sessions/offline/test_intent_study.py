@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from gaitscope.server.cli import main
-from gaitscope.sessions.offline.intent_calls import CallScores, nested, rule
+from gaitscope.sessions.offline.intent_calls import CallScores, check_confidence, nested, rule
 from gaitscope.sessions.offline.intent_study import run_filter, run_study, step_data, to_markdown
 from gaitscope.sessions.synth.cohort import CohortSpec, make_subjects
 from gaitscope.sessions.synth.intent_walks import IntentProtocol, commanded_trial
@@ -65,8 +65,11 @@ def test_the_live_call_is_chosen_held_out_and_the_filter_calls_sooner_than_the_s
     assert all(r.speed_threshold_m_s == math.inf for r in bkf.rules.values())
     assert all(r.threshold_m_s == math.inf for r in speed.rules.values())
     assert either.scores.after_command <= 1.5 * either.scores.commanded  # about one call per change
+    confidence = study.calls.confidence
+    assert confidence is not None and set(confidence.held_out) == {"VC01", "VC02", "VC03"}
+    assert confidence.raw_at_2 > 0.1  # the filter's own z-score is not a standard deviation of steady steps
     md = to_markdown(study)
-    assert "Calling a change live" in md and "BKF desired speed or measured speed" in md
+    assert "Calling a change live" in md and "BKF desired speed or measured speed" in md and "Confidence" in md
 
 
 def _scores(false_calls: int, on_time: int) -> CallScores:
@@ -86,3 +89,16 @@ def test_each_subject_is_scored_with_the_rule_chosen_on_the_others() -> None:
     assert held.per_subject["C"] == _scores(0, 5)  # C held out: B and A's 4 per 10 minutes rule the loose one out
     assert held.scores.false_calls == 4 and held.scores.on_time == 9 + 9 + 5
     assert held.on_all == tight  # 4 false calls in 15 minutes: over the target
+
+
+def test_the_confidence_scale_is_fitted_on_the_others_and_scored_on_each() -> None:
+    rng = np.random.default_rng(3)
+    steady = {c: np.abs(3.0 * rng.standard_normal(4000)) for c in ("A", "B", "C")}  # z-scores 3x too large
+    check = check_confidence(steady)
+    assert check.scale_all == pytest.approx(3.0, rel=0.05)
+    assert check.raw_at_2 > 0.4  # a raw 2 SD is passed by half the steps
+    for scale, at_2, at_3 in check.held_out.values():
+        assert scale == pytest.approx(3.0, rel=0.08)
+        assert 0.03 < at_2 < 0.065 and at_3 < 0.01
+    steady["C"] = steady["C"] * 2.0  # a subject twice as noisy: its held-out share says so
+    assert check_confidence(steady).held_out["C"][1] > 0.2
