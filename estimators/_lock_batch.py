@@ -46,12 +46,13 @@ __all__ = ["LockBatch"]
 (
     _S_STILL_SINCE, _S_STILL_PHASE, _S_CHANGED_T, _S_LAST_HS, _S_OUT_SINCE, _S_ONSET, _S_HELD_PHASE, _S_WEIGHT,
     _S_TBE_PERIOD, _S_TBE_T, _S_TBE_LAST_HS, _S_TBE_PREV_T, _S_TBE_PHASE, _S_TBE_RATE, _S_PREV_T, _S_STANDING_S,
-) = range(16)  # fmt: skip
+    _S_HS1, _S_HS2,
+) = range(18)  # fmt: skip
 # integer state: flags (a None in the Python objects is a flag of 0) and counts
 (
     _N_STANDING, _N_ARMED, _N_HAS_STILL_SINCE, _N_HAS_LAST_HS, _N_HAS_OUT_SINCE, _N_HAS_ONSET, _N_HAS_WALKING,
-    _N_TBE_SEEN_HS, _N_TBE_HAS_T, _N_HAS_PREV_T, _N_LOST, _N_BACKUP_RESETS,
-) = range(12)  # fmt: skip
+    _N_TBE_SEEN_HS, _N_TBE_HAS_T, _N_HAS_PREV_T, _N_LOST, _N_BACKUP_RESETS, _N_HS_SEEN, _N_ADAPT_LEFT,
+) = range(14)  # fmt: skip
 _NONE, _STANDING, _RESUMED = 0, 1, 2  # LockSupervisor.motion's events
 # phase_ekf's fault codes (gaitscope.estimators.protocol.FAULTS) for the pipeline's faults (_batch.FAULTS)
 _CODE_OF_FAULT = (0.0, 1.0, 2.0, 0.0)
@@ -75,6 +76,12 @@ class _LockParams(NamedTuple):
     rate_hi: float
     out_of_range_s: float
     backdate_resume: bool
+    onset_dps: float
+    advance_at_onset: bool
+    cadence_change: float
+    adapt_strides: int
+    adapt_after_resume: int
+    rate_q: float  # PhaseEKFEstimator._rate_q
     leg_length: float  # the stack's
     torque_scale: float
     cutoff_phase: float
@@ -103,8 +110,8 @@ def _motion(lp: _LockParams, sfs: Array, sns: NDArray[np.int64], t: float, foot_
     event = _NONE
     if have:
         if sns[_N_STANDING]:
-            if fastest < lp.still_dps or not sns[_N_HAS_ONSET]:
-                if fastest < lp.still_dps:
+            if fastest < lp.onset_dps or not sns[_N_HAS_ONSET]:
+                if fastest < lp.onset_dps:
                     sns[_N_HAS_ONSET] = 0
                 else:
                     sfs[_S_ONSET], sns[_N_HAS_ONSET] = t, 1
@@ -112,6 +119,7 @@ def _motion(lp: _LockParams, sfs: Array, sns: NDArray[np.int64], t: float, foot_
                 sns[_N_STANDING], sfs[_S_CHANGED_T], event = 0, t, _RESUMED
                 sns[_N_HAS_STILL_SINCE] = 0
                 sfs[_S_LAST_HS], sns[_N_HAS_LAST_HS] = t, 1
+                sns[_N_HS_SEEN], sns[_N_ADAPT_LEFT] = 0, lp.adapt_after_resume
         elif fastest < lp.still_dps:
             if not sns[_N_HAS_STILL_SINCE]:
                 sfs[_S_STILL_SINCE], sfs[_S_STILL_PHASE], sns[_N_HAS_STILL_SINCE] = t, phase, 1
@@ -129,6 +137,34 @@ def _motion(lp: _LockParams, sfs: Array, sns: NDArray[np.int64], t: float, foot_
     if sns[_N_STANDING] and ramp >= 1.0:
         sfs[_S_HELD_PHASE] = lp.resume_phase
     return event
+
+
+@njit(cache=True)
+def _resume_state(lp: _LockParams, sfs: Array, sns: NDArray[np.int64], walking: Array, start: tuple, t: float,
+                  x0: Array) -> None:  # fmt: skip
+    """``PhaseEKFEstimator._resume_state`` into ``x0``."""
+    x0[:] = walking if sns[_N_HAS_WALKING] else start[0]
+    x0[0] = lp.resume_phase
+    if lp.backdate_resume and sns[_N_HAS_ONSET]:
+        since = t - sfs[_S_ONSET]
+        x0[0] += (lp.still_s if lp.still_s < since else since) * x0[1]  # min(since, still_s)
+
+
+@njit(cache=True)
+def _adapting(lp: _LockParams, sfs: Array, sns: NDArray[np.int64], t: float, heel_strike: bool) -> bool:
+    """``LockSupervisor.adapting``."""
+    if not lp.enabled or sns[_N_STANDING]:
+        return False
+    if heel_strike:
+        if sns[_N_ADAPT_LEFT] > 0:
+            sns[_N_ADAPT_LEFT] -= 1
+        if sns[_N_HS_SEEN] >= 2 and abs((t - sfs[_S_HS1]) / (sfs[_S_HS1] - sfs[_S_HS2]) - 1.0) > lp.cadence_change:
+            if sns[_N_ADAPT_LEFT] < lp.adapt_strides:  # max(adapt_left, adapt_strides)
+                sns[_N_ADAPT_LEFT] = lp.adapt_strides
+        sfs[_S_HS2], sfs[_S_HS1] = sfs[_S_HS1], t
+        if sns[_N_HS_SEEN] < 2:
+            sns[_N_HS_SEEN] += 1
+    return sns[_N_ADAPT_LEFT] > 0
 
 
 @njit(cache=True)
@@ -259,6 +295,9 @@ def _run(
         event = _motion(lp, sfs, sns, tk, foot_dps, shank_dps, ekf_x[0])
         if sns[_N_STANDING]:  # phase held, rate 0, the filters wait
             y[0], y[1] = sfs[_S_HELD_PHASE], 0.0
+            if lp.advance_at_onset and sns[_N_HAS_ONSET]:  # moving: as the restart would start
+                _resume_state(lp, sfs, sns, walking, start, tk, x0)
+                y[0], y[1] = x0[0] % 1.0, x0[1]
             y[2] = _finite(_kernels.stride_from_pseudo(ekf_x[2])[0] * prm.leg_length)
             y[3] = _finite(ekf_x[3])
             y[4] = y[5] = y[6] = 0.0
@@ -273,11 +312,7 @@ def _run(
             if given < 0 and foot != foot and shank_dps == shank_dps and lp.enabled:
                 given = 1 if shank_hs else 0  # no foot sensor to detect heel strikes from: the shank's
             if event == _RESUMED:  # GaitStatePipeline.restart at the cadence, stride and slope walked before
-                x0[:] = walking if sns[_N_HAS_WALKING] else start[0]
-                x0[0] = lp.resume_phase
-                if lp.backdate_resume and sns[_N_HAS_ONSET]:
-                    since = tk - sfs[_S_ONSET]
-                    x0[0] += (lp.still_s if lp.still_s < since else since) * x0[1]  # min(since, still_s)
+                _resume_state(lp, sfs, sns, walking, start, tk, x0)
                 _batch._restart(prm, fs, ns, start, ekf, bk, tbe_x)
                 ns[_batch._I_RESTARTS] += 1
                 ns[_batch._I_HAS_T] = 0
@@ -291,6 +326,8 @@ def _run(
             if _lost(lp, sfs, sns, tk, hs, ekf_x[1]) and fault == 0:
                 _batch._reset_diverged(prm, fs, ns, start, ekf, bk, tbe_x)  # reset_from_backup
                 code = _LOST_CODE
+            if _adapting(lp, sfs, sns, tk, hs):  # the cadence changes: the phase rate follows it faster
+                ekf_P[1, 1] += lp.rate_q * ((tk - sfs[_S_PREV_T]) if sns[_N_HAS_PREV_T] else 0.0)
             y[0], y[1] = ekf_x[0], ekf_x[1]
             if hs and lp.rate_lo <= y[1] <= lp.rate_hi:  # the state at the last heel strike walking
                 walking[:] = ekf_x
@@ -307,7 +344,13 @@ def _run(
         if not (y[6] == _DIVERGED_CODE or y[6] == _LOST_CODE):
             still = y[9] if 0.0 <= y[9] <= 1.0 else 0.0
             torque = _kernels.bounded_torque(
-                coef4, y[0], y[2] / lp.leg_length, y[3], lp.cutoff_phase, lp.torque_scale, lp.mass_times_gain,
+                coef4,
+                y[0],
+                y[2] / lp.leg_length,
+                y[3],
+                lp.cutoff_phase,
+                lp.torque_scale,
+                lp.mass_times_gain,
                 lp.max_torque,
             ) * (1.0 - still)
         if not np.isfinite(torque):
@@ -371,6 +414,12 @@ class LockBatch:
             rate_hi=float(c.phase_rate_range[1]),
             out_of_range_s=float(c.out_of_range_s),
             backdate_resume=bool(c.backdate_resume),
+            onset_dps=float(c.onset_dps),
+            advance_at_onset=bool(c.advance_at_onset),
+            cadence_change=float(c.cadence_change),
+            adapt_strides=int(c.adapt_strides),
+            adapt_after_resume=int(c.adapt_after_resume),
+            rate_q=float(ekf._rate_q),
             leg_length=float(leg_length),
             torque_scale=float(torque.scale),
             cutoff_phase=float(torque.cutoff_phase),
@@ -383,8 +432,8 @@ class LockBatch:
             tbe_max_gap_s=float(tbe.max_gap_s),
         )
         self._coef4 = np.ascontiguousarray(torque._workspace[0], dtype=np.float64)
-        self._sfs = np.zeros(16)
-        self._sns = np.zeros(12, dtype=np.int64)
+        self._sfs = np.zeros(18)
+        self._sns = np.zeros(14, dtype=np.int64)
         self._sfs[_S_CHANGED_T] = -math.inf
         self._sfs[_S_TBE_PERIOD], self._sfs[_S_TBE_T], self._sfs[_S_TBE_LAST_HS] = tbe.period, tbe.t, tbe._last_hs
         self._sfs[_S_TBE_PHASE], self._sfs[_S_TBE_RATE] = tbe.x[0], tbe.x[1]

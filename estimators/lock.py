@@ -12,11 +12,39 @@ per sample (all thresholds are :class:`LockConfig` parameters):
   exceeds ``move_dps``: the filters restart (as after a gap) at ``resume_phase`` (0.3: someone standing
   has both feet in stance, and walking starts from stance, whichever leg swings first; the first heel
   strike corrects it), advanced by the cadence times the time since the motion's onset (the last time
-  the rates rose above ``still_dps``, at most ``still_s`` back; ``backdate_resume``: walking began when the
+  the rates rose above ``onset_dps``, at most ``still_s`` back; ``backdate_resume``: walking began when the
   motion did, not when it became fast enough to be sure), with the cadence, stride length and incline of
   the last heel strike walked, and
   the torque ramps back in over ``ramp_s``; for ``heel_settle_s`` (2 s) the filter leaves out the heel
   positions, whose high-pass filter restarts and needs that long to settle.
+- **the start's first quarter stride** (``advance_at_onset``): a leg leaving its standing posture turns
+  slowly, and the truth advances by 0.1-0.2 cycle before any rate passes ``move_dps``; holding the phase
+  until then was most of the starts' error (-10 to -14 % phase 0.1-0.3 s into a bout on the tuning
+  cohort, below). So while standing, from the motion's onset on (any rate above ``onset_dps``) the phase
+  reported is the one the restart would begin from at that sample (the posture's phase advanced at the
+  last cadence since the onset), at that cadence; if the rates fall below ``onset_dps`` again (sway, a
+  shift of weight) it returns to the held phase, and the filters are untouched until walking is
+  confirmed. ``onset_dps`` (15 deg/s; it was ``still_dps``, 30) was chosen on a tuning cohort, never on
+  the subjects the robust study scores: 10 subjects from cohort seed 4242 walking real walks of seed
+  777 (``sessions/offline/robust_study.py``, ``TUNING``), the lowest of 20, 15 and 10 deg/s whose mean
+  phase rate standing stayed within 0.005/s of the supervisor without the advance (10 deg/s raised it
+  to 0.033-0.045/s: the standing noise crossed it). It is four times the cohort's standing noise on the
+  shank gyro (sd 4 deg/s) and thirty times its gyro bias (sd 0.5 deg/s).
+- **cadence changes** (``rate_noise_scale``): seed 000's phase rate follows a change of cadence over
+  several strides (its process noise is tuned for the treadmill), and a walker who stops slows by a fifth
+  or more within the last two strides; the phase then runs ahead (+8 to +12 % phase in the last slow
+  stride on the tuning cohort, the stops' error) and, at a start, lags the second stride's faster cadence
+  (-4 to -5 %). From the sample walking resumes for ``adapt_after_resume`` heel strikes, and for
+  ``adapt_strides`` heel strikes after a stride ``cadence_change`` (4 %) longer or shorter than the one
+  before it, the phase rate's process noise sd is ``rate_noise_scale`` (2) times the filter's (added to
+  ``P`` after each update). On strides of steady length nothing changes; the cohort's steady strides vary by
+  up to 5 % and detected heel strikes by a sample, so it also acts now and then in steady walking.
+  Chosen on the tuning cohort (above) among 2, 3 and 4 x, 4 and 6 %, one and two strides, and 0 or 2
+  strides after resuming: the lowest worst start or stop RMSE over the sensor subsets with steady walking
+  and turns no more than 0.1 % worse in any subset, and no subject's condition more than about a point
+  worse, for the EKF and its no-task ablation. 3 x gave better stops pooled but one tuning subject's
+  no-task stops 5 points worse (4 x: the EKF's too); the faster rate follows the turns' yaw leak and a
+  returning sensor's offset as well as the cadence.
 - **heel strikes from the shank** when the foot sensor is missing: the shank's angular velocity swings
   forward (above ``shank_swing_dps``) in mid-swing and crosses zero just before the heel strikes
   (Aminian et al. 2002 and Salarian et al. 2004 take the minimum after the mid-swing peak; the zero
@@ -52,6 +80,12 @@ class LockConfig:
     phase_rate_range: tuple[float, float] = (0.3, 2.5)
     out_of_range_s: float = 1.0
     backdate_resume: bool = True
+    onset_dps: float = 15.0
+    advance_at_onset: bool = True
+    rate_noise_scale: float = 2.0
+    cadence_change: float = 0.04
+    adapt_strides: int = 2
+    adapt_after_resume: int = 2
 
 
 class ShankHeelStrike:
@@ -95,8 +129,12 @@ class LockSupervisor:
         self._changed_t = -math.inf
         self._last_hs: float | None = None
         self._out_since: float | None = None
-        #: While standing: when the angular velocities last rose above ``still_dps`` (the motion's onset).
+        #: While standing: when the angular velocities last rose above ``onset_dps`` (the motion's onset).
         self.onset: float | None = None
+        self._hs1 = self._hs2 = 0.0  # the last two heel strikes walked (since walking resumed)
+        self._hs_seen = 0
+        #: Heel strikes left until the phase rate adapts at its usual speed again (``rate_noise_scale``).
+        self.adapt_left = 0
 
     def motion(self, t: float, foot_dps: float, shank_dps: float, phase: float) -> str:
         """Update the standing state from this sample's angular velocities (NaN: that sensor is missing)
@@ -110,12 +148,13 @@ class LockSupervisor:
         if rates:
             fastest = max(rates)
             if self.standing:
-                if fastest < c.still_dps or self.onset is None:
-                    self.onset = None if fastest < c.still_dps else t
+                if fastest < c.onset_dps or self.onset is None:
+                    self.onset = None if fastest < c.onset_dps else t
                 if fastest > c.move_dps:
                     self.standing, self._changed_t, event = False, t, "resumed"
                     self._still_since = None
                     self._last_hs = t  # a fresh start: no heel strike is overdue yet
+                    self._hs_seen, self.adapt_left = 0, c.adapt_after_resume
             elif fastest < c.still_dps:
                 if self._still_since is None:
                     self._still_since, self._still_phase = t, phase
@@ -129,6 +168,23 @@ class LockSupervisor:
         if self.standing and ramp >= 1.0:  # the torque is out: stand at the posture's phase
             self.held_phase = c.resume_phase
         return event
+
+    def adapting(self, t: float, heel_strike: bool) -> bool:
+        """While walking, after the filter's step: whether the phase rate adapts faster on this sample (the
+        cadence is changing: walking resumed ``adapt_after_resume`` heel strikes ago or less, or the stride
+        that ended at most ``adapt_strides`` heel strikes ago was ``cadence_change`` longer or shorter than the
+        one before it)."""
+        c = self.config
+        if not c.enabled or self.standing:
+            return False
+        if heel_strike:
+            if self.adapt_left > 0:
+                self.adapt_left -= 1
+            if self._hs_seen >= 2 and abs((t - self._hs1) / (self._hs1 - self._hs2) - 1.0) > c.cadence_change:
+                self.adapt_left = max(self.adapt_left, c.adapt_strides)
+            self._hs2, self._hs1 = self._hs1, t
+            self._hs_seen = min(self._hs_seen + 1, 2)
+        return self.adapt_left > 0
 
     def lost(self, t: float, heel_strike: bool, phase_rate: float) -> str:
         """While walking: why the filter lost track at this sample (``""``: it did not)."""

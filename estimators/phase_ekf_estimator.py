@@ -91,12 +91,16 @@ class PhaseEKFEstimator:
         #: why the filter last lost track (empty: never)
         self.lost_reason = ""
         self._walking: NDArray[np.float64] | None = None  # the EKF's state at the last sample walking
+        self._t: float | None = None  # the last sample's time
+        #: the phase rate's extra process variance per second while the cadence changes (``rate_noise_scale``)
+        self._rate_q = _rate_q(self.pipeline.config, self.supervisor.config)
 
     def reset(self) -> None:
         """A fresh pipeline with the current tuning."""
         self.pipeline = GaitStatePipeline(self._model, self.pipeline.config, self._sample_period)
         self.supervisor.reset()
         self._walking = None
+        self._t = None
 
     def retune(self, **params: float) -> None:
         """``measurement_noise_scale`` and ``process_noise_scale`` (x ``Sigma_R`` and x ``Q``)."""
@@ -105,6 +109,7 @@ class PhaseEKFEstimator:
             measurement_noise_scale=params.get("measurement_noise_scale"),
             process_noise_scale=params.get("process_noise_scale"),
         )
+        self._rate_q = _rate_q(self.pipeline.config, self.supervisor.config)
 
     @property
     def config(self) -> PipelineConfig:
@@ -121,23 +126,25 @@ class PhaseEKFEstimator:
     def step(self, t: float, z: NDArray[np.float64]) -> NDArray[np.float64]:
         """``z``: the six sensor channels (raw heel positions) then the heel strike (NaN: detect it)."""
         p, sup = self.pipeline, self.supervisor
+        dt = 0.0 if self._t is None else t - self._t
+        self._t = t
         foot, foot_dps, shank_dps, hs = float(z[_FOOT]), float(z[_FOOT_VEL]), float(z[_SHANK_VEL]), float(z[_HS])
         event = sup.motion(t, foot_dps, shank_dps, p.ekf.phase)
         if sup.standing:  # phase held, rate 0, the filters wait (they restart when walking resumes)
             ekf, pred = p.ekf, p.predicted
             l_m = ekf.stride_length_norm * p.config.leg_length
-            return np.array([sup.held_phase, 0.0, _finite(l_m), _finite(ekf.incline), 0.0, 0.0, 0.0,
+            held, held_rate = sup.held_phase, 0.0
+            if sup.config.advance_at_onset and sup.onset is not None:  # moving: as the restart would start
+                x0 = self._resume_state(t)
+                held, held_rate = float(x0[0]) % 1.0, float(x0[1])
+            return np.array([held, held_rate, _finite(l_m), _finite(ekf.incline), 0.0, 0.0, 0.0,
                              _finite(pred[0]), _finite(pred[2]), sup.standing_weight])  # fmt: skip
         shank_hs = sup.shank.step(shank_dps)
         given = None if math.isnan(hs) else bool(hs > 0.5)
         if given is None and math.isnan(foot) and not math.isnan(shank_dps) and sup.config.enabled:
             given = shank_hs  # no foot sensor to detect heel strikes from: the shank's
         if event == "resumed":  # start again at the cadence, stride and slope of the walking before
-            x0 = p.config.ekf.initial_state() if self._walking is None else self._walking.copy()
-            x0[0] = sup.config.resume_phase
-            if sup.config.backdate_resume and sup.onset is not None:  # walking began when the motion did
-                x0[0] += min(t - sup.onset, sup.config.still_s) * x0[1]
-            p.restart(x0, sup.config.heel_settle_s)
+            p.restart(self._resume_state(t), sup.config.heel_settle_s)
         e = p.step(t, z[_SENSORS], given, command=False)  # the stack commands the torque
         fault = _RESUMED if event == "resumed" else _FAULT_CODE[e.fault]
         why = sup.lost(t, e.heel_strike, e.phase_rate)
@@ -146,6 +153,8 @@ class PhaseEKFEstimator:
             p.reset_from_backup()
             self.lost_reason, fault = f"lost track at {t:.2f} s ({why})", _LOST
             phase, rate = p.ekf.phase, p.ekf.phase_rate
+        if sup.adapting(t, e.heel_strike):  # the cadence changes: the phase rate follows it faster
+            p.ekf.P[1, 1] += self._rate_q * dt
         lo, hi = sup.config.phase_rate_range
         if e.heel_strike and lo <= rate <= hi:  # the cadence, stride and slope at the last heel strike walking
             self._walking = p.ekf.x.copy()
@@ -164,6 +173,24 @@ class PhaseEKFEstimator:
                 sup.standing_weight,
             ]
         )
+
+    def _resume_state(self, t: float) -> NDArray[np.float64]:
+        """The EKF's state walking resumes from at ``t``: the posture's phase (``resume_phase``) at the cadence,
+        stride and slope of the last heel strike walked, advanced by that cadence since the motion's onset
+        (``backdate_resume``; at most ``still_s``)."""
+        sup = self.supervisor
+        x0 = self.pipeline.config.ekf.initial_state() if self._walking is None else self._walking.copy()
+        x0[0] = sup.config.resume_phase
+        if sup.config.backdate_resume and sup.onset is not None:  # walking began when the motion did
+            x0[0] += min(t - sup.onset, sup.config.still_s) * x0[1]
+        return x0
+
+
+def _rate_q(config: PipelineConfig, lock: LockConfig) -> float:
+    """The phase rate's extra process variance per second while the cadence changes: the filter's own
+    (``q_std[0]^2 / q_time_unit``, times its ``process_noise_scale``) times ``rate_noise_scale^2 - 1``."""
+    ekf, f = config.ekf, lock.rate_noise_scale
+    return (f * f - 1.0) * (ekf.q_std[0] * ekf.q_std[0] / ekf.q_time_unit) * ekf.process_noise_scale
 
 
 def _finite(v: float) -> float:

@@ -17,6 +17,7 @@ from gaitscope.sessions.synth.real_walks import RealWalkSpec, real_walk
 from gaitscope.sessions.synth.trials import sensor_trial
 
 MODEL, _ = load_model(default_model_path())
+SHANK = ("shank_angle_deg", "shank_vel_dps")
 
 
 def test_standing_is_detected_after_stillness_and_left_on_motion() -> None:
@@ -96,7 +97,13 @@ def test_the_phase_ekf_holds_standing_and_tracks_a_shank_only_walk() -> None:
     assert rmse(out[:, 0]) < 0.05 < rmse(bare[:, 0])  # shank heel strikes keep it on track
     codes = out[:, 6]
     standing = (out[:, 9] == 1.0) & (codes != 5.0)  # (the sample walking resumes still has the full weight)
-    assert standing.any() and (out[standing, 1] == 0.0).all()  # phase rate 0 while standing
+    # phase rate 0 while standing, but for the leg already moving before walking is confirmed (advance_at_onset:
+    # the last cadence, within still_s before a resumption)
+    t = walk["time_s"].to_numpy()
+    resumed = t[codes == 5.0]
+    moving = standing & (out[:, 1] != 0.0)
+    assert standing.any() and (out[standing, 1] >= 0.0).all() and moving.any()
+    assert all(((resumed > x) & (resumed - x <= LockConfig().still_s)).any() for x in t[moving])
     held = out[standing, 0]
     assert np.ptp(held[: np.argmax(np.diff(np.r_[held, -1.0]) != 0) + 1]) == 0.0  # the phase held
     assert (codes == 5.0).sum() == 2  # walking resumed twice (two bouts after standing)
@@ -110,3 +117,60 @@ def test_the_supervised_estimator_stays_finite_on_any_input(rows: list[list[floa
     for k, row in enumerate(rows):
         y = est.step(0.01 * (k + 1), np.array(row))
         assert np.isfinite(y[[1, 9]]).all() and 0.0 <= y[9] <= 1.0
+
+
+def test_adapting_follows_a_changed_stride_and_a_resumption_for_their_strides() -> None:
+    sup = LockSupervisor(LockConfig(cadence_change=0.04, adapt_strides=2, adapt_after_resume=2))
+    hs = [0.0, 1.0, 2.0, 3.03, 4.06]  # the fourth stride 3 % longer than the third: not a change
+    assert not any(sup.adapting(x, True) for x in hs)
+    assert sup.adapting(5.16, True)  # 7 % longer (1.10 s after 1.03 s)
+    assert sup.adapting(5.5, False) and sup.adapting(6.26, True)  # one stride left
+    assert not sup.adapting(7.36, True)  # two strides on at the new cadence: as before
+    for k in range(100):  # standing, then walking resumes: the next two heel strikes adapt
+        sup.motion(8.0 + 0.01 * k, 0.0, 0.0, 0.3)
+    assert sup.standing and not sup.adapting(9.0, False)
+    assert sup.motion(9.1, 100.0, 0.0, 0.3) == "resumed" and sup.adapting(9.1, False)
+    assert sup.adapting(9.8, True) and not sup.adapting(10.8, True)
+    assert not LockSupervisor(LockConfig(enabled=False)).adapting(0.0, True)
+
+
+def _tuning_walk() -> tuple:
+    """A subject of the tuning cohort the supervisor's thresholds were chosen on (never the robust study's)."""
+    subject = make_subjects(CohortSpec(n_subjects=1, seed=4242))[0]
+    cfg = PipelineConfig(leg_length=subject.leg_length_m, body_mass_kg=subject.mass_kg)
+    return real_walk(subject, RealWalkSpec(seed=777)), cfg
+
+
+def _phase_rmse(phase: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> float:
+    d = np.abs(phase[mask] - truth[mask]) % 1.0
+    return float(np.sqrt(np.mean(np.minimum(d, 1 - d) ** 2)))
+
+
+def test_the_phase_follows_the_leg_from_the_motions_onset_at_a_start() -> None:
+    walk, cfg = _tuning_walk()
+    foot_shank = ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps")
+    out = _run(PhaseEKFEstimator(MODEL, cfg), walk, foot_shank)
+    held = _run(
+        PhaseEKFEstimator(MODEL, cfg, lock=LockConfig(advance_at_onset=False, onset_dps=30.0)), walk, foot_shank
+    )
+    t, truth = walk["time_s"].to_numpy(), walk["gt_phase"].to_numpy()
+    walking = walk["condition"].to_numpy() != "standing"
+    first = np.zeros(len(t), dtype=bool)  # each bout's first half second
+    for a in np.flatnonzero(walking[1:] & ~walking[:-1]) + 1:
+        first |= walking & (t >= t[a]) & (t < t[a] + 0.5)
+    assert first.sum() >= 140  # three bouts
+    new, old = _phase_rmse(out[:, 0], truth, first), _phase_rmse(held[:, 0], truth, first)
+    assert new < 0.09 and new < 0.9 * old  # 7.9 % against 9.2 % held until walking is confirmed
+
+
+def test_the_phase_rate_follows_a_slowing_stride_at_a_stop() -> None:
+    walk, cfg = _tuning_walk()
+    cond, truth = walk["condition"].to_numpy(), walk["gt_phase"].to_numpy()
+    foot_shank, shank = ("foot_angle_deg", "foot_vel_dps", "shank_angle_deg", "shank_vel_dps"), SHANK
+    for keep, bound, ratio in ((foot_shank, 0.035, 0.85), (shank, 0.052, 0.9)):
+        out = _run(PhaseEKFEstimator(MODEL, cfg), walk, keep)
+        slow = _run(PhaseEKFEstimator(MODEL, cfg, lock=LockConfig(rate_noise_scale=1.0)), walk, keep)
+        new, old = _phase_rmse(out[:, 0], truth, cond == "stop"), _phase_rmse(slow[:, 0], truth, cond == "stop")
+        assert new < bound and new < ratio * old  # 3.2 % against 4.1 % (foot and shank), 4.8 against 5.7 (shank)
+        steady = cond == "steady"
+        assert abs(_phase_rmse(out[:, 0], truth, steady) - _phase_rmse(slow[:, 0], truth, steady)) < 0.003

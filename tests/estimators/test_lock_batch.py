@@ -137,6 +137,10 @@ def test_starts_stops_gaps_and_dropouts_are_the_stacks_bit_for_bit(walk: tuple[n
     [
         LockConfig(enabled=False),
         LockConfig(ramp_s=0.0, backdate_resume=False),
+        LockConfig(advance_at_onset=False, onset_dps=30.0),
+        LockConfig(ramp_s=0.0, onset_dps=5.0, backdate_resume=False),
+        LockConfig(rate_noise_scale=5.0, cadence_change=0.01, adapt_strides=3, adapt_after_resume=0),
+        LockConfig(rate_noise_scale=1.0, adapt_after_resume=9),
         LockConfig(still_s=0.2, move_dps=35.0, max_stride_s=0.8, out_of_range_s=0.1, phase_rate_range=(0.9, 1.1)),
     ],
 )

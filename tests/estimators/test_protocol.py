@@ -3,6 +3,7 @@ interface computes what it computed before (the pipeline's numbers, sample for s
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from typing import Any
 
@@ -12,6 +13,7 @@ import pytest
 
 from gaitscope.estimators.detector import HeelStrikeDetector
 from gaitscope.estimators.heel_strike import HeelStrikeBackup
+from gaitscope.estimators.lock import LockConfig
 from gaitscope.estimators.phase_ekf_estimator import PhaseEKFEstimator
 from gaitscope.estimators.pipeline import GaitStatePipeline, PipelineConfig, TrainedModel
 from gaitscope.estimators.protocol import HEEL_STRIKE, SENSOR_CHANNELS, Estimator, elapsed, input_names, output_names
@@ -108,22 +110,34 @@ def test_retune_takes_the_declared_parameters(small_model: TrainedModel) -> None
 
 
 def test_phase_ekf_estimator_is_the_pipeline_sample_for_sample(small_model: TrainedModel, walk) -> None:
+    """On walking without standing, the supervised estimator is the pipeline: throughout with its adaptation
+    to cadence changes off (``rate_noise_scale`` 1), and by default until the supervisor first adapts (this walk
+    changes speed, 1.2 to 1.0 m/s, after 10 strides; with the true heel strikes not before that)."""
     sensors, leg = walk
     config = PipelineConfig(leg_length=leg)
-    for given in (True, False):  # heel strikes given, then detected
-        est = PhaseEKFEstimator(small_model, config, 0.01)
+    rows = sensors.to_dict("records")
+    change = float(sensors.loc[sensors[HEEL_STRIKE] > 0, "time_s"].iloc[10])  # the first stride at 1.0 m/s
+    for given, lock in itertools.product((True, False), (LockConfig(rate_noise_scale=1.0), LockConfig())):
+        est = PhaseEKFEstimator(small_model, config, 0.01, lock)  # heel strikes given, then detected
         pipe = GaitStatePipeline(small_model, config, 0.01)
-        y = _run(est, sensors, heel_strikes=given)
         names = output_names(est)
-        for k, row in enumerate(sensors.to_dict("records")):
+        adapted, heel_strikes = None, 0.0
+        for row in rows:
+            y = est.step(float(row["time_s"]), _z(est, row if given else {**row, HEEL_STRIKE: np.nan}))
             raw = np.array([row[c] for c in SENSOR_CHANNELS])
             e = pipe.step(float(row["time_s"]), raw, bool(row[HEEL_STRIKE]) if given else None)
-            got = dict(zip(names, y[k], strict=True))
+            got = dict(zip(names, y, strict=True))
+            heel_strikes += got[HEEL_STRIKE]
+            if adapted is not None and lock.rate_noise_scale != 1.0:
+                continue
             assert got["phase"] == e.phase and got["incline_deg"] == e.incline_deg
             assert got["stride_length_m"] == e.stride_length_m and got["phase_rate"] == e.phase_rate
             assert got[HEEL_STRIKE] == e.heel_strike and got["backup_reset"] == e.backup_reset
             assert got["foot_pred_deg"] == pipe.predicted[0]
-        assert y[:, names.index(HEEL_STRIKE)].sum() >= 15
+            if est.supervisor.adapt_left > 0 and adapted is None:
+                adapted = float(row["time_s"])
+        assert heel_strikes >= 15
+        assert adapted is not None and (adapted > change or not given)  # the speed change is seen
 
 
 def test_detector_and_tbe_are_the_pipelines_own(small_model: TrainedModel, walk) -> None:
