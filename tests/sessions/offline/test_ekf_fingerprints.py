@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 from gaitscope.estimators.basis import Array
 from gaitscope.estimators.gait_model import N_OUTPUTS, evaluate, fit_outputs, gait_constraints
@@ -18,6 +19,7 @@ from gaitscope.sessions.offline.ekf_fingerprints import (
     CHECK_SECONDS,
     SUBJECT,
     CalibrationWalk,
+    EKFFingerprintStudy,
     GaitFingerprintMap,
     calibration_walk,
     fit_map,
@@ -166,8 +168,7 @@ def test_the_study_scores_every_model_and_its_average_row_is_crossvals_ekf(fold:
         assert f.strides == 9 * 4  # 3 speeds x 3 inclines x 4 strides, heel strike to heel strike
         assert set(f.rmse) == set(study.variants)
         assert all(np.isfinite(v) and v > 0 for r in f.rmse.values() for v in r)
-        assert f.calibration_fit[SUBJECT] < f.calibration_fit[AVERAGE]
-        assert f.cohort_fit[SUBJECT] < f.cohort_fit[AVERAGE]  # the oracle saw these strides
+        assert f.calibration_fit[SUBJECT] < f.calibration_fit[AVERAGE]  # on a walk the oracle never saw
     assert set(study.tests) == set(study.variants[1:])
     # the average model's filter is crossval's EKF: same trials, noise, configuration, scoring
     ref = evaluate_subject(fold.cohort, fold.data, fold.model, "VC02", SensorNoise(), 0)
@@ -178,6 +179,29 @@ def test_the_study_scores_every_model_and_its_average_row_is_crossvals_ekf(fold:
     md = to_markdown(study)
     assert "| personalized, 10 s calibration |" in md and "| subject alone (oracle) |" in md
     assert md.count("\n| VC0") == 4  # per-subject errors and fingerprints
+
+
+#: The headline check's cohort: all ten subjects (each fold's map from the other nine), three inclines and
+#: four strides per condition; five folds took 5 min on the shared 2-core development machine.
+HEADLINE_SPEC = CohortSpec(strides_per_condition=4, inclines_deg=(-5.0, 0.0, 5.0))
+
+
+@pytest.fixture(scope="module")
+def headline() -> EKFFingerprintStudy:
+    return run_study(HEADLINE_SPEC, workers=1, seconds=(10.0,), folds=range(5))
+
+
+@pytest.mark.slow
+def test_a_10_s_calibration_lowers_every_held_out_subjects_incline_error(headline: EKFFingerprintStudy) -> None:
+    """The study's headline on held-out filters (docs/results.md: incline RMSE lower for 9 of 10 subjects,
+    p = 0.012): personalized from 10 s of walking, the phase EKF's incline RMSE over every condition is
+    below the average model's for each of the five held-out subjects, a one-sided sign test of
+    0.5^5 = 0.031 (five subjects are too few for the t-test over subjects at 0.05; phase is not
+    significant in the full study and stride length only just, p = 0.048). The thinnest margin is VC01's
+    (2.628 against 2.638 deg); with the two models swapped the check fails on every subject."""
+    personal, average = headline.column(variant(10.0), 2), headline.column(AVERAGE, 2)
+    assert np.all(personal < average)
+    assert stats.binomtest(int(np.sum(personal < average)), len(personal), alternative="greater").pvalue < 0.05
 
 
 def test_folds_must_be_subjects_of_the_cohort() -> None:
