@@ -472,6 +472,26 @@ def cmd_api_client(a: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_device_check(a: argparse.Namespace) -> int:
+    from gaitscope.sessions.devices.check import run_checks
+
+    checks = run_checks(a.url, a.token, a.rate, a.max_torque)
+    for c in checks:
+        print(f"{'PASS' if c.passed else 'FAIL'}  {c.name}: {c.detail}")
+    failed = [c.name for c in checks if not c.passed]
+    tail = f"; failed: {', '.join(failed)}" if failed else ""
+    print(f"{len(checks) - len(failed)} of {len(checks)} checks passed{tail}")
+    return 1 if failed else 0
+
+
+def cmd_device_spec(a: argparse.Namespace) -> int:
+    from gaitscope.server.device_spec import write
+
+    changed = write(a.out)
+    print(f"wrote {', '.join(str(p) for p in changed)}" if changed else f"unchanged: {a.out}")
+    return 0
+
+
 def cmd_wire(a: argparse.Namespace) -> int:
     from gaitscope.server.wire import render, write
 
@@ -634,6 +654,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", type=Path, help="file to write (e.g. web/api_client.js); default: standard output")
     p.set_defaults(func=cmd_api_client)
+
+    p = sub.add_parser(
+        "device-check",
+        help="conformance run of the device protocol against URL (ws://host:port/ws/devices/ID) with TOKEN",
+    )
+    p.add_argument("url", help="the device socket, ws://host:port/ws/devices/SESSION_ID")
+    p.add_argument("token", help="a device token of that session")
+    p.add_argument("--rate", type=float, default=100.0, help="the session's declared rate (Hz)")
+    p.add_argument("--max-torque", type=float, default=80.0, help="the largest torque a reply may carry (N m)")
+    p.set_defaults(func=cmd_device_check)
+
+    p = sub.add_parser("device-spec", help="write the device protocol's AsyncAPI and JSON Schema files")
+    p.add_argument("--out", type=Path, default=Path("docs/device_protocol"))
+    p.set_defaults(func=cmd_device_spec)
 
     from gaitscope.server.users_cli import register as register_users
 
