@@ -251,6 +251,11 @@ class SessionSettings(_Strict):
         description="the session's estimator stack, chosen at start and fixed while it runs; "
         "null: every estimator the source's channels allow",
     )
+    lsl_outlet: bool = Field(
+        default=False,
+        description="publish the gait state as a Lab Streaming Layer outlet (type GaitState) while the session "
+        "runs, for the lab's recorder; fixed at start",
+    )
 
 
 class SettingsChange(_Strict):
@@ -398,7 +403,61 @@ class UploadSource(_Strict):
     )
 
 
-SourceSpec = Annotated[SimulatedSource | ReplaySource | DeviceSource | UploadSource, Field(discriminator="kind")]
+#: An LSL stream's name, type or source id as a source names it: no quotes (they go into an XPath predicate).
+_LSL_TEXT = r"^[^'\"\\]{1,200}$"
+
+
+class LslSource(_Strict):
+    """A Lab Streaming Layer stream (an IMU, EMG or motion capture outlet on the lab's network), resolved by
+    ``name`` and/or ``type`` (and ``source_id`` if given) when the session starts
+    (:mod:`gaitscope.sessions.live.lsl_source`).
+
+    ``mapping`` gives each stream channel used its SensorFrame channel: by index (``"0"``, ``"1"``, ...) or by
+    the label in the stream's XML description. Null: the mapping saved for the stream's rig (its name, type,
+    channel count and source id), which a session given one saves. Frame time is the sample's LSL time on this
+    machine's clock (``time_correction()`` added), from 0 at the first sample.
+    """
+
+    kind: Literal["lsl"] = "lsl"
+    name: str | None = Field(default=None, pattern=_LSL_TEXT, description="the stream's name (null: any)")
+    type: str | None = Field(default=None, pattern=_LSL_TEXT, description="the stream's type, e.g. IMU (null: any)")
+    source_id: str | None = Field(default=None, pattern=_LSL_TEXT, description="the stream's source id (null: any)")
+    mapping: dict[str, str] | None = Field(
+        default=None,
+        min_length=1,
+        max_length=256,
+        description="stream channel (index from 0, or label) -> SensorFrame channel; null: the one saved for the rig",
+    )
+    resolve_timeout_s: float = Field(default=2.0, ge=0.1, le=30.0, description="how long to look for the stream")
+    quiet_s: float = Field(
+        default=2.0, ge=0.1, le=60.0, description="no sample for this long: the stream is quiet (the session holds)"
+    )
+
+    @model_validator(mode="after")
+    def _named(self) -> LslSource:
+        if self.name is None and self.type is None:
+            raise ValueError("an LSL source needs the stream's name or type (or both)")
+        return self
+
+    @field_validator("mapping")
+    @classmethod
+    def _known_targets(cls, v: dict[str, str] | None) -> dict[str, str] | None:
+        if v is None:
+            return None
+        unknown = [c for c in v.values() if c not in CHANNELS]
+        if unknown:
+            raise ValueError(f"unknown channel {', '.join(unknown[:5])}; see GET /api/schema (SensorFrame)")
+        twice = sorted({c for c in v.values() if list(v.values()).count(c) > 1})
+        if twice:
+            raise ValueError(f"channel {', '.join(twice[:5])} mapped from more than one stream channel")
+        if any(not k or len(k) > 200 for k in v):
+            raise ValueError("a stream channel is an index or a label of 1 to 200 characters")
+        return v
+
+
+SourceSpec = Annotated[
+    SimulatedSource | ReplaySource | DeviceSource | LslSource | UploadSource, Field(discriminator="kind")
+]
 
 
 class SessionCreate(_Strict):
@@ -560,7 +619,7 @@ class ImportReport(BaseModel):
     warnings: list[str] = Field(default_factory=list, description="implausible values, named in the user's terms")
 
 
-MappingKind = Literal["mcap", "c3d"]
+MappingKind = Literal["mcap", "c3d", "lsl"]
 
 
 class ImportOptions(_Strict):

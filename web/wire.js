@@ -30,7 +30,7 @@
 /**
  * @typedef {object} SessionCreate
  * @property {number} subject_id (1..9223372036854775807)
- * @property {SimulatedSource | ReplaySource | DeviceSource | UploadSource} [source]
+ * @property {SimulatedSource | ReplaySource | DeviceSource | LslSource | UploadSource} [source]
  * @property {SessionSettings} [settings]
  * @property {boolean} [start=true]
  */
@@ -39,7 +39,7 @@
  * @typedef {object} Session
  * @property {number} id
  * @property {number} subject_id
- * @property {SimulatedSource | ReplaySource | DeviceSource | UploadSource} source
+ * @property {SimulatedSource | ReplaySource | DeviceSource | LslSource | UploadSource} source
  * @property {SessionSettings} settings
  * @property {"created" | "running" | "stopped" | "failed"} state
  * @property {string} created_utc
@@ -71,6 +71,7 @@
  * @property {string} [model="default"] name of a model in the model store
  * @property {string} [primary="phase_ekf"] the estimator of the stack whose phase drives the torque profile
  * @property {Array<string> | null} [estimators=null] the session's estimator stack, chosen at start and fixed while it runs; null: every estimator the source's channels allow
+ * @property {boolean} [lsl_outlet=false] publish the gait state as a Lab Streaming Layer outlet (type GaitState) while the session runs, for the lab's recorder; fixed at start
  */
 
 /**
@@ -1030,6 +1031,25 @@
  */
 
 /**
+ * A Lab Streaming Layer stream (an IMU, EMG or motion capture outlet on the lab's network), resolved by
+ * ``name`` and/or ``type`` (and ``source_id`` if given) when the session starts
+ * (:mod:`gaitscope.sessions.live.lsl_source`).
+ *
+ * ``mapping`` gives each stream channel used its SensorFrame channel: by index (``"0"``, ``"1"``, ...) or by
+ * the label in the stream's XML description. Null: the mapping saved for the stream's rig (its name, type,
+ * channel count and source id), which a session given one saves. Frame time is the sample's LSL time on this
+ * machine's clock (``time_correction()`` added), from 0 at the first sample.
+ * @typedef {object} LslSource
+ * @property {"lsl"} [kind="lsl"]
+ * @property {string | null} [name=null] the stream's name (null: any)
+ * @property {string | null} [type=null] the stream's type, e.g. IMU (null: any)
+ * @property {string | null} [source_id=null] the stream's source id (null: any)
+ * @property {Object<string, string> | null} [mapping=null] stream channel (index from 0, or label) -> SensorFrame channel; null: the one saved for the rig
+ * @property {number} [resolve_timeout_s=2.0] how long to look for the stream (0.1..30)
+ * @property {number} [quiet_s=2.0] no sample for this long: the stream is quiet (the session holds) (0.1..60)
+ */
+
+/**
  * @typedef {object} ProtocolStep
  * @property {number} speed_m_s (0.3..2)
  * @property {number} incline_deg (-15..15)
@@ -1277,6 +1297,7 @@ export const DEFAULT_SETTINGS = deepFreeze({
   model: "default",
   primary: "phase_ekf",
   estimators: null,
+  lsl_outlet: false,
 });
 
 /**
@@ -1713,6 +1734,13 @@ export const FIELD_LIMITS = deepFreeze({
     reason: { maxLength: 500 },
     pitch_offset_deg: { min: -180.0, max: 180.0 },
     gyro_bias_dps: { minItems: 3, maxItems: 3 },
+  },
+  LslSource: {
+    name: { pattern: "^[^'\\\"\\\\]{1,200}$" },
+    type: { pattern: "^[^'\\\"\\\\]{1,200}$" },
+    source_id: { pattern: "^[^'\\\"\\\\]{1,200}$" },
+    resolve_timeout_s: { min: 0.1, max: 30.0 },
+    quiet_s: { min: 0.1, max: 60.0 },
   },
   ProtocolStep: {
     speed_m_s: { min: 0.3, max: 2.0 },

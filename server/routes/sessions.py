@@ -39,7 +39,7 @@ async def create_session(body: schema.SessionCreate, c: Ctx, who: Runner) -> sch
     default_primary = schema.SessionSettings.model_fields["primary"].default
     if body.settings.primary != default_primary:  # choosing it is switching it: refused to an experimenter
         check_assistance(c, who, body.subject_id, {"primary": body.settings.primary})
-    if isinstance(body.source, schema.DeviceSource):  # a person wears it: the settings are assistance
+    if isinstance(body.source, schema.DeviceSource | schema.LslSource):  # a person wears it: settings are assistance
         check_assistance(c, who, body.subject_id, body.settings.model_dump(exclude={"primary"}))
     await audited(c, who, "session.create", f"subject {body.subject_id}", after=body.model_dump(mode="json"))
     if isinstance(body.source, schema.ReplaySource):
@@ -48,7 +48,7 @@ async def create_session(body: schema.SessionCreate, c: Ctx, who: Runner) -> sch
             why = "is still recording" if trial.status == "recording" else "has a damaged recording"
             raise SessionStateError(f"trial {trial.id} {why}; it cannot be replayed")
     session = await c.writer.run(functools.partial(c.store.create_session, body), "create session")
-    return c.manager.start(session.id) if body.start else session
+    return await c.manager.start_async(session.id, who.name) if body.start else session
 
 
 @router.get("/sessions/{session_id}", dependencies=[allow("read")])
@@ -60,7 +60,7 @@ def get_session(session_id: Id, c: Ctx) -> schema.Session:
 async def start_session(session_id: Id, c: Ctx, who: Runner) -> schema.Session:
     before = c.store.get_session(session_id)
     await audited(c, who, "session.start", f"session {session_id}", before=before.state, after="running")
-    return c.manager.start(session_id)
+    return await c.manager.start_async(session_id, who.name)
 
 
 @router.post("/sessions/{session_id}/stop")

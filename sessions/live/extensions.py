@@ -17,8 +17,9 @@ The extensions of the code base, in the runtime's order: :class:`~gaitscope.sess
 :class:`~gaitscope.sessions.live.notes.EstimatorNotes`, :class:`~gaitscope.sessions.live.intent_events.IntentEvents`,
 :class:`~gaitscope.sessions.live.imu_events.ImuEvents`,
 :class:`~gaitscope.sessions.live.calibration.ImuCalibrating`,
-:class:`~gaitscope.sessions.live.learning.GPLearningExtension` and
-:class:`~gaitscope.sessions.live.personalization.Personalization`. An extension reaches the session only
+:class:`~gaitscope.sessions.live.learning.GPLearningExtension`,
+:class:`~gaitscope.sessions.live.personalization.Personalization`, :class:`~gaitscope.sessions.live.lsl_source.LslWatch`
+and :class:`~gaitscope.sessions.live.lsl_outlet.GaitStateOutlet`. An extension reaches the session only
 through :class:`SessionHost` (the disk watch, which ends the session, through the runtime itself).
 """
 

@@ -5,12 +5,13 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import datetime as dt
+import json
 import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, Final, NoReturn
 
 from gaitscope.estimators.pipeline import TrainedModel
 from gaitscope.sessions import schema
@@ -18,10 +19,12 @@ from gaitscope.sessions.errors import DataFormatError, DiskFull, disk_full, is_d
 from gaitscope.sessions.formats.mcap_io import recover
 from gaitscope.sessions.formats.models import default_model_path, load_model
 from gaitscope.sessions.live.gp_learning import GPTrainer
+from gaitscope.sessions.live.lsl_source import LslDevice, LslRefused, open_stream
 from gaitscope.sessions.live.runtime import DiskState, SessionRuntime
 from gaitscope.sessions.live.sources import FrameSource, LiveDevice, ReplayDevice, SimulatedDevice
 from gaitscope.sessions.live.subscribers import attach_history
 from gaitscope.sessions.live.trials import count_states
+from gaitscope.sessions.mappings.saved import SavedMappings
 from gaitscope.sessions.store import Store
 from gaitscope.sessions.store_writer import StoreWriter
 
@@ -172,10 +175,46 @@ class SessionManager:
             return ReplayDevice(self.data_dir / trial.path, spec.speed, spec.loop)
         if isinstance(spec, schema.DeviceSource):
             return LiveDevice(spec.rate_hz, channels=spec.channels)
+        if isinstance(spec, schema.LslSource):  # blocks while it resolves: a coroutine calls start_async
+            return open_stream(spec, SavedMappings(self.store).get)
         raise SessionStateError(f"session {session.id} holds an uploaded log ({spec.filename}); it does not run")
 
-    def start(self, session_id: int) -> schema.Session:
+    async def start_async(self, session_id: int, actor: str) -> schema.Session:
+        """:meth:`start` for a coroutine: a source that takes time to open (an LSL stream, resolved on the network
+        for up to its timeout) is opened in a worker thread first. An LSL source given a mapping saves it for the
+        stream's rig once the session runs (``actor`` saved it).
+
+        Raises:
+            SessionStateError: as :meth:`start`, and an LSL stream that is not found or does not fit its mapping.
+        """
+        session = self.store.get_session(session_id)
+        spec = session.source
+        if not isinstance(spec, schema.LslSource) or session.state != "created":
+            return self.start(session_id)
+        mappings = SavedMappings(self.store)
+        try:
+            source = await asyncio.to_thread(open_stream, spec, mappings.get)
+        except LslRefused as e:
+            self._refuse(session_id, e)
+        started = self.start(session_id, source)
+        if spec.mapping is not None:  # the rig's next session maps itself
+            try:
+                await asyncio.to_thread(mappings.save, source.rig, "lsl", json.dumps(source.mapping), actor)
+            except Exception:
+                log.exception("session %d: the LSL mapping of rig %s was not saved", session_id, source.rig)
+        return started
+
+    def _refuse(self, session_id: int, e: Exception) -> NoReturn:
+        """Leave a session that cannot start ``failed``, with an event saying why, and raise that."""
+        with contextlib.suppress(Exception):
+            self.store.add_event(session_id, t=0.0, kind="system", text=f"session refused to start: {e}")
+        self.store.set_session_state(session_id, "failed")
+        raise SessionStateError(f"session {session_id} cannot start: {e}") from e
+
+    def start(self, session_id: int, source: FrameSource | None = None) -> schema.Session:
         """Start a created session; if it cannot start, it is left ``failed`` with an event saying why.
+
+        ``source``: its source, opened already (:meth:`start_async`); None: opened here.
 
         Raises:
             SessionStateError: not ``created``, or its estimator stack cannot run on its source (the
@@ -186,7 +225,11 @@ class SessionManager:
             raise SessionStateError(f"session {session_id} is {session.state}; only a created session can start")
         subject = self.store.get_subject(session.subject_id)
         model, _ = self.models.get(session.settings.model)
-        source = self._source(session)
+        if source is None:
+            try:
+                source = self._source(session)
+            except LslRefused as e:
+                self._refuse(session_id, e)
         try:
             runtime = SessionRuntime(
                 session,
@@ -204,10 +247,9 @@ class SessionManager:
                 clock=self.clock,
             )
         except ValueError as e:  # the estimator stack: unknown names, missing channels (MissingChannels)
-            with contextlib.suppress(Exception):
-                self.store.add_event(session_id, t=0.0, kind="system", text=f"session refused to start: {e}")
-            self.store.set_session_state(session_id, "failed")
-            raise SessionStateError(f"session {session_id} cannot start: {e}") from e
+            if isinstance(source, LslDevice):
+                source.close()
+            self._refuse(session_id, e)
         try:
             session = runtime.session = self.store.set_session_state(session_id, "running", self.node)
         except Exception as e:

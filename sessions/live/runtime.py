@@ -55,6 +55,8 @@ from gaitscope.sessions.live.health import health
 from gaitscope.sessions.live.imu_events import ImuEvents
 from gaitscope.sessions.live.intent_events import IntentEvents
 from gaitscope.sessions.live.learning import GPLearningExtension
+from gaitscope.sessions.live.lsl_outlet import GaitStateOutlet
+from gaitscope.sessions.live.lsl_source import LslWatch
 from gaitscope.sessions.live.notes import EstimatorNotes
 from gaitscope.sessions.live.personalization import Personalization
 from gaitscope.sessions.live.settings_change import ChangeNotSaved, SettingRejected, SettingsChanges
@@ -182,7 +184,8 @@ class SessionRuntime:
         #: the GP-EKF's online retraining, freeze and rollback (None: the stack runs no gp_ekf)
         self.gp_learning: GPLearning | None = None if self.learning is None else self.learning.learning
         extensions = (self.disk_watch, EstimatorNotes(self), IntentEvents.of(self), ImuEvents(self),
-                      self.imu_calibration, self.learning, self.personalization)  # fmt: skip
+                      self.imu_calibration, self.learning, self.personalization, LslWatch.of(self),
+                      GaitStateOutlet.of(self))  # fmt: skip
         self.extensions: list[SessionExtension] = [e for e in extensions if e is not None]
         self._on_sample = hooked(self.extensions, "on_sample")
         self._after_record = hooked(self.extensions, "after_record")

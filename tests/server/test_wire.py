@@ -53,7 +53,8 @@ def test_every_wire_class_and_every_class_it_refers_to_is_typed_field_by_field()
     for name, sch in schemas.items():
         assert [field for _, field in typedefs[name]] == list(sch["properties"]), name
         assert all(type_ and "*" not in type_.replace("Object<string, *>", "") for type_, _ in typedefs[name]), name
-    assert ("SimulatedSource | ReplaySource | DeviceSource | UploadSource", "source") in typedefs["SessionCreate"]
+    sources = "SimulatedSource | ReplaySource | DeviceSource | LslSource | UploadSource"
+    assert (sources, "source") in typedefs["SessionCreate"]
     assert ("number | null", "torque_gain") in typedefs["SettingsChange"]
     assert ("Array<GaitState>", "states") in typedefs["StreamBatch"]
     assert ("Object<string, string>", "refused") in typedefs["RerunChoices"]
