@@ -11,12 +11,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import json
 import math
 import threading
 import time
 import uuid
 from collections.abc import Iterator
+from types import SimpleNamespace
 
 import pylsl
 import pytest
@@ -26,10 +28,10 @@ from pydantic import ValidationError
 from gaitscope.sessions import schema
 from gaitscope.sessions.live import lsl_outlet
 from gaitscope.sessions.live.lsl_source import LslDevice, LslRefused, channel_map, open_stream, rig_of
+from tests.waiting import wait_until
 
 # Before liblsl's first use in this process: streams are looked for on this machine only (the tests' traffic
-# stays off the network, and a resolve never waits on it), and liblsl logs only errors that matter (not an
-# inlet re-connecting to a sender a test has stopped).
+# stays off the network), and liblsl logs errors only (not its start-up notes).
 pylsl.set_config_content("[multicast]\nResolveScope = machine\n\n[log]\nlevel = -2\n")
 
 RATE = 100.0
@@ -194,19 +196,43 @@ def test_a_quiet_stream_is_noticed_and_its_return_too(sender: Sender) -> None:
                 out.append(f)
                 if len(out) == 10:
                     sender.paused.set()
-                    await asyncio.sleep(1.0)
-                    assert device.quiet and "went quiet (no sample for 0.3 s)" in device.notices[0]
+                    while not device.quiet:
+                        await asyncio.sleep(0.02)
+                    assert "went quiet (no sample for 0.3 s)" in device.notices[0]
                     sender.paused.clear()
-                if len(out) > 10 and f.t - out[-2].t > 0.3:  # the first sample after the pause
+                if len(out) > 10 and f.t - out[-2].t > 0.25:  # the first sample after the pause
                     break
         return out
 
     frames = asyncio.run(asyncio.wait_for(run(), 10.0))
     assert not device.quiet and "resumed after" in device.notices[-1]
-    assert 0.9 < frames[-1].t - frames[-2].t < 3.0  # the times keep the pause
+    assert 0.3 <= frames[-1].t - frames[-2].t < 3.0  # the times keep the pause
+
+
+def test_a_push_that_fails_is_counted_and_never_raised() -> None:
+    class Broken:
+        def push_sample(self, values: list[float], stamp: float) -> None:
+            raise RuntimeError("liblsl said no")
+
+    host = SimpleNamespace(source=SimpleNamespace(rate_hz=100.0), session=SimpleNamespace(id=1))
+    outlet = lsl_outlet.GaitStateOutlet(host)
+    outlet.outlet, outlet._clock = Broken(), pylsl.local_clock
+    state = schema.GaitState(
+        seq=0, t=0.0, phase=0.5, phase_rate=1.0, stride_length_m=None, incline_deg=None, torque_Nm=1.0,
+        tbe_phase=None, heel_strike=False, backup_reset=False, foot_angle_deg=None, shank_angle_deg=None,
+        thigh_angle_deg=None, foot_pred_deg=None, shank_pred_deg=None, recv_ns=time.time_ns(),
+    )  # fmt: skip
+    for _ in range(3):
+        outlet.on_sample(state, [])
+    assert (outlet.pushed, outlet.failed) == (0, 3)
 
 
 # --- the real app ---------------------------------------------------------------------------------
+
+
+def _outlet_id(client: TestClient, sid: int) -> str:
+    """The source id of session ``sid``'s outlet: this test's own (another process's session ``sid`` is not)."""
+    return lsl_outlet.source_id_of(sid, client.app.state.ctx.settings.data_dir)  # type: ignore[attr-defined]
 
 
 def _subject(client: TestClient) -> int:
@@ -221,8 +247,9 @@ def test_a_session_runs_on_an_lsl_stream_and_publishes_its_gait_state(client: Te
     assert r.status_code == 201, r.text
     sid = r.json()["id"]
     assert r.json()["state"] == "running"
-    found = pylsl.resolve_bypred(f"type='{lsl_outlet.STREAM_TYPE}' and name='gaitscope session {sid}'", 1, 5.0)
+    found = pylsl.resolve_bypred(f"source_id='{_outlet_id(client, sid)}'", 1, 5.0)
     assert found, "the session's gait-state outlet was not found"
+    assert (found[0].name(), found[0].type()) == (f"gaitscope session {sid}", lsl_outlet.STREAM_TYPE)
     inlet = pylsl.StreamInlet(found[0])
     try:
         info = inlet.info(5.0)
@@ -286,3 +313,44 @@ def test_a_session_whose_stream_lacks_a_mapped_label_is_refused(client: TestClie
     source = _spec(sender.name, mapping={"thigh": "thigh_angle_deg"}).model_dump()
     r = client.post("/api/sessions", json={"subject_id": subject, "source": source})
     assert r.status_code == 409 and "'thigh' mapped to thigh_angle_deg is not a label" in r.json()["detail"]
+
+
+def _texts(client: TestClient, sid: int) -> list[str]:
+    return [e["text"] for e in client.get(f"/api/sessions/{sid}/events").json()]
+
+
+def test_a_quiet_stream_holds_its_session_with_events(client: TestClient, sender: Sender) -> None:
+    source = _spec(sender.name, quiet_s=0.3).model_dump()
+    r = client.post("/api/sessions", json={"subject_id": _subject(client), "source": source})
+    assert r.status_code == 201, r.text
+    sid = r.json()["id"]
+    sender.paused.set()
+    wait_until(lambda: any("went quiet" in t for t in _texts(client, sid)), 10.0, "the quiet event")
+    assert client.get(f"/api/sessions/{sid}").json()["state"] == "running"  # held, as a disconnected device
+    sender.paused.clear()
+    wait_until(lambda: any("resumed after" in t for t in _texts(client, sid)), 10.0, "the resumed event")
+    assert client.post(f"/api/sessions/{sid}/stop").status_code == 200
+
+
+def test_a_simulated_session_publishes_its_gait_state_at_each_frame_s_arrival(client: TestClient) -> None:
+    source = {"kind": "simulated", "protocol": [{"speed_m_s": 1.2, "incline_deg": 0.0, "strides": 50}]}
+    r = client.post(
+        "/api/sessions", json={"subject_id": _subject(client), "source": source, "settings": {"lsl_outlet": True}}
+    )
+    sid = r.json()["id"]
+    found = pylsl.resolve_bypred(f"source_id='{_outlet_id(client, sid)}'", 1, 5.0)
+    assert found and found[0].type() == "GaitState" and found[0].nominal_srate() == 200.0
+    inlet = pylsl.StreamInlet(found[0])
+    try:
+        inlet.open_stream(5.0)
+        stamps: list[float] = []
+        while len(stamps) < 40:
+            _, ts = inlet.pull_chunk(timeout=1.0, min_samples=1)
+            assert ts, "no gait state came"
+            stamps += ts
+            now = pylsl.local_clock()
+            assert all(now - 1.0 < s <= now for s in ts)  # when the frame arrived, on this machine's LSL clock
+    finally:
+        inlet.close_stream()
+    assert all(b > a for a, b in itertools.pairwise(stamps))
+    assert client.post(f"/api/sessions/{sid}/stop").status_code == 200
