@@ -7,8 +7,7 @@ and units in its description; a quantity not estimated is NaN, a flag 1 or 0). E
 LSL time of its sensor frame: the sample's own LSL time when the session reads an LSL stream (so it lines up
 with that stream in the recording), else the time the frame reached the server on this machine's LSL clock.
 Pushing costs a few microseconds on the sample path (2 us measured without an inlet, 7 us with one) and never
-raises into it: a failure is counted and logged
-once.
+raises into it: a failure is counted and logged once.
 """
 
 from __future__ import annotations
