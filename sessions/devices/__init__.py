@@ -4,4 +4,6 @@
 :mod:`~gaitscope.sessions.devices.client` (the websocket, pacing, reconnects). Neither imports the server, the
 estimators or numpy: ``pip install gaitscope`` and ``from gaitscope.sessions.devices.client import DeviceClient``
 is all a controller needs (``websockets`` is the only dependency they use).
+:mod:`~gaitscope.sessions.devices.osl` adapts an ``opensourceleg`` SDK leg to the client (it needs that SDK,
+and with it numpy).
 """
