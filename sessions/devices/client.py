@@ -24,9 +24,12 @@ Three threads, so that nothing on the network can hold the torque up:
 - the **receiver** reads replies: a ``TorqueCommand`` goes to the watchdog (an older ``seq`` than one taken is
   out of order and ignored), a ``DeviceNotice`` is counted and reported.
 
-A token the server refuses (HTTP 401 or 403 at the handshake, close code 1008 after) is reported and retried
-at the longest backoff: a revoked token does not turn into a flood of handshakes. The device's reboot needs
-nothing: the server resynchronises a clock that restarts. Imports only the standard library and ``websockets``.
+A ``read_frame`` that raises sends no frame (so the replies stop and the watchdog takes the torque off); an
+``apply_torque`` that raises is reported (``actuator``) and called again at the next tick with the watchdog's
+output: neither stops the client. A token the server refuses (HTTP 401 or 403 at the handshake, close code 1008
+after) is reported and retried at the longest backoff: a revoked token does not turn into a flood of handshakes.
+The device's reboot needs nothing: the server resynchronises a clock that restarts. Imports only the standard
+library and ``websockets``.
 """
 
 from __future__ import annotations
@@ -143,7 +146,10 @@ class DeviceClient:
         finally:
             stop.set()
             actuator.join(timeout=2.0)
-            self.apply_torque(0.0)
+            try:
+                self.apply_torque(0.0)
+            except Exception as e:
+                self._apply_failed(e)
 
     def _connect(self) -> ClientConnection | None:
         headers = {"Authorization": f"Bearer {self.token}"}
@@ -178,7 +184,12 @@ class DeviceClient:
                     return
                 self._link.seq += 1
                 seq = self._link.seq
-            frame = {k: v for k, v in self.read_frame().items() if v is not None}
+            try:
+                frame = {k: v for k, v in self.read_frame().items() if v is not None}
+            except Exception as e:  # the sensors failed: no frame, so no reply, so the watchdog takes the torque off
+                self._report("sensors", f"read_frame failed: {type(e).__name__}: {e}"[:300])
+                stop.wait(period)
+                continue
             message = {"type": "frame", "version": 2, "seq": seq, "t": self.clock(), "sent_ns": time.time_ns(), **frame}
             try:
                 ws.send(json.dumps(message))
@@ -234,7 +245,10 @@ class DeviceClient:
                 torque = self.watchdog.output(now)
                 tripped = was == "following" and self.watchdog.state == "tripped"
                 ws = self._link.ws
-            self.apply_torque(torque)
+            try:
+                self.apply_torque(torque)
+            except Exception as e:  # the device's own call failed: keep the watchdog running, say so, once per kind
+                self._apply_failed(e)
             self.applied.append((now, torque))
             if len(self.applied) > 10 * self.rate_hz:
                 del self.applied[: len(self.applied) // 2]
@@ -261,6 +275,11 @@ class DeviceClient:
             ws.socket.shutdown(socket.SHUT_RDWR)
         with contextlib.suppress(Exception):
             ws.socket.close()
+
+    def _apply_failed(self, e: Exception) -> None:
+        text = f"apply_torque failed: {type(e).__name__}: {e}"[:300]
+        if not self.reports or self.reports[-1].detail != text:
+            self._report("actuator", text)
 
     def _report(self, kind: str, detail: str = "") -> None:
         self.reports.append(Report(self.clock(), kind, detail))

@@ -22,7 +22,7 @@ import pytest
 
 from gaitscope.server.bench.launch import RunningServer, start_server
 from gaitscope.sessions.devices.client import DeviceClient, Report
-from tests.load import post
+from tests.device_tokens import device_session
 from tests.walks import walk_frames
 
 #: A real server over real sockets, fault after fault: tens of seconds.
@@ -111,16 +111,8 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningServer]:
         running.stop()
 
 
-def _session(base: str) -> tuple[int, str, str]:
-    subject = post(
-        f"{base}/api/subjects", {"code": f"DEV{time.monotonic_ns() % 10**6}", "leg_length_m": 0.9, "mass_kg": 70.0}
-    )
-    body = {"subject_id": subject["id"], "source": {"kind": "device", "rate_hz": RATE}}
-    session = post(f"{base}/api/sessions", body)
-    req = urllib.request.Request(f"{base}/api/sessions/{session['id']}/device-tokens", data=b"", method="POST")
-    with urllib.request.urlopen(req, timeout=10) as r:
-        token = json.loads(r.read())
-    return session["id"], token["token"], token["id"]
+def _session(base: str) -> tuple[int, str, int]:
+    return device_session(base, f"DEV{time.monotonic_ns() % 10**6}", RATE)
 
 
 class Device:
@@ -276,3 +268,28 @@ def test_a_client_that_makes_no_sense_is_refused() -> None:
     for url, rate in (("http://x/ws/devices/1", 100.0), ("ws://x/ws/devices/1", 0.0), ("ws://x/ws/devices/1", 5000.0)):
         with pytest.raises(ValueError):
             DeviceClient(url, "t", rate_hz=rate, read_frame=dict, apply_torque=lambda x: None)
+
+
+def test_a_failing_actuator_or_sensor_never_stops_the_client() -> None:
+    calls: list[float] = []
+
+    def apply(torque: float) -> None:
+        calls.append(torque)
+        raise OSError("motor driver timeout")
+
+    def read() -> dict[str, float]:
+        raise RuntimeError("encoder not found")
+
+    client = DeviceClient("ws://127.0.0.1:9/ws/devices/1", "t", rate_hz=RATE, read_frame=read, apply_torque=apply)
+    stop = threading.Event()
+    thread = threading.Thread(target=client.run, args=(stop,), daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 10
+    while len(calls) < 20 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    stop.set()
+    thread.join(timeout=10)
+    assert not thread.is_alive() and len(calls) >= 20  # the actuator went on calling, at the watchdog's zero
+    assert set(calls) == {0.0}
+    actuator = [r.detail for r in client.reports if r.kind == "actuator"]
+    assert actuator and actuator[0] == "apply_torque failed: OSError: motor driver timeout"

@@ -17,7 +17,6 @@ import subprocess
 import sys
 import threading
 import time
-import urllib.request
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import SimpleNamespace
@@ -32,7 +31,7 @@ from gaitscope.server.bench.launch import RunningServer, start_server
 from gaitscope.sessions.devices.client import DeviceClient
 from gaitscope.sessions.devices.osl import JointMap, OSLAdapter, OSLMapping
 from gaitscope.sessions.schema import CHANNELS, SensorFrame
-from tests.load import post
+from tests.device_tokens import device_session
 from tests.walks import walk_frames
 
 G0 = 9.80665
@@ -307,15 +306,8 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningServer]:
 
 
 def _session(base: str) -> tuple[int, str]:
-    subject = post(
-        f"{base}/api/subjects", {"code": f"OSL{time.monotonic_ns() % 10**6}", "leg_length_m": 0.9, "mass_kg": 70.0}
-    )
-    body = {"subject_id": subject["id"], "source": {"kind": "device", "rate_hz": RATE}}
-    session = post(f"{base}/api/sessions", body)
-    req = urllib.request.Request(f"{base}/api/sessions/{session['id']}/device-tokens", data=b"", method="POST")
-    with urllib.request.urlopen(req, timeout=10) as r:
-        token = json.loads(r.read())
-    return session["id"], token["token"]
+    sid, token, _ = device_session(base, f"OSL{time.monotonic_ns() % 10**6}", RATE)
+    return sid, token
 
 
 class Walk:
